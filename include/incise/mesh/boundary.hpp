@@ -1,0 +1,41 @@
+#pragma once
+// Boundary surface, surface closedness and connected components of a tetrahedral mesh.
+
+#include <span>
+#include <vector>
+
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+/// One boundary triangle, outward oriented, with the tetrahedron face it comes from.
+struct BoundaryFace {
+  Triangle vertices;
+  TetId tet = kInvalidId;
+  int local_face = -1;  ///< tet_local::kFaces index
+};
+
+/// Faces that no other tetrahedron shares, oriented outward.
+[[nodiscard]] std::vector<BoundaryFace> boundary_faces(const TetMesh& mesh);
+
+/// Closedness of a triangle surface, judged by its edges.
+struct SurfaceEdgeCheck {
+  std::size_t open_edges = 0;         ///< used by one triangle
+  std::size_t nonmanifold_edges = 0;  ///< used by three or more triangles
+  std::size_t misoriented_edges = 0;  ///< used twice in the same direction
+  std::size_t degenerate_triangles = 0;  ///< repeating a vertex id
+  /// Closed, two-manifold along edges and consistently oriented.
+  [[nodiscard]] bool watertight() const {
+    return open_edges == 0 && nonmanifold_edges == 0 && misoriented_edges == 0 &&
+           degenerate_triangles == 0;
+  }
+};
+
+[[nodiscard]] SurfaceEdgeCheck check_surface_edges(std::span<const Triangle> triangles);
+[[nodiscard]] SurfaceEdgeCheck check_boundary(const TetMesh& mesh);
+
+/// Tetrahedra connected through shared faces. Returns one component id per tet (0-based,
+/// numbered in order of first appearance) and sets `count`.
+[[nodiscard]] std::vector<int> tet_components(const TetMesh& mesh, int* count = nullptr);
+
+}  // namespace incise

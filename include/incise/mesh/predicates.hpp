@@ -1,0 +1,31 @@
+#pragma once
+// Exact geometric predicates. Signs come from CGAL's filtered exact kernel (interval
+// arithmetic with an exact fallback), so cutting decisions never depend on round-off.
+// Inputs must be finite.
+
+#include "incise/core/types.hpp"
+
+namespace incise {
+
+enum class Sign : int { kNegative = -1, kZero = 0, kPositive = 1 };
+
+/// Exact sign of det[b - a, c - a, d - a]: positive when (a, b, c, d) is a positively
+/// oriented tetrahedron, zero when the four points are coplanar.
+[[nodiscard]] Sign orient3d(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+
+/// Exact test: does the closed segment [p, q] meet the closed triangle (a, b, c)?
+[[nodiscard]] bool segment_intersects_triangle(const Vec3& p, const Vec3& q, const Vec3& a,
+                                               const Vec3& b, const Vec3& c);
+
+/// Exact test: do two closed triangles meet?
+[[nodiscard]] bool triangles_intersect(const Vec3& a0, const Vec3& b0, const Vec3& c0,
+                                       const Vec3& a1, const Vec3& b1, const Vec3& c1);
+
+/// Where a point lies with respect to a positively oriented tetrahedron.
+enum class TetLocation { kOutside, kBoundary, kInside };
+
+/// Exact location of p in the closed tetrahedron (a, b, c, d), which must be positive.
+[[nodiscard]] TetLocation locate_in_tet(const Vec3& p, const Vec3& a, const Vec3& b,
+                                        const Vec3& c, const Vec3& d);
+
+}  // namespace incise

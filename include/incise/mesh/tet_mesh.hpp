@@ -1,0 +1,209 @@
+#pragma once
+// TetMesh: the one mesh that changes. Rest positions (m), positively oriented tetrahedra,
+// and adjacency (tet-tet across faces, vertex -> tets, unique edges, edge -> tets) that stays
+// correct under every edit. Everything else (physics state, rest data, cut state) lives in
+// attribute containers that observe the mesh and follow each edit; see attributes.hpp.
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <unordered_map>
+#include <vector>
+
+#include "incise/core/types.hpp"
+
+namespace incise {
+
+/// Local numbering inside one tetrahedron (v0, v1, v2, v3).
+namespace tet_local {
+/// Face i is opposite vertex i; listed counter-clockwise seen from outside a positive tet.
+inline constexpr std::array<std::array<int, 3>, 4> kFaces = {
+    {{{1, 2, 3}}, {{0, 3, 2}}, {{0, 1, 3}}, {{0, 2, 1}}}};
+/// Edge k joins kEdges[k][0] and kEdges[k][1]; bit k of a cut-edge code refers to edge k.
+inline constexpr std::array<std::array<int, 2>, 6> kEdges = {
+    {{{0, 1}}, {{0, 2}}, {{0, 3}}, {{1, 2}}, {{1, 3}}, {{2, 3}}}};
+}  // namespace tet_local
+
+/// Neighbour value for a face that no other tetrahedron shares.
+inline constexpr TetId kBoundaryFace = -1;
+/// Neighbour value for a face shared by three or more tetrahedra (an invalid mesh).
+inline constexpr TetId kNonManifoldFace = -2;
+
+/// How a vertex came to be; attribute containers use it to fill in new values.
+struct VertexOrigin {
+  enum class Kind : std::uint8_t {
+    kFresh,        ///< given a position directly (loaded, generated, add_vertex(position))
+    kCombination,  ///< weighted combination of parent vertices (a point on an edge or face)
+    kDuplicate,    ///< copy of one vertex, used to open a cut (parents[0] is the original)
+  };
+  Kind kind = Kind::kFresh;
+  std::uint8_t parent_count = 0;
+  std::array<VertexId, 4> parents{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
+  std::array<double, 4> weights{0.0, 0.0, 0.0, 0.0};
+};
+
+/// A new edge and, where it lies on an edge that existed before the edit (a piece of a split
+/// edge, or the copy of an edge at a duplicated vertex), that parent and the length fraction
+/// |new edge| / |parent edge| in rest coordinates.
+struct EdgeOrigin {
+  EdgeId edge = kInvalidId;
+  EdgeId parent = kInvalidId;
+  double fraction = 0.0;
+};
+
+class TetMesh;
+
+/// Told of every edit of a TetMesh. Attribute containers implement this; so can caches.
+/// Events arrive in the order the edit happens; ids in an event are valid at that moment.
+class MeshObserver {
+ public:
+  MeshObserver() = default;
+  MeshObserver(const MeshObserver&) = default;
+  MeshObserver& operator=(const MeshObserver&) = default;
+  virtual ~MeshObserver() = default;
+
+  virtual void on_vertex_added(const TetMesh& /*mesh*/, VertexId /*vertex*/,
+                               const VertexOrigin& /*origin*/) {}
+  /// A tetrahedron appended with no parent.
+  virtual void on_tet_added(const TetMesh& /*mesh*/, TetId /*tet*/) {}
+  /// `parent` was replaced by `children`; children[0] == parent (the slot is reused), the
+  /// others were appended. Observers still hold the parent's old value at `parent`.
+  virtual void on_tet_replaced(const TetMesh& /*mesh*/, TetId /*parent*/,
+                               std::span<const TetId> /*children*/) {}
+  /// `removed` is gone; the tetrahedron that was last (`moved_from`) now lives at `removed`.
+  /// When removed == moved_from the last one was removed.
+  virtual void on_tet_removed(const TetMesh& /*mesh*/, TetId /*removed*/, TetId /*moved_from*/) {
+  }
+  /// Edges appended by one edit, in id order. Edges that the same edit makes unused are still
+  /// present (with no tetrahedra) until their on_edge_removed event follows.
+  virtual void on_edges_created(const TetMesh& /*mesh*/, std::span<const EdgeOrigin> /*edges*/) {
+  }
+  /// Same swap-with-last convention as on_tet_removed.
+  virtual void on_edge_removed(const TetMesh& /*mesh*/, EdgeId /*removed*/,
+                               EdgeId /*moved_from*/) {}
+  /// The observed mesh was moved to a new address (or destroyed: nullptr).
+  virtual void on_mesh_relocated(TetMesh* /*mesh*/) {}
+};
+
+/// A tetrahedral mesh with incrementally maintained adjacency.
+class TetMesh {
+ public:
+  TetMesh() = default;
+  /// Builds the mesh and its adjacency in bulk. Throws InputError for vertex ids out of range
+  /// or a tetrahedron that repeats a vertex. Orientation is not checked here (see validate()).
+  TetMesh(std::vector<Vec3> rest_positions, std::vector<Tet> tets);
+
+  /// Copies geometry and adjacency, not observers.
+  TetMesh(const TetMesh& other);
+  TetMesh& operator=(const TetMesh& other);
+  /// Moves everything, observers included (they are told the new address).
+  TetMesh(TetMesh&& other) noexcept;
+  TetMesh& operator=(TetMesh&& other) noexcept;
+  ~TetMesh();
+
+  // ---- sizes and geometry ----------------------------------------------------------------
+  [[nodiscard]] std::size_t vertex_count() const { return rest_positions_.size(); }
+  [[nodiscard]] std::size_t tet_count() const { return tets_.size(); }
+  [[nodiscard]] std::size_t edge_count() const { return edges_.size(); }
+
+  [[nodiscard]] const Vec3& rest_position(VertexId vertex) const { return rest_positions_[vertex]; }
+  [[nodiscard]] std::span<const Vec3> rest_positions() const { return rest_positions_; }
+  [[nodiscard]] const Tet& tet(TetId tet) const { return tets_[tet]; }
+  [[nodiscard]] std::span<const Tet> tets() const { return tets_; }
+  [[nodiscard]] const VertexOrigin& vertex_origin(VertexId vertex) const {
+    return vertex_origins_[vertex];
+  }
+
+  // ---- adjacency --------------------------------------------------------------------------
+  /// Neighbour across face i (opposite vertex i): a tet id, kBoundaryFace or kNonManifoldFace.
+  [[nodiscard]] const std::array<TetId, 4>& tet_neighbors(TetId tet) const {
+    return tet_neighbors_[tet];
+  }
+  /// Tetrahedra using a vertex, in no particular order.
+  [[nodiscard]] std::span<const TetId> vertex_tets(VertexId vertex) const {
+    return vertex_tets_[vertex];
+  }
+  /// The two vertices of an edge, smaller id first.
+  [[nodiscard]] const std::array<VertexId, 2>& edge(EdgeId edge) const { return edges_[edge]; }
+  /// Tetrahedra around an edge, in no particular order.
+  [[nodiscard]] std::span<const TetId> edge_tets(EdgeId edge) const { return edge_tets_[edge]; }
+  /// Edge ids of a tetrahedron, in tet_local::kEdges order.
+  [[nodiscard]] const std::array<EdgeId, 6>& tet_edges(TetId tet) const { return tet_edges_[tet]; }
+  /// The edge joining two vertices, or kInvalidId.
+  [[nodiscard]] EdgeId find_edge(VertexId a, VertexId b) const;
+  /// Local index (0-3) of a vertex in a tetrahedron, or -1.
+  [[nodiscard]] int local_index(TetId tet, VertexId vertex) const;
+
+  /// Incremented by every edit; caches compare it instead of keeping dirty flags.
+  [[nodiscard]] std::uint64_t revision() const { return revision_; }
+
+  // ---- edits --------------------------------------------------------------------------------
+  /// Appends a vertex at a rest position (m).
+  VertexId add_vertex(const Vec3& rest_position);
+  /// Appends a vertex at sum(weights[i] * rest_position(parents[i])); 1 to 4 parents,
+  /// weights non-negative and summing to 1 (within 1e-9), else throws InputError.
+  VertexId add_vertex(std::span<const VertexId> parents, std::span<const double> weights);
+  /// Appends a copy of `original` and makes each tetrahedron in `tets_to_move` use the copy
+  /// instead; faces between moved and unmoved tetrahedra become boundary. Throws InputError if
+  /// a listed tetrahedron does not use `original`.
+  VertexId duplicate_vertex(VertexId original, std::span<const TetId> tets_to_move);
+  /// Appends a tetrahedron with no parent.
+  TetId add_tet(const Tet& tet);
+  /// Replaces `parent` by `children` (at least one): the first child takes the parent's id,
+  /// the others are appended. Returns the children's ids.
+  std::vector<TetId> replace_tet(TetId parent, std::span<const Tet> children);
+  /// Removes a tetrahedron; the last one takes its id (observers are told).
+  void remove_tet(TetId tet);
+  /// Moves a vertex's rest position (m), e.g. snapping; adjacency is unchanged.
+  void set_rest_position(VertexId vertex, const Vec3& rest_position);
+
+  // ---- observers ------------------------------------------------------------------------
+  void add_observer(MeshObserver* observer);
+  void remove_observer(MeshObserver* observer);
+  void replace_observer(MeshObserver* old_observer, MeshObserver* new_observer);
+
+  // ---- self-check -------------------------------------------------------------------------
+  /// Rebuilds adjacency from scratch (the bulk algorithm) and compares it with the
+  /// incrementally maintained one as sets. Returns an empty string when they agree, else a
+  /// description of the first difference. For tests and debug assertions.
+  [[nodiscard]] std::string compare_with_rebuilt_adjacency() const;
+
+ private:
+  void check_tet_ids(const Tet& tet) const;
+  void attach(TetId tet);
+  void detach(TetId tet);
+  void update_face(VertexId a, VertexId b, VertexId c);
+  EdgeId find_or_create_edge(VertexId a, VertexId b);
+  EdgeOrigin edge_parent(EdgeId edge) const;
+  void append_vertex(const Vec3& rest_position, const VertexOrigin& origin);
+  /// Emits edge events and drops unused edges at the end of an edit.
+  void finish_edit();
+  void notify_relocated();
+  void build_adjacency();
+
+  std::vector<Vec3> rest_positions_;
+  std::vector<VertexOrigin> vertex_origins_;
+  std::vector<Tet> tets_;
+  std::vector<std::array<TetId, 4>> tet_neighbors_;
+  std::vector<std::array<EdgeId, 6>> tet_edges_;
+  std::vector<std::vector<TetId>> vertex_tets_;
+  std::vector<std::array<VertexId, 2>> edges_;
+  std::vector<std::vector<TetId>> edge_tets_;
+  std::unordered_map<std::uint64_t, EdgeId> edge_index_;
+  std::uint64_t revision_ = 0;
+
+  // Per-edit bookkeeping: edges appended and edges left without tetrahedra.
+  std::vector<EdgeId> edit_created_edges_;
+  std::vector<EdgeId> edit_unused_edges_;
+
+  std::vector<MeshObserver*> observers_;
+};
+
+/// Signed volume (m^3) of four points: det[b - a, c - a, d - a] / 6; positive for a
+/// positively oriented tetrahedron. Floating point: use predicates.hpp for exact signs.
+[[nodiscard]] double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+[[nodiscard]] double signed_volume(const TetMesh& mesh, TetId tet);
+/// Sum of signed tetrahedron volumes (m^3).
+[[nodiscard]] double total_volume(const TetMesh& mesh);
+
+}  // namespace incise

@@ -1,0 +1,41 @@
+#pragma once
+// Mesh validation: every problem is reported with the ids of the elements involved.
+
+#include <array>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+struct ValidationOptions {
+  /// A tetrahedron whose normalised volume (volume over that of the regular tetrahedron with
+  /// the same root-mean-square edge length, 1 when regular) is below this is degenerate.
+  double degenerate_tolerance = 1e-6;
+};
+
+struct ValidationReport {
+  std::vector<VertexId> nonfinite_vertices;  ///< NaN or Inf coordinates
+  std::vector<TetId> inverted_tets;          ///< exactly negative orientation
+  std::vector<TetId> degenerate_tets;        ///< zero or tiny normalised volume
+  std::vector<std::array<VertexId, 3>> nonmanifold_faces;  ///< shared by 3+ tetrahedra
+  /// Interior faces whose two tetrahedra lie on the same side (they overlap).
+  std::vector<std::pair<TetId, TetId>> overlapping_tets;
+  std::vector<std::pair<TetId, TetId>> duplicate_tets;  ///< same vertex set
+  std::vector<VertexId> unreferenced_vertices;
+
+  /// True when nothing is wrong. Unreferenced vertices are reported but tolerated.
+  [[nodiscard]] bool ok() const;
+  [[nodiscard]] std::size_t problem_count() const;
+  /// Human-readable list of problems, at most `max_listed` ids per kind.
+  [[nodiscard]] std::string describe(std::size_t max_listed = 10) const;
+};
+
+[[nodiscard]] ValidationReport validate(const TetMesh& mesh, const ValidationOptions& options = {});
+
+/// Normalised volume of a tetrahedron: 1 for the regular one, 0 when flat, negative inverted.
+[[nodiscard]] double normalized_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+
+}  // namespace incise

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Installs every Debian package incise needs to build, test and benchmark.
+# Idempotent: packages already present are skipped; `apt-get update` runs once, and only
+# when something is missing. Run as root (or with sudo available) on Debian 12.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config clang-format
+  # core numerics and parallel loops
+  libeigen3-dev libtbb-dev
+  # robust geometry (CGAL is header-only in 5.x; GMP/MPFR back its exact kernel)
+  libcgal-dev libgmp-dev libmpfr-dev libboost-dev
+  # tetrahedral meshing (TetGen's library)
+  libtet1.5-dev
+  # I/O: XML for .vtu, zlib for compressed VTK data
+  libpugixml-dev zlib1g-dev
+  # application plumbing
+  nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+missing=()
+for package in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$package")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+sudo_cmd=()
+if [ "$(id -u)" -ne 0 ]; then
+  sudo_cmd=(sudo)
+fi
+echo "install-deps: installing ${missing[*]}"
+"${sudo_cmd[@]}" apt-get update -qq
+DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"

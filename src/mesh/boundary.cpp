@@ -1,0 +1,99 @@
+#include "incise/mesh/boundary.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <unordered_map>
+
+namespace incise {
+
+std::vector<BoundaryFace> boundary_faces(const TetMesh& mesh) {
+  std::vector<BoundaryFace> faces;
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto id = static_cast<TetId>(t);
+    const Tet& tet = mesh.tet(id);
+    const auto& neighbors = mesh.tet_neighbors(id);
+    for (int f = 0; f < 4; ++f) {
+      if (neighbors[f] == kBoundaryFace) {
+        const auto& face = tet_local::kFaces[f];
+        faces.push_back({{tet[face[0]], tet[face[1]], tet[face[2]]}, id, f});
+      }
+    }
+  }
+  return faces;
+}
+
+SurfaceEdgeCheck check_surface_edges(std::span<const Triangle> triangles) {
+  // Per undirected edge: number of uses in each direction (low->high, high->low).
+  struct Uses {
+    int forward = 0;
+    int backward = 0;
+  };
+  std::unordered_map<std::uint64_t, Uses> edges;
+  edges.reserve(triangles.size() * 2);
+  SurfaceEdgeCheck check;
+  for (const Triangle& triangle : triangles) {
+    if (triangle[0] == triangle[1] || triangle[1] == triangle[2] || triangle[0] == triangle[2]) {
+      ++check.degenerate_triangles;
+      continue;
+    }
+    for (int i = 0; i < 3; ++i) {
+      const VertexId a = triangle[i];
+      const VertexId b = triangle[(i + 1) % 3];
+      const auto low = static_cast<std::uint32_t>(std::min(a, b));
+      const auto high = static_cast<std::uint32_t>(std::max(a, b));
+      Uses& uses = edges[(static_cast<std::uint64_t>(low) << 32U) | high];
+      (a < b ? uses.forward : uses.backward) += 1;
+    }
+  }
+  for (const auto& [key, uses] : edges) {
+    const int total = uses.forward + uses.backward;
+    if (total == 1) {
+      ++check.open_edges;
+    } else if (total > 2) {
+      ++check.nonmanifold_edges;
+    } else if (uses.forward != 1) {
+      ++check.misoriented_edges;
+    }
+  }
+  return check;
+}
+
+SurfaceEdgeCheck check_boundary(const TetMesh& mesh) {
+  const auto faces = boundary_faces(mesh);
+  std::vector<Triangle> triangles;
+  triangles.reserve(faces.size());
+  for (const BoundaryFace& face : faces) {
+    triangles.push_back(face.vertices);
+  }
+  return check_surface_edges(triangles);
+}
+
+std::vector<int> tet_components(const TetMesh& mesh, int* count) {
+  std::vector<int> component(mesh.tet_count(), -1);
+  int next = 0;
+  std::vector<TetId> stack;
+  for (std::size_t seed = 0; seed < mesh.tet_count(); ++seed) {
+    if (component[seed] >= 0) {
+      continue;
+    }
+    component[seed] = next;
+    stack.push_back(static_cast<TetId>(seed));
+    while (!stack.empty()) {
+      const TetId t = stack.back();
+      stack.pop_back();
+      for (TetId neighbor : mesh.tet_neighbors(t)) {
+        if (neighbor >= 0 && component[neighbor] < 0) {
+          component[neighbor] = next;
+          stack.push_back(neighbor);
+        }
+      }
+    }
+    ++next;
+  }
+  if (count != nullptr) {
+    *count = next;
+  }
+  return component;
+}
+
+}  // namespace incise

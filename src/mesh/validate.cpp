@@ -1,0 +1,150 @@
+#include "incise/mesh/validate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "incise/mesh/predicates.hpp"
+
+namespace incise {
+
+double normalized_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  const double squared_sum = (b - a).squaredNorm() + (c - a).squaredNorm() +
+                             (d - a).squaredNorm() + (c - b).squaredNorm() +
+                             (d - b).squaredNorm() + (d - c).squaredNorm();
+  const double rms_edge = std::sqrt(squared_sum / 6.0);
+  if (rms_edge == 0.0) {
+    return 0.0;
+  }
+  // The regular tetrahedron with edge l has volume l^3 / (6 sqrt 2).
+  const double regular_volume = rms_edge * rms_edge * rms_edge / (6.0 * std::sqrt(2.0));
+  return signed_volume(a, b, c, d) / regular_volume;
+}
+
+ValidationReport validate(const TetMesh& mesh, const ValidationOptions& options) {
+  ValidationReport report;
+  const auto positions = mesh.rest_positions();
+  std::vector<bool> vertex_finite(positions.size(), true);
+  for (std::size_t v = 0; v < positions.size(); ++v) {
+    if (!positions[v].allFinite()) {
+      vertex_finite[v] = false;
+      report.nonfinite_vertices.push_back(static_cast<VertexId>(v));
+    }
+    if (mesh.vertex_tets(static_cast<VertexId>(v)).empty()) {
+      report.unreferenced_vertices.push_back(static_cast<VertexId>(v));
+    }
+  }
+
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto id = static_cast<TetId>(t);
+    const Tet& tet = mesh.tet(id);
+    if (!std::all_of(tet.begin(), tet.end(), [&](VertexId v) { return vertex_finite[v]; })) {
+      continue;  // already reported through its vertices; predicates need finite input
+    }
+    const Vec3& a = positions[tet[0]];
+    const Vec3& b = positions[tet[1]];
+    const Vec3& c = positions[tet[2]];
+    const Vec3& d = positions[tet[3]];
+    const Sign orientation = orient3d(a, b, c, d);
+    if (orientation == Sign::kNegative) {
+      report.inverted_tets.push_back(id);
+    } else if (orientation == Sign::kZero ||
+               normalized_volume(a, b, c, d) < options.degenerate_tolerance) {
+      report.degenerate_tets.push_back(id);
+    }
+    const auto& neighbors = mesh.tet_neighbors(id);
+    for (int f = 0; f < 4; ++f) {
+      const auto& face = tet_local::kFaces[f];
+      const TetId other = neighbors[f];
+      if (other == kNonManifoldFace) {
+        std::array<VertexId, 3> key{tet[face[0]], tet[face[1]], tet[face[2]]};
+        std::sort(key.begin(), key.end());
+        report.nonmanifold_faces.push_back(key);
+      } else if (other > id) {
+        // Conforming neighbours lie on opposite sides of their shared face.
+        const Tet& neighbor = mesh.tet(other);
+        VertexId apex = kInvalidId;
+        for (VertexId v : neighbor) {
+          if (v != tet[face[0]] && v != tet[face[1]] && v != tet[face[2]]) {
+            apex = v;
+          }
+        }
+        if (vertex_finite[apex] &&
+            orient3d(positions[tet[face[0]]], positions[tet[face[1]]], positions[tet[face[2]]],
+                     positions[apex]) != Sign::kPositive &&
+            orientation == Sign::kPositive) {
+          report.overlapping_tets.emplace_back(id, other);
+        }
+      }
+    }
+  }
+  std::sort(report.nonmanifold_faces.begin(), report.nonmanifold_faces.end());
+  report.nonmanifold_faces.erase(
+      std::unique(report.nonmanifold_faces.begin(), report.nonmanifold_faces.end()),
+      report.nonmanifold_faces.end());
+
+  // Duplicate tetrahedra: equal sorted vertex sets.
+  std::vector<std::pair<Tet, TetId>> sorted;
+  sorted.reserve(mesh.tet_count());
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    Tet key = mesh.tet(static_cast<TetId>(t));
+    std::sort(key.begin(), key.end());
+    sorted.emplace_back(key, static_cast<TetId>(t));
+  }
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t i = 1; i < sorted.size(); ++i) {
+    if (sorted[i].first == sorted[i - 1].first) {
+      report.duplicate_tets.emplace_back(sorted[i - 1].second, sorted[i].second);
+    }
+  }
+  return report;
+}
+
+bool ValidationReport::ok() const {
+  return nonfinite_vertices.empty() && inverted_tets.empty() && degenerate_tets.empty() &&
+         nonmanifold_faces.empty() && overlapping_tets.empty() && duplicate_tets.empty();
+}
+
+std::size_t ValidationReport::problem_count() const {
+  return nonfinite_vertices.size() + inverted_tets.size() + degenerate_tets.size() +
+         nonmanifold_faces.size() + overlapping_tets.size() + duplicate_tets.size();
+}
+
+namespace {
+
+template <typename List, typename Print>
+void describe_list(std::ostringstream& out, const char* what, const List& list,
+                   std::size_t max_listed, Print print) {
+  if (list.empty()) {
+    return;
+  }
+  out << list.size() << " " << what << ":";
+  for (std::size_t i = 0; i < std::min(max_listed, list.size()); ++i) {
+    out << " ";
+    print(list[i]);
+  }
+  if (list.size() > max_listed) {
+    out << " ...";
+  }
+  out << "\n";
+}
+
+}  // namespace
+
+std::string ValidationReport::describe(std::size_t max_listed) const {
+  std::ostringstream out;
+  auto id = [&out](auto value) { out << value; };
+  auto pair = [&out](const auto& p) { out << p.first << "/" << p.second; };
+  auto face = [&out](const auto& f) { out << "(" << f[0] << "," << f[1] << "," << f[2] << ")"; };
+  describe_list(out, "vertices with NaN or Inf coordinates", nonfinite_vertices, max_listed, id);
+  describe_list(out, "inverted tetrahedra", inverted_tets, max_listed, id);
+  describe_list(out, "degenerate tetrahedra", degenerate_tets, max_listed, id);
+  describe_list(out, "faces shared by more than two tetrahedra", nonmanifold_faces, max_listed,
+                face);
+  describe_list(out, "overlapping neighbour pairs", overlapping_tets, max_listed, pair);
+  describe_list(out, "duplicate tetrahedron pairs", duplicate_tets, max_listed, pair);
+  describe_list(out, "unreferenced vertices (tolerated)", unreferenced_vertices, max_listed, id);
+  return out.str();
+}
+
+}  // namespace incise

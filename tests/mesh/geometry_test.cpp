@@ -1,0 +1,123 @@
+// Predicates, quality measures, boundary surface and components.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "incise/mesh/boundary.hpp"
+#include "incise/mesh/generators.hpp"
+#include "incise/mesh/predicates.hpp"
+#include "incise/mesh/quality.hpp"
+#include "test_support.hpp"
+
+namespace incise {
+namespace {
+
+TEST(Predicates, OrientationConventionMatchesSignedVolume) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0), d(0, 0, 1);
+  EXPECT_GT(signed_volume(a, b, c, d), 0.0);
+  EXPECT_EQ(orient3d(a, b, c, d), Sign::kPositive);
+  EXPECT_EQ(orient3d(a, c, b, d), Sign::kNegative);
+  EXPECT_EQ(orient3d(a, b, c, Vec3(0.3, 0.7, 0.0)), Sign::kZero);
+}
+
+TEST(Predicates, ExactWhereFloatingPointIsNot) {
+  // Points on a line with coordinates that are not representable: naive determinants give
+  // noise, the exact predicate says coplanar whenever the doubles truly are.
+  const Vec3 a(0.1, 0.1, 0.1), b(0.2, 0.2, 0.2), c(0.3, 0.7, 0.4);
+  const Vec3 d = a;  // exactly coincident
+  EXPECT_EQ(orient3d(a, b, c, d), Sign::kZero);
+  // Nearly degenerate but truly positive: 2^-60 off the plane z = 0.
+  const Vec3 e(0.5, 0.25, std::ldexp(1.0, -60));
+  EXPECT_EQ(orient3d(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), e), Sign::kPositive);
+}
+
+TEST(Predicates, SegmentTriangle) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
+  EXPECT_TRUE(segment_intersects_triangle(Vec3(0.2, 0.2, -1), Vec3(0.2, 0.2, 1), a, b, c));
+  EXPECT_FALSE(segment_intersects_triangle(Vec3(0.8, 0.8, -1), Vec3(0.8, 0.8, 1), a, b, c));
+  // Through a vertex and along an edge (closed sets): intersect.
+  EXPECT_TRUE(segment_intersects_triangle(Vec3(0, 0, -1), Vec3(0, 0, 1), a, b, c));
+  EXPECT_TRUE(segment_intersects_triangle(Vec3(-1, 0, 0), Vec3(2, 0, 0), a, b, c));
+  EXPECT_FALSE(segment_intersects_triangle(Vec3(0.2, 0.2, 0.1), Vec3(0.2, 0.2, 1), a, b, c));
+  EXPECT_TRUE(triangles_intersect(a, b, c, Vec3(0.1, 0.1, -1), Vec3(0.1, 0.1, 1),
+                                  Vec3(2, 2, 0.5)));
+}
+
+TEST(Predicates, LocateInTet) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0), d(0, 0, 1);
+  EXPECT_EQ(locate_in_tet(Vec3(0.1, 0.1, 0.1), a, b, c, d), TetLocation::kInside);
+  EXPECT_EQ(locate_in_tet(Vec3(0.5, 0.5, 0.0), a, b, c, d), TetLocation::kBoundary);
+  EXPECT_EQ(locate_in_tet(Vec3(0.5, 0.5, 0.5), a, b, c, d), TetLocation::kOutside);
+  EXPECT_EQ(locate_in_tet(a, a, b, c, d), TetLocation::kBoundary);
+}
+
+TEST(Quality, RegularTetrahedron) {
+  const Vec3 a(1, 1, 1), b(1, -1, -1), c(-1, 1, -1), d(-1, -1, 1);
+  const double dihedral = std::acos(1.0 / 3.0);
+  EXPECT_NEAR(min_dihedral_angle(a, b, c, d), dihedral, 1e-12);
+  EXPECT_NEAR(aspect_ratio(a, b, c, d), 1.0, 1e-12);
+}
+
+TEST(Quality, CornerTetrahedron) {
+  // The corner tet of the unit cube has three right dihedral angles and three of
+  // acos(1/sqrt(3)) = 54.7356 deg: the minimum is the latter.
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0), d(0, 0, 1);
+  EXPECT_NEAR(min_dihedral_angle(a, b, c, d), std::acos(1.0 / std::sqrt(3.0)), 1e-12);
+  EXPECT_GT(aspect_ratio(a, b, c, d), 1.0);
+  EXPECT_TRUE(std::isinf(aspect_ratio(a, b, c, Vec3(1, 1, 0))));
+}
+
+TEST(Boundary, SingleTetFacesPointOutward) {
+  const TetMesh mesh = test::unit_tet();
+  const auto faces = boundary_faces(mesh);
+  ASSERT_EQ(faces.size(), 4u);
+  const Vec3 centroid(0.25, 0.25, 0.25);
+  for (const BoundaryFace& face : faces) {
+    const Vec3& p0 = mesh.rest_position(face.vertices[0]);
+    const Vec3& p1 = mesh.rest_position(face.vertices[1]);
+    const Vec3& p2 = mesh.rest_position(face.vertices[2]);
+    const Vec3 normal = (p1 - p0).cross(p2 - p0);
+    EXPECT_GT(normal.dot(p0 - centroid), 0.0) << "face " << face.local_face;
+    EXPECT_EQ(face.tet, 0);
+  }
+  EXPECT_TRUE(check_boundary(mesh).watertight());
+}
+
+TEST(Boundary, OpenAndMisorientedSurfacesAreDetected) {
+  std::vector<Triangle> closed{{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {0, 3, 2}};
+  EXPECT_TRUE(check_surface_edges(closed).watertight());
+  std::vector<Triangle> open(closed.begin(), closed.end() - 1);
+  EXPECT_EQ(check_surface_edges(open).open_edges, 3u);
+  std::vector<Triangle> flipped = closed;
+  std::swap(flipped[0][1], flipped[0][2]);
+  EXPECT_EQ(check_surface_edges(flipped).misoriented_edges, 3u);
+}
+
+TEST(Components, SeparatedBoxes) {
+  BoxGridOptions options;
+  options.cells = {2, 2, 2};
+  TetMesh first = make_box_grid(options);
+  options.origin = Vec3(5, 0, 0);
+  const TetMesh second = make_box_grid(options);
+  std::vector<Vec3> positions(first.rest_positions().begin(), first.rest_positions().end());
+  std::vector<Tet> tets(first.tets().begin(), first.tets().end());
+  const auto offset = static_cast<VertexId>(positions.size());
+  positions.insert(positions.end(), second.rest_positions().begin(), second.rest_positions().end());
+  for (Tet tet : second.tets()) {
+    for (VertexId& v : tet) {
+      v += offset;
+    }
+    tets.push_back(tet);
+  }
+  const TetMesh both(positions, tets);
+  int count = 0;
+  const auto component = tet_components(both, &count);
+  EXPECT_EQ(count, 2);
+  EXPECT_EQ(component.front(), 0);
+  EXPECT_EQ(component.back(), 1);
+}
+
+}  // namespace
+}  // namespace incise
