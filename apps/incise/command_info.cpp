@@ -1,0 +1,127 @@
+// incise info MESH [--json]: counts, extent, volume, quality and the validation report.
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "incise/io/mesh_io.hpp"
+#include "incise/mesh/boundary.hpp"
+#include "incise/mesh/quality.hpp"
+#include "incise/mesh/validate.hpp"
+
+namespace incise::app {
+
+Runner add_info_command(CLI::App& app) {
+  auto* command = app.add_subcommand("info", "Describe and validate a tetrahedral mesh");
+  auto path = std::make_shared<std::string>();
+  auto as_json = std::make_shared<bool>(false);
+  command->add_option("mesh", *path, "Mesh file (.msh, .node/.ele, .mesh, .vtk, .vtu)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_flag("--json", *as_json, "Print one JSON object instead of text");
+  return [path, as_json]() {
+    const TetMeshReadResult read = read_tet_mesh(*path);
+    const TetMesh& mesh = read.mesh;
+    const ValidationReport report = validate(mesh);
+    const QualitySummary quality = summarize_quality(mesh);
+    const SurfaceEdgeCheck boundary = check_boundary(mesh);
+    const auto faces = boundary_faces(mesh);
+    int components = 0;
+    (void)tet_components(mesh, &components);
+    Vec3 low = Vec3::Zero();
+    Vec3 high = Vec3::Zero();
+    if (mesh.vertex_count() > 0) {
+      low = high = mesh.rest_position(0);
+      for (const Vec3& p : mesh.rest_positions()) {
+        low = low.cwiseMin(p);
+        high = high.cwiseMax(p);
+      }
+    }
+    double smallest = 0.0;
+    double largest = 0.0;
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const double v = signed_volume(mesh, static_cast<TetId>(t));
+      smallest = t == 0 ? v : std::min(smallest, v);
+      largest = t == 0 ? v : std::max(largest, v);
+    }
+    const double volume = total_volume(mesh);
+    const bool valid = report.ok();
+
+    if (*as_json) {
+      nlohmann::ordered_json out;
+      out["file"] = *path;
+      out["format"] = format_name(read.format);
+      out["vertices"] = mesh.vertex_count();
+      out["tets"] = mesh.tet_count();
+      out["edges"] = mesh.edge_count();
+      out["volume"] = volume;
+      out["min_tet_volume"] = smallest;
+      out["max_tet_volume"] = largest;
+      out["bounding_box"] = {{"min", {low.x(), low.y(), low.z()}}, {"max", {high.x(), high.y(), high.z()}}};
+      out["inverted"] = report.inverted_tets.size();
+      out["degenerate"] = report.degenerate_tets.size();
+      out["nonmanifold_faces"] = report.nonmanifold_faces.size();
+      out["overlapping_tets"] = report.overlapping_tets.size();
+      out["duplicate_tets"] = report.duplicate_tets.size();
+      out["nonfinite_vertices"] = report.nonfinite_vertices.size();
+      out["dropped_vertices"] = read.dropped_vertices;
+      out["components"] = components;
+      out["boundary_triangles"] = faces.size();
+      out["watertight"] = boundary.watertight();
+      out["quality"] = {{"min_dihedral_deg", quality.min_dihedral_deg},
+                        {"mean_min_dihedral_deg", quality.mean_min_dihedral_deg},
+                        {"max_aspect_ratio", quality.max_aspect_ratio},
+                        {"mean_aspect_ratio", quality.mean_aspect_ratio},
+                        {"min_dihedral_histogram_10deg", quality.min_dihedral_histogram}};
+      out["inverted_ids"] = report.inverted_tets;
+      out["degenerate_ids"] = report.degenerate_tets;
+      out["notes"] = read.notes;
+      out["valid"] = valid;
+      std::cout << out.dump(2) << "\n";
+      return valid ? 0 : kExitInvalid;
+    }
+
+    std::cout << fmt::format("{} ({})\n", *path, format_name(read.format));
+    for (const std::string& note : read.notes) {
+      std::cout << "  note: " << note << "\n";
+    }
+    std::cout << fmt::format("  vertices {}   tetrahedra {}   edges {}\n", mesh.vertex_count(),
+                             mesh.tet_count(), mesh.edge_count());
+    std::cout << fmt::format("  bounding box [{:.6g}, {:.6g}, {:.6g}] - [{:.6g}, {:.6g}, {:.6g}]\n",
+                             low.x(), low.y(), low.z(), high.x(), high.y(), high.z());
+    std::cout << fmt::format("  volume {:.9g}   tet volume min {:.4g} max {:.4g}\n", volume, smallest,
+                             largest);
+    std::cout << fmt::format("  components {}   boundary triangles {}   watertight {}\n", components,
+                             faces.size(), boundary.watertight() ? "yes" : "no");
+    std::cout << fmt::format(
+        "  quality: min dihedral {:.2f} deg (mean of minima {:.2f}), aspect ratio max {:.3g} mean "
+        "{:.3g}\n",
+        quality.min_dihedral_deg, quality.mean_min_dihedral_deg, quality.max_aspect_ratio,
+        quality.mean_aspect_ratio);
+    std::cout << "  min dihedral angle histogram:\n";
+    const std::size_t peak = std::max<std::size_t>(
+        1, *std::max_element(quality.min_dihedral_histogram.begin(), quality.min_dihedral_histogram.end()));
+    for (std::size_t bin = 0; bin < quality.min_dihedral_histogram.size(); ++bin) {
+      const std::size_t count = quality.min_dihedral_histogram[bin];
+      const std::string label = bin + 1 < quality.min_dihedral_histogram.size()
+                                    ? fmt::format("{:2}-{:2} deg", bin * 10, bin * 10 + 10)
+                                    : fmt::format("  >={:2} deg", bin * 10);
+      std::cout << fmt::format("    {} {:>8} {}\n", label, count, std::string(40 * count / peak, '#'));
+    }
+    if (valid) {
+      std::cout << "  valid: yes\n";
+    } else {
+      std::cout << "  valid: NO\n";
+      std::istringstream lines(report.describe());
+      for (std::string line; std::getline(lines, line);) {
+        std::cout << "    " << line << "\n";
+      }
+    }
+    return valid ? 0 : kExitInvalid;
+  };
+}
+
+}  // namespace incise::app

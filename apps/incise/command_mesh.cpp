@@ -1,0 +1,65 @@
+// incise mesh SURFACE -o OUT [--max-volume V] [--min-quality Q]: tetrahedralise with TetGen.
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <iostream>
+
+#include "commands.hpp"
+#include "incise/io/mesh_io.hpp"
+#include "incise/mesh/quality.hpp"
+#include "incise/mesh/validate.hpp"
+#include "incise/meshing/tetrahedralize.hpp"
+
+namespace incise::app {
+
+Runner add_mesh_command(CLI::App& app) {
+  auto* command = app.add_subcommand(
+      "mesh", "Tetrahedralise a closed triangle surface (OBJ, STL, PLY, VTK polydata) with TetGen");
+  auto input = std::make_shared<std::string>();
+  auto output = std::make_shared<std::string>();
+  auto options = std::make_shared<TetrahedralizeOptions>();
+  command->add_option("surface", *input, "Closed triangle surface")->required()->check(CLI::ExistingFile);
+  command->add_option("-o,--output", *output, "Output mesh (.msh, .vtu, .mesh, .obj, .node)")->required();
+  command->add_option("--max-volume", options->max_volume,
+                      "Largest tetrahedron volume, in the surface's units cubed (0: no bound)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  command->add_option("--min-quality", options->max_radius_edge_ratio,
+                      "Quality bound: largest radius-edge ratio allowed (TetGen -q; >= 1.1, "
+                      "smaller is better)")
+      ->check(CLI::Range(1.1, 100.0))
+      ->capture_default_str();
+  command->add_option("--min-dihedral", options->min_dihedral_deg,
+                      "Smallest dihedral angle to aim for (degrees, 0-18)")
+      ->check(CLI::Range(0.0, 18.0))
+      ->capture_default_str();
+  command->add_flag("--preserve-surface", options->preserve_surface,
+                    "Keep the input triangles (no points added on the boundary)");
+  return [=]() {
+    const auto start = std::chrono::steady_clock::now();
+    const SurfaceMesh surface = read_surface(*input);
+    for (const std::string& note : surface.notes) {
+      std::cerr << "note: " << note << "\n";
+    }
+    std::cerr << fmt::format("surface: {} points, {} triangles\n", surface.points.size(),
+                             surface.triangles.size());
+    const TetMesh mesh = tetrahedralize(surface, *options);
+    const ValidationReport report = validate(mesh);
+    const QualitySummary quality = summarize_quality(mesh);
+    write_tet_mesh(*output, mesh);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::cerr << fmt::format(
+        "wrote {} ({} vertices, {} tetrahedra, volume {:.6g}, min dihedral {:.1f} deg, {:.2f} s)\n",
+        *output, mesh.vertex_count(), mesh.tet_count(), total_volume(mesh), quality.min_dihedral_deg,
+        seconds);
+    if (!report.ok()) {
+      std::cerr << "warning: the result does not validate:\n" << report.describe();
+      return kExitError;
+    }
+    return 0;
+  };
+}
+
+}  // namespace incise::app

@@ -1,0 +1,21 @@
+#pragma once
+// Sub-commands of the incise command line. Each registers itself on the CLI11 app and
+// returns the process exit code when run.
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace incise::app {
+
+/// Exit codes: 0 success, 1 the input is invalid (info), 2 an error stopped the command.
+inline constexpr int kExitInvalid = 1;
+inline constexpr int kExitError = 2;
+
+using Runner = std::function<int()>;
+
+Runner add_info_command(CLI::App& app);
+Runner add_convert_command(CLI::App& app);
+Runner add_generate_command(CLI::App& app);
+Runner add_mesh_command(CLI::App& app);
+
+}  // namespace incise::app

@@ -1,0 +1,42 @@
+// incise: command line for cutting and deforming 3-D soft tissue.
+
+#include <iostream>
+#include <map>
+
+#include "commands.hpp"
+#include "incise/core/error.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"incise: interactive cutting and deformation of 3-D soft tissue"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "incise 0.1.0");
+  std::map<CLI::App*, incise::app::Runner> runners;
+  auto add = [&](incise::app::Runner (*factory)(CLI::App&)) {
+    const std::size_t before = app.get_subcommands({}).size();
+    incise::app::Runner runner = factory(app);
+    runners[app.get_subcommands({})[before]] = std::move(runner);
+  };
+  add(incise::app::add_info_command);
+  add(incise::app::add_convert_command);
+  add(incise::app::add_generate_command);
+  add(incise::app::add_mesh_command);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& error) {
+    return app.exit(error);
+  }
+  try {
+    for (auto& [command, runner] : runners) {
+      if (command->parsed()) {
+        return runner();
+      }
+    }
+  } catch (const incise::Error& error) {
+    std::cerr << "error: " << error.what() << "\n";
+    return incise::app::kExitError;
+  } catch (const std::exception& error) {
+    std::cerr << "error: " << error.what() << "\n";
+    return incise::app::kExitError;
+  }
+  return incise::app::kExitError;
+}

@@ -1,0 +1,114 @@
+#pragma once
+// Reading and writing meshes. Readers detect the format from the content (the extension only
+// breaks ties), and every malformed input raises InputError naming the file and the line (or
+// element) at fault; nothing is ever returned half-read.
+//
+// Read: Gmsh .msh (v1, v2 ASCII/binary, v4.0 ASCII, v4.1 ASCII/binary), TetGen .node/.ele,
+//       MEDIT .mesh, VTK legacy .vtk (UNSTRUCTURED_GRID and POLYDATA, ASCII and BINARY,
+//       file versions up to 5.1), VTK XML .vtu/.vtp (ascii, base64, appended raw or base64,
+//       zlib-compressed), OBJ, STL (ASCII and binary) and PLY (ASCII and binary) surfaces.
+// Write: Gmsh .msh 4.1, VTK XML .vtu with point and cell data, .pvd series, MEDIT .mesh,
+//       OBJ (boundary surface), TetGen .node/.ele.
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+enum class MeshFormat { kUnknown, kGmsh, kTetGen, kMedit, kVtkLegacy, kVtkXml, kObj, kStl, kPly };
+
+[[nodiscard]] std::string format_name(MeshFormat format);
+
+/// Format judged from the first bytes of the file; the extension decides only when the
+/// content is ambiguous. Throws InputError if the file cannot be read.
+[[nodiscard]] MeshFormat detect_format(const std::filesystem::path& path);
+
+/// What a reader found: points, tetrahedra, triangles, and notes on anything it skipped.
+struct RawMesh {
+  std::vector<Vec3> points;
+  std::vector<Tet> tets;
+  std::vector<Triangle> triangles;
+  /// Human-readable notes ("skipped 120 hexahedra"), one per kind of thing skipped.
+  std::vector<std::string> notes;
+  MeshFormat format = MeshFormat::kUnknown;
+};
+
+/// Reads any supported file as it is (ids checked against the point count).
+[[nodiscard]] RawMesh read_raw_mesh(const std::filesystem::path& path);
+
+struct TetMeshReadResult {
+  TetMesh mesh;
+  MeshFormat format = MeshFormat::kUnknown;
+  std::vector<std::string> notes;
+  std::size_t dropped_vertices = 0;  ///< points used by no tetrahedron, removed
+};
+
+/// Reads a tetrahedral mesh. Points used by no tetrahedron are dropped (and noted) so that
+/// every vertex carries mass. Throws InputError when the file holds no tetrahedra.
+[[nodiscard]] TetMeshReadResult read_tet_mesh(const std::filesystem::path& path);
+
+struct SurfaceMesh {
+  std::vector<Vec3> points;
+  std::vector<Triangle> triangles;
+  std::vector<std::string> notes;
+};
+
+/// Reads a triangle surface (OBJ, STL, PLY, VTK polydata, or the triangles of any volume
+/// format). Exactly coincident points are merged (STL stores none shared). Throws InputError
+/// when the file holds no triangles.
+[[nodiscard]] SurfaceMesh read_surface(const std::filesystem::path& path);
+
+/// A named array for VTK output: `components` values per point or per cell.
+struct FieldArray {
+  std::string name;
+  int components = 1;
+  std::variant<std::vector<double>, std::vector<std::int32_t>> values;
+};
+
+struct VtuFields {
+  std::vector<FieldArray> point_data;
+  std::vector<FieldArray> cell_data;
+};
+
+/// Writes a .vtu (binary appended, uncompressed) of the mesh at `positions` (one per vertex;
+/// empty means rest positions). Refuses NaN/Inf in positions or fields (InputError).
+void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
+               std::span<const Vec3> positions = {}, const VtuFields& fields = {});
+
+/// A ParaView time series: each add() writes the .pvd anew so a partial run stays readable.
+class PvdSeries {
+ public:
+  explicit PvdSeries(std::filesystem::path pvd_path);
+  /// Records `file` (relative to the .pvd's folder) at time `time` (s) and rewrites the .pvd.
+  void add(double time, const std::string& file);
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+  std::vector<std::pair<double, std::string>> entries_;
+};
+
+/// Gmsh 4.1 ASCII.
+void write_msh(const std::filesystem::path& path, const TetMesh& mesh);
+/// MEDIT .mesh with the boundary triangles.
+void write_medit(const std::filesystem::path& path, const TetMesh& mesh);
+/// The boundary surface as OBJ (only the vertices it uses).
+void write_obj(const std::filesystem::path& path, const TetMesh& mesh);
+void write_obj(const std::filesystem::path& path, std::span<const Vec3> points,
+               std::span<const Triangle> triangles);
+/// TetGen .node and .ele (0-based) next to `path` (its extension is replaced).
+void write_tetgen(const std::filesystem::path& path, const TetMesh& mesh);
+/// VTK XML .vtp of a triangle surface.
+void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
+               std::span<const Triangle> triangles);
+
+/// Writes by extension: .msh, .vtu, .mesh, .obj, .node/.ele. Throws InputError otherwise.
+void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh);
+
+}  // namespace incise

@@ -1,0 +1,49 @@
+#pragma once
+// Tetrahedralisation of a closed triangle surface with TetGen (Debian's libtet). A separate
+// module (incise::meshing) because TetGen is AGPL-3: users who link only the other modules
+// are not bound by it.
+
+#include <string>
+#include <vector>
+
+#include "incise/io/mesh_io.hpp"
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+struct TetrahedralizeOptions {
+  /// Largest tetrahedron volume, in the surface's units cubed; 0 leaves it to TetGen.
+  double max_volume = 0.0;
+  /// Bound on each tetrahedron's radius-edge ratio (TetGen -q); smaller is better, >= 1.1.
+  double max_radius_edge_ratio = 1.5;
+  /// Smallest dihedral angle TetGen aims for (degrees, TetGen -q.../angle); 0 for none.
+  double min_dihedral_deg = 0.0;
+  /// Keep the input triangles as they are (no Steiner points on the boundary). When false
+  /// and TetGen cannot recover the boundary with added points, it is retried with this set.
+  bool preserve_surface = false;
+  /// Wall-clock limit for TetGen (s); it runs in a child process that is stopped after this.
+  double timeout_seconds = 600.0;
+};
+
+struct SurfaceCheckReport {
+  std::size_t open_edges = 0;
+  std::size_t nonmanifold_edges = 0;
+  std::size_t misoriented_edges = 0;
+  std::size_t degenerate_triangles = 0;
+  /// Pairs of triangles that intersect (other than by shared vertices or edges); at most 10.
+  std::vector<std::pair<std::size_t, std::size_t>> self_intersections;
+  [[nodiscard]] bool ok() const;
+  [[nodiscard]] std::string describe() const;
+};
+
+/// Checks that a surface can bound a volume: closed, manifold, consistently oriented, with no
+/// zero-area triangles and no self-intersections (exact predicates).
+[[nodiscard]] SurfaceCheckReport check_closed_surface(const SurfaceMesh& surface);
+
+/// Tetrahedralises the volume bounded by `surface`. Throws InputError naming the problem when
+/// the surface is open, self-intersecting or otherwise unusable; never hangs on such input.
+/// The result is positively oriented.
+[[nodiscard]] TetMesh tetrahedralize(const SurfaceMesh& surface,
+                                     const TetrahedralizeOptions& options = {});
+
+}  // namespace incise

@@ -1,0 +1,629 @@
+#include "incise/io/mesh_io.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cctype>
+#include <fstream>
+#include <random>
+
+#include "incise/core/error.hpp"
+#include "incise/mesh/boundary.hpp"
+#include "readers.hpp"
+
+namespace incise {
+
+using io_detail::Source;
+
+std::string format_name(MeshFormat format) {
+  switch (format) {
+    case MeshFormat::kGmsh:
+      return "Gmsh";
+    case MeshFormat::kTetGen:
+      return "TetGen";
+    case MeshFormat::kMedit:
+      return "MEDIT";
+    case MeshFormat::kVtkLegacy:
+      return "VTK legacy";
+    case MeshFormat::kVtkXml:
+      return "VTK XML";
+    case MeshFormat::kObj:
+      return "OBJ";
+    case MeshFormat::kStl:
+      return "STL";
+    case MeshFormat::kPly:
+      return "PLY";
+    case MeshFormat::kUnknown:
+      break;
+  }
+  return "unknown";
+}
+
+namespace {
+
+MeshFormat format_from_extension(const std::filesystem::path& path) {
+  const std::string extension = io_detail::lowercase(path.extension().string());
+  if (extension == ".msh") {
+    return MeshFormat::kGmsh;
+  }
+  if (extension == ".node" || extension == ".ele") {
+    return MeshFormat::kTetGen;
+  }
+  if (extension == ".mesh") {
+    return MeshFormat::kMedit;
+  }
+  if (extension == ".vtk") {
+    return MeshFormat::kVtkLegacy;
+  }
+  if (extension == ".vtu" || extension == ".vtp") {
+    return MeshFormat::kVtkXml;
+  }
+  if (extension == ".obj") {
+    return MeshFormat::kObj;
+  }
+  if (extension == ".stl") {
+    return MeshFormat::kStl;
+  }
+  if (extension == ".ply") {
+    return MeshFormat::kPly;
+  }
+  return MeshFormat::kUnknown;
+}
+
+bool starts_with(std::string_view text, std::string_view prefix) {
+  return text.substr(0, prefix.size()) == prefix;
+}
+
+MeshFormat format_from_content(std::string_view bytes) {
+  // Binary STL: an 80-byte header, a triangle count, 50 bytes per triangle.
+  if (bytes.size() >= 84) {
+    std::uint32_t count = 0;
+    std::memcpy(&count, bytes.data() + 80, 4);
+    if (!io_detail::kHostIsLittleEndian) {
+      count = Source::byte_swapped(count);
+    }
+    if (84 + 50ULL * count == bytes.size()) {
+      return MeshFormat::kStl;
+    }
+  }
+  std::string_view text = bytes.substr(0, 4096);
+  if (starts_with(text, "# vtk DataFile")) {
+    return MeshFormat::kVtkLegacy;
+  }
+  // Skip blank lines and '#' comment lines to the first significant line.
+  std::size_t position = 0;
+  for (;;) {
+    while (position < text.size() && std::isspace(static_cast<unsigned char>(text[position])) != 0) {
+      ++position;
+    }
+    if (position < text.size() && text[position] == '#') {
+      position = text.find('\n', position);
+      if (position == std::string_view::npos) {
+        return MeshFormat::kUnknown;
+      }
+      continue;
+    }
+    break;
+  }
+  text = text.substr(position);
+  const std::string head = io_detail::lowercase(text.substr(0, 64));
+  if (starts_with(text, "$")) {
+    return MeshFormat::kGmsh;
+  }
+  if (starts_with(text, "<?xml") || starts_with(text, "<VTKFile")) {
+    return MeshFormat::kVtkXml;
+  }
+  if (starts_with(text, "ply\n") || starts_with(text, "ply\r\n")) {
+    return MeshFormat::kPly;
+  }
+  if (starts_with(head, "meshversionformatted")) {
+    return MeshFormat::kMedit;
+  }
+  if (starts_with(head, "solid") && io_detail::lowercase(text.substr(0, 1024)).find("facet") != std::string::npos) {
+    return MeshFormat::kStl;
+  }
+  for (const char* keyword : {"v ", "vn ", "vt ", "f ", "o ", "g ", "mtllib ", "usemtl ", "s "}) {
+    if (starts_with(text, keyword)) {
+      return MeshFormat::kObj;
+    }
+  }
+  // TetGen: a header line of 3 or 4 integers.
+  const std::string_view line = text.substr(0, text.find('\n'));
+  Source header("", std::string(line));
+  int integers = 0;
+  long long value = 0;
+  for (std::string_view token = header.next_token(); !token.empty(); token = header.next_token()) {
+    if (!io_detail::parse_integer(token, value)) {
+      integers = -100;
+    }
+    ++integers;
+  }
+  if (integers == 3 || integers == 4) {
+    return MeshFormat::kTetGen;
+  }
+  return MeshFormat::kUnknown;
+}
+
+}  // namespace
+
+MeshFormat detect_format(const std::filesystem::path& path) {
+  const Source source = Source::open(path);
+  const MeshFormat by_content = format_from_content(source.bytes());
+  return by_content != MeshFormat::kUnknown ? by_content : format_from_extension(path);
+}
+
+RawMesh read_raw_mesh(const std::filesystem::path& path) {
+  Source source = Source::open(path);
+  MeshFormat format = format_from_content(source.bytes());
+  if (format == MeshFormat::kUnknown) {
+    format = format_from_extension(path);
+  }
+  switch (format) {
+    case MeshFormat::kGmsh:
+      return io_detail::read_gmsh(source);
+    case MeshFormat::kTetGen: {
+      // Given either file of a pair, read both (the .ele is optional).
+      std::filesystem::path node_path = path;
+      std::filesystem::path ele_path = path;
+      node_path.replace_extension(".node");
+      ele_path.replace_extension(".ele");
+      Source node_source = node_path == path ? std::move(source) : Source::open(node_path);
+      if (std::filesystem::exists(ele_path)) {
+        Source ele_source = ele_path == path ? std::move(source) : Source::open(ele_path);
+        return io_detail::read_tetgen(node_source, &ele_source);
+      }
+      return io_detail::read_tetgen(node_source, nullptr);
+    }
+    case MeshFormat::kMedit:
+      return io_detail::read_medit(source);
+    case MeshFormat::kVtkLegacy:
+      return io_detail::read_vtk_legacy(source);
+    case MeshFormat::kVtkXml:
+      return io_detail::read_vtk_xml(source);
+    case MeshFormat::kObj:
+      return io_detail::read_obj(source);
+    case MeshFormat::kStl:
+      return io_detail::read_stl(source);
+    case MeshFormat::kPly:
+      return io_detail::read_ply(source);
+    case MeshFormat::kUnknown:
+      break;
+  }
+  throw InputError(path.string(), 0,
+                   "unrecognised mesh format (supported: .msh, .node/.ele, .mesh, .vtk, .vtu, "
+                   ".vtp, .obj, .stl, .ply)");
+}
+
+TetMeshReadResult read_tet_mesh(const std::filesystem::path& path) {
+  RawMesh raw = read_raw_mesh(path);
+  if (raw.tets.empty()) {
+    throw InputError(path.string(), 0,
+                     "holds no tetrahedra" +
+                         (raw.triangles.empty()
+                              ? std::string()
+                              : " (it has " + std::to_string(raw.triangles.size()) +
+                                    " triangles: tetrahedralise it with `incise mesh`)"));
+  }
+  // Drop points no tetrahedron uses: they would carry no mass.
+  std::vector<VertexId> remap(raw.points.size(), kInvalidId);
+  for (const Tet& tet : raw.tets) {
+    for (VertexId v : tet) {
+      remap[v] = 0;
+    }
+  }
+  std::vector<Vec3> points;
+  points.reserve(raw.points.size());
+  for (std::size_t v = 0; v < raw.points.size(); ++v) {
+    if (remap[v] == 0) {
+      remap[v] = static_cast<VertexId>(points.size());
+      points.push_back(raw.points[v]);
+    }
+  }
+  const std::size_t dropped = raw.points.size() - points.size();
+  for (Tet& tet : raw.tets) {
+    for (VertexId& v : tet) {
+      v = remap[v];
+    }
+  }
+  if (dropped > 0) {
+    raw.notes.push_back("dropped " + std::to_string(dropped) +
+                        " points that no tetrahedron uses");
+  }
+  if (!raw.triangles.empty()) {
+    raw.notes.push_back("ignored " + std::to_string(raw.triangles.size()) +
+                        " triangles (the boundary is recomputed from the tetrahedra)");
+  }
+  TetMeshReadResult result{TetMesh(std::move(points), std::move(raw.tets)), raw.format,
+                           std::move(raw.notes), dropped};
+  return result;
+}
+
+SurfaceMesh read_surface(const std::filesystem::path& path) {
+  RawMesh raw = read_raw_mesh(path);
+  SurfaceMesh surface;
+  surface.notes = std::move(raw.notes);
+  std::vector<Triangle> triangles = std::move(raw.triangles);
+  if (triangles.empty() && !raw.tets.empty()) {
+    const TetMesh mesh(raw.points, raw.tets);
+    for (const BoundaryFace& face : boundary_faces(mesh)) {
+      triangles.push_back(face.vertices);
+    }
+    surface.notes.push_back("used the boundary of " + std::to_string(raw.tets.size()) +
+                            " tetrahedra as the surface");
+  }
+  if (triangles.empty()) {
+    throw InputError(path.string(), 0, "holds no triangles");
+  }
+  std::vector<VertexId> remap(raw.points.size(), kInvalidId);
+  for (Triangle& triangle : triangles) {
+    for (VertexId& v : triangle) {
+      if (remap[v] == kInvalidId) {
+        remap[v] = static_cast<VertexId>(surface.points.size());
+        surface.points.push_back(raw.points[v]);
+      }
+      v = remap[v];
+    }
+  }
+  surface.triangles = std::move(triangles);
+  return surface;
+}
+
+// ---- writers ------------------------------------------------------------------------------
+
+namespace {
+
+/// Writes to a temporary file beside the target and renames it into place, so a failed or
+/// interrupted write never leaves a truncated file (or destroys the input of a conversion).
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
+    std::random_device entropy;
+    temporary_ = path_;
+    temporary_ += fmt::format(".tmp{:08x}", entropy());
+    stream_.open(temporary_, std::ios::binary | std::ios::trunc);
+    if (!stream_) {
+      throw InputError(path_.string(), 0, "cannot open for writing");
+    }
+  }
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  ~AtomicFile() {
+    if (!committed_) {
+      stream_.close();
+      std::error_code ignored;
+      std::filesystem::remove(temporary_, ignored);
+    }
+  }
+  std::ofstream& stream() { return stream_; }
+  void write(std::string_view text) { stream_.write(text.data(), static_cast<std::streamsize>(text.size())); }
+  void commit() {
+    stream_.close();
+    if (!stream_) {
+      throw InputError(path_.string(), 0, "write failed (disk full?)");
+    }
+    std::error_code error;
+    std::filesystem::rename(temporary_, path_, error);
+    if (error) {
+      throw InputError(path_.string(), 0, "cannot move the written file into place: " + error.message());
+    }
+    committed_ = true;
+  }
+
+ private:
+  std::filesystem::path path_;
+  std::filesystem::path temporary_;
+  std::ofstream stream_;
+  bool committed_ = false;
+};
+
+void check_finite_positions(const std::filesystem::path& path, std::span<const Vec3> positions) {
+  for (std::size_t v = 0; v < positions.size(); ++v) {
+    if (!positions[v].allFinite()) {
+      throw InputError(path.string(), 0,
+                       "refusing to write: vertex " + std::to_string(v) + " is NaN or infinite");
+    }
+  }
+}
+
+template <typename T>
+void append_raw(std::string& out, const T& value) {
+  const auto* bytes = reinterpret_cast<const char*>(&value);
+  out.append(bytes, sizeof(T));
+}
+
+const char* host_byte_order() {
+  return std::endian::native == std::endian::little ? "LittleEndian" : "BigEndian";
+}
+
+}  // namespace
+
+void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
+               std::span<const Vec3> positions, const VtuFields& fields) {
+  if (positions.empty()) {
+    positions = mesh.rest_positions();
+  }
+  if (positions.size() != mesh.vertex_count()) {
+    throw InputError(path.string(), 0, "position count does not match the mesh");
+  }
+  check_finite_positions(path, positions);
+  const std::size_t n_points = mesh.vertex_count();
+  const std::size_t n_cells = mesh.tet_count();
+
+  std::string xml;
+  std::string appended;
+  // Each array: UInt64 byte count, then the bytes.
+  auto add_array = [&](const std::string& attributes, const std::string& bytes) {
+    xml += fmt::format("        <DataArray {} format=\"appended\" offset=\"{}\"/>\n", attributes,
+                       appended.size());
+    append_raw(appended, static_cast<std::uint64_t>(bytes.size()));
+    appended += bytes;
+  };
+  auto field_xml = [&](const FieldArray& field, std::size_t expected_tuples) {
+    std::string bytes;
+    if (const auto* reals = std::get_if<std::vector<double>>(&field.values)) {
+      if (reals->size() != expected_tuples * static_cast<std::size_t>(field.components)) {
+        throw InputError(path.string(), 0, "field '" + field.name + "' has the wrong size");
+      }
+      for (std::size_t i = 0; i < reals->size(); ++i) {
+        if (!std::isfinite((*reals)[i])) {
+          throw InputError(path.string(), 0, "refusing to write: field '" + field.name +
+                                                 "' value " + std::to_string(i) + " is not finite");
+        }
+        append_raw(bytes, (*reals)[i]);
+      }
+      add_array(fmt::format("type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\"", field.name,
+                            field.components),
+                bytes);
+    } else {
+      const auto& integers = std::get<std::vector<std::int32_t>>(field.values);
+      if (integers.size() != expected_tuples * static_cast<std::size_t>(field.components)) {
+        throw InputError(path.string(), 0, "field '" + field.name + "' has the wrong size");
+      }
+      for (std::int32_t value : integers) {
+        append_raw(bytes, value);
+      }
+      add_array(fmt::format("type=\"Int32\" Name=\"{}\" NumberOfComponents=\"{}\"", field.name,
+                            field.components),
+                bytes);
+    }
+  };
+
+  xml += fmt::format(
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
+      "byte_order=\"{}\" header_type=\"UInt64\">\n  <UnstructuredGrid>\n    <Piece "
+      "NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n",
+      host_byte_order(), n_points, n_cells);
+  xml += "      <PointData>\n";
+  for (const FieldArray& field : fields.point_data) {
+    field_xml(field, n_points);
+  }
+  xml += "      </PointData>\n      <CellData>\n";
+  for (const FieldArray& field : fields.cell_data) {
+    field_xml(field, n_cells);
+  }
+  xml += "      </CellData>\n      <Points>\n";
+  {
+    std::string bytes;
+    bytes.reserve(n_points * 24);
+    for (const Vec3& p : positions) {
+      append_raw(bytes, p.x());
+      append_raw(bytes, p.y());
+      append_raw(bytes, p.z());
+    }
+    add_array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"", bytes);
+  }
+  xml += "      </Points>\n      <Cells>\n";
+  {
+    std::string connectivity;
+    std::string offsets;
+    std::string types;
+    connectivity.reserve(n_cells * 32);
+    for (std::size_t c = 0; c < n_cells; ++c) {
+      for (VertexId v : mesh.tet(static_cast<TetId>(c))) {
+        append_raw(connectivity, static_cast<std::int64_t>(v));
+      }
+      append_raw(offsets, static_cast<std::int64_t>(4 * (c + 1)));
+      append_raw(types, static_cast<std::uint8_t>(10));  // VTK_TETRA
+    }
+    add_array("type=\"Int64\" Name=\"connectivity\"", connectivity);
+    add_array("type=\"Int64\" Name=\"offsets\"", offsets);
+    add_array("type=\"UInt8\" Name=\"types\"", types);
+  }
+  xml += "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _";
+  AtomicFile file(path);
+  file.write(xml);
+  file.write(appended);
+  file.write("\n  </AppendedData>\n</VTKFile>\n");
+  file.commit();
+}
+
+void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
+               std::span<const Triangle> triangles) {
+  check_finite_positions(path, points);
+  std::string appended;
+  std::string xml = fmt::format(
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"{}\" "
+      "header_type=\"UInt64\">\n  <PolyData>\n    <Piece NumberOfPoints=\"{}\" NumberOfPolys=\"{}\">\n",
+      host_byte_order(), points.size(), triangles.size());
+  auto add_array = [&](const std::string& attributes, const std::string& bytes) {
+    xml += fmt::format("        <DataArray {} format=\"appended\" offset=\"{}\"/>\n", attributes,
+                       appended.size());
+    append_raw(appended, static_cast<std::uint64_t>(bytes.size()));
+    appended += bytes;
+  };
+  std::string bytes;
+  for (const Vec3& p : points) {
+    append_raw(bytes, p.x());
+    append_raw(bytes, p.y());
+    append_raw(bytes, p.z());
+  }
+  xml += "      <Points>\n";
+  add_array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"", bytes);
+  xml += "      </Points>\n      <Polys>\n";
+  std::string connectivity;
+  std::string offsets;
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    for (VertexId v : triangles[t]) {
+      append_raw(connectivity, static_cast<std::int64_t>(v));
+    }
+    append_raw(offsets, static_cast<std::int64_t>(3 * (t + 1)));
+  }
+  add_array("type=\"Int64\" Name=\"connectivity\"", connectivity);
+  add_array("type=\"Int64\" Name=\"offsets\"", offsets);
+  xml += "      </Polys>\n    </Piece>\n  </PolyData>\n  <AppendedData encoding=\"raw\">\n   _";
+  AtomicFile file(path);
+  file.write(xml);
+  file.write(appended);
+  file.write("\n  </AppendedData>\n</VTKFile>\n");
+  file.commit();
+}
+
+PvdSeries::PvdSeries(std::filesystem::path pvd_path) : path_(std::move(pvd_path)) {}
+
+void PvdSeries::add(double time, const std::string& file) {
+  entries_.emplace_back(time, file);
+  std::string xml =
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n";
+  for (const auto& [entry_time, entry_file] : entries_) {
+    xml += fmt::format("    <DataSet timestep=\"{}\" group=\"\" part=\"0\" file=\"{}\"/>\n",
+                       entry_time, entry_file);
+  }
+  xml += "  </Collection>\n</VTKFile>\n";
+  AtomicFile out(path_);
+  out.write(xml);
+  out.commit();
+}
+
+void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
+  check_finite_positions(path, mesh.rest_positions());
+  const std::size_t n = mesh.vertex_count();
+  const std::size_t m = mesh.tet_count();
+  Vec3 low = Vec3::Zero();
+  Vec3 high = Vec3::Zero();
+  if (n > 0) {
+    low = high = mesh.rest_position(0);
+    for (const Vec3& p : mesh.rest_positions()) {
+      low = low.cwiseMin(p);
+      high = high.cwiseMax(p);
+    }
+  }
+  std::string out = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 1\n";
+  out += fmt::format("1 {} {} {} {} {} {} 0 0\n$EndEntities\n", low.x(), low.y(), low.z(), high.x(),
+                     high.y(), high.z());
+  out += fmt::format("$Nodes\n1 {} 1 {}\n3 1 0 {}\n", n, n, n);
+  for (std::size_t v = 1; v <= n; ++v) {
+    out += fmt::format("{}\n", v);
+  }
+  for (const Vec3& p : mesh.rest_positions()) {
+    out += fmt::format("{} {} {}\n", p.x(), p.y(), p.z());
+  }
+  out += fmt::format("$EndNodes\n$Elements\n1 {} 1 {}\n3 1 4 {}\n", m, m, m);
+  for (std::size_t t = 0; t < m; ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    out += fmt::format("{} {} {} {} {}\n", t + 1, tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1);
+  }
+  out += "$EndElements\n";
+  AtomicFile file(path);
+  file.write(out);
+  file.commit();
+}
+
+void write_medit(const std::filesystem::path& path, const TetMesh& mesh) {
+  check_finite_positions(path, mesh.rest_positions());
+  std::string out = fmt::format("MeshVersionFormatted 2\nDimension 3\nVertices\n{}\n", mesh.vertex_count());
+  for (const Vec3& p : mesh.rest_positions()) {
+    out += fmt::format("{} {} {} 0\n", p.x(), p.y(), p.z());
+  }
+  out += fmt::format("Tetrahedra\n{}\n", mesh.tet_count());
+  for (const Tet& tet : mesh.tets()) {
+    out += fmt::format("{} {} {} {} 1\n", tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1);
+  }
+  const auto faces = boundary_faces(mesh);
+  out += fmt::format("Triangles\n{}\n", faces.size());
+  for (const BoundaryFace& face : faces) {
+    out += fmt::format("{} {} {} 0\n", face.vertices[0] + 1, face.vertices[1] + 1, face.vertices[2] + 1);
+  }
+  out += "End\n";
+  AtomicFile file(path);
+  file.write(out);
+  file.commit();
+}
+
+void write_obj(const std::filesystem::path& path, std::span<const Vec3> points,
+               std::span<const Triangle> triangles) {
+  check_finite_positions(path, points);
+  std::string out = "# written by incise\n";
+  for (const Vec3& p : points) {
+    out += fmt::format("v {} {} {}\n", p.x(), p.y(), p.z());
+  }
+  for (const Triangle& t : triangles) {
+    out += fmt::format("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+  }
+  AtomicFile file(path);
+  file.write(out);
+  file.commit();
+}
+
+void write_obj(const std::filesystem::path& path, const TetMesh& mesh) {
+  std::vector<VertexId> remap(mesh.vertex_count(), kInvalidId);
+  std::vector<Vec3> points;
+  std::vector<Triangle> triangles;
+  for (const BoundaryFace& face : boundary_faces(mesh)) {
+    Triangle triangle = face.vertices;
+    for (VertexId& v : triangle) {
+      if (remap[v] == kInvalidId) {
+        remap[v] = static_cast<VertexId>(points.size());
+        points.push_back(mesh.rest_position(v));
+      }
+      v = remap[v];
+    }
+    triangles.push_back(triangle);
+  }
+  write_obj(path, points, triangles);
+}
+
+void write_tetgen(const std::filesystem::path& path, const TetMesh& mesh) {
+  check_finite_positions(path, mesh.rest_positions());
+  std::filesystem::path node_path = path;
+  std::filesystem::path ele_path = path;
+  node_path.replace_extension(".node");
+  ele_path.replace_extension(".ele");
+  std::string node = fmt::format("{} 3 0 0\n", mesh.vertex_count());
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const Vec3& p = mesh.rest_position(static_cast<VertexId>(v));
+    node += fmt::format("{} {} {} {}\n", v, p.x(), p.y(), p.z());
+  }
+  std::string ele = fmt::format("{} 4 0\n", mesh.tet_count());
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    ele += fmt::format("{} {} {} {} {}\n", t, tet[0], tet[1], tet[2], tet[3]);
+  }
+  AtomicFile node_file(node_path);
+  node_file.write(node);
+  AtomicFile ele_file(ele_path);
+  ele_file.write(ele);
+  node_file.commit();
+  ele_file.commit();
+}
+
+void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh) {
+  const std::string extension = io_detail::lowercase(path.extension().string());
+  if (extension == ".msh") {
+    write_msh(path, mesh);
+  } else if (extension == ".vtu") {
+    write_vtu(path, mesh);
+  } else if (extension == ".mesh") {
+    write_medit(path, mesh);
+  } else if (extension == ".obj") {
+    write_obj(path, mesh);
+  } else if (extension == ".node" || extension == ".ele") {
+    write_tetgen(path, mesh);
+  } else {
+    throw InputError(path.string(), 0,
+                     "cannot write this extension (use .msh, .vtu, .mesh, .obj or .node)");
+  }
+}
+
+}  // namespace incise

@@ -1,0 +1,306 @@
+// VTK legacy .vtk reader (UNSTRUCTURED_GRID and POLYDATA; ASCII and big-endian BINARY; the
+// classic CELLS layout and the OFFSETS/CONNECTIVITY layout of file version 5.1). VTK itself
+// would parse this, but it is a 200 MB dependency for one function.
+
+#include <cmath>
+#include <limits>
+
+#include "readers.hpp"
+
+namespace incise::io_detail {
+namespace {
+
+constexpr std::size_t kMaxCount = std::numeric_limits<std::int32_t>::max();
+
+/// One CELLS / POLYGONS block: cell i uses connectivity[offsets[i] .. offsets[i+1]).
+struct CellBlock {
+  std::vector<long long> offsets{0};
+  std::vector<long long> connectivity;
+  [[nodiscard]] std::size_t size() const { return offsets.size() - 1; }
+};
+
+class VtkLegacyReader {
+ public:
+  explicit VtkLegacyReader(Source& source) : source_(source), builder_(source) {}
+
+  RawMesh read() {
+    const std::string_view magic = source_.rest_of_line();
+    if (magic.find("# vtk DataFile") != 0) {
+      source_.fail("a legacy VTK file starts with '# vtk DataFile Version'");
+    }
+    source_.skip_line();  // title
+    const std::string encoding = lowercase(source_.token("ASCII or BINARY"));
+    if (encoding != "ascii" && encoding != "binary") {
+      source_.fail("expected ASCII or BINARY, found '" + encoding + "'");
+    }
+    binary_ = encoding == "binary";
+    source_.expect("DATASET");
+    const std::string dataset(source_.token("dataset type"));
+    if (dataset != "UNSTRUCTURED_GRID" && dataset != "POLYDATA") {
+      source_.fail("only UNSTRUCTURED_GRID and POLYDATA datasets hold a mesh, found " + dataset);
+    }
+    bool has_points = false;
+    CellBlock cells;
+    std::vector<long long> cell_types;
+    bool has_cells = false;
+    for (;;) {
+      const std::string_view keyword = source_.next_token();
+      if (keyword.empty() || keyword == "POINT_DATA" || keyword == "CELL_DATA") {
+        break;  // attribute data is not needed to build the mesh
+      }
+      if (keyword == "POINTS") {
+        read_points();
+        has_points = true;
+      } else if (keyword == "METADATA") {
+        skip_metadata();
+      } else if (keyword == "FIELD") {
+        source_.fail("FIELD data before the cells is not supported");
+      } else if (keyword == "CELLS" || keyword == "POLYGONS" || keyword == "TRIANGLE_STRIPS" ||
+                 keyword == "VERTICES" || keyword == "LINES") {
+        if (!has_points) {
+          source_.fail(std::string(keyword) + " before POINTS");
+        }
+        const std::string name(keyword);
+        CellBlock block = read_cells(name);
+        if (name == "CELLS") {
+          cells = std::move(block);
+          has_cells = true;
+        } else if (name == "POLYGONS") {
+          add_polygons(block, false);
+        } else if (name == "TRIANGLE_STRIPS") {
+          add_polygons(block, true);
+        } else {
+          builder_.skip(name == "LINES" ? "line cells" : "vertex cells", block.size());
+        }
+      } else if (keyword == "CELL_TYPES") {
+        const std::size_t count = source_.count("cell type count", kMaxCount);
+        cell_types = read_integers(count, "int", "cell types");
+      } else {
+        source_.fail("unexpected keyword '" + std::string(keyword) + "'");
+      }
+    }
+    if (!has_points) {
+      source_.fail_without_line("no POINTS section");
+    }
+    if (has_cells) {
+      if (cell_types.size() != cells.size()) {
+        source_.fail("CELL_TYPES lists " + std::to_string(cell_types.size()) + " types for " +
+                     std::to_string(cells.size()) + " cells");
+      }
+      for (std::size_t c = 0; c < cells.size(); ++c) {
+        add_cell(cell_types[c], cells, c);
+      }
+    }
+    return builder_.finish(MeshFormat::kVtkLegacy);
+  }
+
+ private:
+  void read_points() {
+    const std::size_t count = source_.count("point count", kMaxCount);
+    const std::string type(source_.token("point data type"));
+    source_.skip_line();
+    const std::vector<double> xyz = read_reals(3 * count, type, "point coordinates");
+    builder_.set_implicit_tags(0);
+    for (std::size_t i = 0; i < count; ++i) {
+      builder_.add_point(static_cast<long long>(i), Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]));
+    }
+  }
+
+  void skip_metadata() {
+    // METADATA blocks end at the first empty line.
+    source_.skip_line();
+    while (!source_.at_end()) {
+      const std::string_view line = source_.rest_of_line();
+      if (line.find_first_not_of(" \t\r") == std::string_view::npos) {
+        return;
+      }
+    }
+  }
+
+  CellBlock read_cells(const std::string& keyword) {
+    const std::size_t first = source_.count("cell count", kMaxCount);
+    const std::size_t second = source_.count("cell list size", kMaxCount);
+    source_.skip_line();
+    CellBlock block;
+    if (source_.peek_token() == "OFFSETS") {
+      // File version 5.1: first = offsets count (cells + 1), second = connectivity size.
+      source_.expect("OFFSETS");
+      const std::string offset_type(source_.token("offset type"));
+      source_.skip_line();
+      block.offsets = read_integers(first, offset_type, "offsets");
+      source_.expect("CONNECTIVITY");
+      const std::string connectivity_type(source_.token("connectivity type"));
+      source_.skip_line();
+      block.connectivity = read_integers(second, connectivity_type, "connectivity");
+      if (block.offsets.empty() || block.offsets.front() != 0) {
+        source_.fail(keyword + " offsets must start at 0");
+      }
+      for (std::size_t i = 1; i < block.offsets.size(); ++i) {
+        if (block.offsets[i] < block.offsets[i - 1] ||
+            block.offsets[i] > static_cast<long long>(block.connectivity.size())) {
+          source_.fail(keyword + " offset " + std::to_string(i) + " is out of range");
+        }
+      }
+      if (block.offsets.back() != static_cast<long long>(block.connectivity.size())) {
+        source_.fail(keyword + " offsets do not cover the connectivity");
+      }
+      return block;
+    }
+    // Classic layout: per cell, its point count followed by the point ids.
+    const std::vector<long long> raw = read_integers(second, "int", keyword.c_str());
+    std::size_t position = 0;
+    for (std::size_t c = 0; c < first; ++c) {
+      if (position >= raw.size()) {
+        source_.fail(keyword + ": list ends after " + std::to_string(c) + " of " +
+                     std::to_string(first) + " cells");
+      }
+      const long long count = raw[position++];
+      if (count < 0 || position + static_cast<std::size_t>(count) > raw.size()) {
+        source_.fail(keyword + ": cell " + std::to_string(c) + " has a bad point count " +
+                     std::to_string(count));
+      }
+      block.connectivity.insert(block.connectivity.end(), raw.begin() + static_cast<std::ptrdiff_t>(position),
+                                raw.begin() + static_cast<std::ptrdiff_t>(position + count));
+      position += static_cast<std::size_t>(count);
+      block.offsets.push_back(static_cast<long long>(block.connectivity.size()));
+    }
+    if (position != raw.size()) {
+      source_.fail(keyword + ": list size " + std::to_string(raw.size()) + " does not match " +
+                   std::to_string(first) + " cells");
+    }
+    return block;
+  }
+
+  void add_cell(long long type, const CellBlock& cells, std::size_t c) {
+    const long long begin = cells.offsets[c];
+    const long long size = cells.offsets[c + 1] - begin;
+    const long long* ids = cells.connectivity.data() + begin;
+    if ((type == 10 && size == 4) || (type == 24 && size == 10)) {
+      builder_.add_tet({ids[0], ids[1], ids[2], ids[3]});
+      if (type == 24) {
+        builder_.skip("mid-edge nodes (kept the corners of quadratic tetrahedra)", 6);
+      }
+    } else if ((type == 5 && size == 3) || (type == 22 && size == 6)) {
+      builder_.add_triangle({ids[0], ids[1], ids[2]});
+    } else if (type == 10 || type == 5) {
+      source_.fail_without_line("cell " + std::to_string(c) + " of type " + std::to_string(type) +
+                                " has " + std::to_string(size) + " points");
+    } else {
+      builder_.skip(vtk_cell_name(static_cast<int>(type)));
+    }
+  }
+
+  void add_polygons(const CellBlock& block, bool strips) {
+    for (std::size_t c = 0; c < block.size(); ++c) {
+      const long long begin = block.offsets[c];
+      const long long size = block.offsets[c + 1] - begin;
+      const long long* ids = block.connectivity.data() + begin;
+      if (size < 3) {
+        source_.fail_without_line("polygon " + std::to_string(c) + " has fewer than 3 points");
+      }
+      for (long long i = 0; i + 2 < size; ++i) {
+        if (strips) {
+          // Every other strip triangle is flipped to keep a consistent orientation.
+          builder_.add_triangle(i % 2 == 0 ? std::array{ids[i], ids[i + 1], ids[i + 2]}
+                                           : std::array{ids[i + 1], ids[i], ids[i + 2]});
+        } else {
+          builder_.add_triangle({ids[0], ids[i + 1], ids[i + 2]});
+        }
+      }
+    }
+  }
+
+  static int type_size(const std::string& type) {
+    if (type == "unsigned_char" || type == "char" || type == "bit") {
+      return 1;
+    }
+    if (type == "unsigned_short" || type == "short") {
+      return 2;
+    }
+    if (type == "unsigned_int" || type == "int" || type == "float") {
+      return 4;
+    }
+    if (type == "unsigned_long" || type == "long" || type == "double" || type == "vtktypeint64" ||
+        type == "vtktypeuint64") {
+      return 8;
+    }
+    return 0;
+  }
+
+  /// One binary value of a VTK type, big-endian, as double.
+  double binary_value(const std::string& type, const char* what) {
+    const bool swap = kHostIsLittleEndian;
+    if (type == "float") {
+      return source_.binary<float>(swap, what);
+    }
+    if (type == "double") {
+      return source_.binary<double>(swap, what);
+    }
+    if (type == "int") {
+      return source_.binary<std::int32_t>(swap, what);
+    }
+    if (type == "unsigned_int") {
+      return source_.binary<std::uint32_t>(swap, what);
+    }
+    if (type == "long" || type == "vtktypeint64") {
+      return static_cast<double>(source_.binary<std::int64_t>(swap, what));
+    }
+    if (type == "unsigned_long" || type == "vtktypeuint64") {
+      return static_cast<double>(source_.binary<std::uint64_t>(swap, what));
+    }
+    if (type == "short") {
+      return source_.binary<std::int16_t>(swap, what);
+    }
+    if (type == "unsigned_short") {
+      return source_.binary<std::uint16_t>(swap, what);
+    }
+    if (type == "char") {
+      return source_.binary<std::int8_t>(swap, what);
+    }
+    return source_.binary<std::uint8_t>(swap, what);
+  }
+
+  std::vector<double> read_reals(std::size_t count, const std::string& type, const char* what) {
+    if (type_size(type) == 0) {
+      source_.fail("unknown data type '" + type + "'");
+    }
+    std::vector<double> values(count);
+    if (binary_ && source_.remaining() < count * static_cast<std::size_t>(type_size(type))) {
+      source_.fail_without_line(std::string("file ends inside ") + what);
+    }
+    for (double& value : values) {
+      value = binary_ ? binary_value(type, what) : source_.real(what);
+      if (!std::isfinite(value)) {
+        source_.fail_without_line(std::string("non-finite value in ") + what);
+      }
+    }
+    return values;
+  }
+
+  std::vector<long long> read_integers(std::size_t count, const std::string& type, const char* what) {
+    if (type_size(type) == 0 || type == "float" || type == "double") {
+      source_.fail("'" + type + "' is not an integer type for " + what);
+    }
+    std::vector<long long> values(count);
+    if (binary_ && source_.remaining() < count * static_cast<std::size_t>(type_size(type))) {
+      source_.fail_without_line(std::string("file ends inside ") + what);
+    }
+    for (long long& value : values) {
+      value = binary_ ? static_cast<long long>(binary_value(type, what)) : source_.integer(what);
+    }
+    return values;
+  }
+
+  Source& source_;
+  MeshBuilder builder_;
+  bool binary_ = false;
+};
+
+}  // namespace
+
+RawMesh read_vtk_legacy(Source& source) {
+  VtkLegacyReader reader(source);
+  return reader.read();
+}
+
+}  // namespace incise::io_detail

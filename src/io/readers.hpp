@@ -1,0 +1,55 @@
+#pragma once
+// Per-format readers and the bookkeeping they share. Private to the io module.
+
+#include <map>
+#include <string>
+#include <unordered_map>
+
+#include "incise/io/mesh_io.hpp"
+#include "source.hpp"
+
+namespace incise::io_detail {
+
+/// Collects cells, maps file node tags to point indices, and counts what it skipped.
+class MeshBuilder {
+ public:
+  explicit MeshBuilder(Source& source) : source_(&source) {}
+  /// Errors from now on name this file (formats split over two files).
+  void set_source(Source& source) { source_ = &source; }
+
+  /// Registers a point under a file tag; a repeated tag is an error.
+  void add_point(long long tag, const Vec3& point);
+  [[nodiscard]] std::size_t point_count() const { return mesh_.points.size(); }
+  /// Point index of a file tag; fails with the current line if the tag is unknown.
+  [[nodiscard]] VertexId index_of(long long tag, const std::string& context) const;
+  /// Points are numbered 0..n-1 by position in the file (tags are implicit).
+  void set_implicit_tags(long long first_tag) { implicit_first_ = first_tag; }
+
+  void add_tet(const std::array<long long, 4>& tags);
+  void add_triangle(const std::array<long long, 3>& tags);
+  /// Notes a skipped cell of a kind ("hexahedra", "lines" ...).
+  void skip(const std::string& kind, std::size_t count = 1) { skipped_[kind] += count; }
+
+  RawMesh finish(MeshFormat format);
+
+ private:
+  Source* source_;
+  RawMesh mesh_;
+  std::unordered_map<long long, VertexId> tag_to_index_;
+  long long implicit_first_ = -1;
+  std::map<std::string, std::size_t> skipped_;
+};
+
+RawMesh read_gmsh(Source& source);
+RawMesh read_tetgen(Source& node_source, Source* ele_source);
+RawMesh read_medit(Source& source);
+RawMesh read_vtk_legacy(Source& source);
+RawMesh read_vtk_xml(Source& source);
+RawMesh read_obj(Source& source);
+RawMesh read_stl(Source& source);
+RawMesh read_ply(Source& source);
+
+/// Name of a VTK cell type for notes ("hexahedron", "cell type 42").
+std::string vtk_cell_name(int type);
+
+}  // namespace incise::io_detail
