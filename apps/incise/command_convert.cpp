@@ -17,8 +17,11 @@ Runner add_convert_command(CLI::App& app) {
   auto input = std::make_shared<std::string>();
   auto output = std::make_shared<std::string>();
   auto fix = std::make_shared<bool>(false);
-  command->add_option("input", *input, "Input mesh or surface")->required()->check(CLI::ExistingFile);
-  command->add_option("output", *output, "Output: .msh, .vtu, .mesh, .obj, .node (.vtp for surfaces)")
+  command->add_option("input", *input, "Input mesh or surface")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command
+      ->add_option("output", *output, "Output: .msh, .vtu, .mesh, .obj, .node (.vtp for surfaces)")
       ->required();
   command->add_flag("--fix-orientation", *fix, "Flip inverted tetrahedra to positive orientation");
   return [input, output, fix]() {
@@ -59,8 +62,8 @@ Runner add_convert_command(CLI::App& app) {
       std::cerr << "warning: the mesh is not valid:\n" << report.describe();
     }
     write_tet_mesh(*output, mesh);
-    std::cerr << fmt::format("wrote {} ({} vertices, {} tetrahedra)\n", *output, mesh.vertex_count(),
-                             mesh.tet_count());
+    std::cerr << fmt::format("wrote {} ({} vertices, {} tetrahedra)\n", *output,
+                             mesh.vertex_count(), mesh.tet_count());
     return 0;
   };
 }

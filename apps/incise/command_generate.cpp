@@ -20,12 +20,15 @@ Runner add_generate_command(CLI::App& app) {
   auto per_cell = std::make_shared<int>(6);
   auto output = std::make_shared<std::string>();
   box->add_option("--cells", *cells, "Cells along x, y, z")->expected(3)->capture_default_str();
-  box->add_option("--size", *size, "Box edge lengths along x, y, z (m)")->expected(3)->capture_default_str();
+  box->add_option("--size", *size, "Box edge lengths along x, y, z (m)")
+      ->expected(3)
+      ->capture_default_str();
   box->add_option("--origin", *origin, "Minimum corner (m)")->expected(3)->capture_default_str();
   box->add_option("--tets-per-cell", *per_cell, "5 or 6")
       ->check(CLI::IsMember({5, 6}))
       ->capture_default_str();
-  box->add_option("-o,--output", *output, "Output mesh (.msh, .vtu, .mesh, .obj, .node)")->required();
+  box->add_option("-o,--output", *output, "Output mesh (.msh, .vtu, .mesh, .obj, .node)")
+      ->required();
   return [=]() {
     BoxGridOptions options;
     options.cells = {(*cells)[0], (*cells)[1], (*cells)[2]};

@@ -60,7 +60,8 @@ Runner add_info_command(CLI::App& app) {
       out["volume"] = volume;
       out["min_tet_volume"] = smallest;
       out["max_tet_volume"] = largest;
-      out["bounding_box"] = {{"min", {low.x(), low.y(), low.z()}}, {"max", {high.x(), high.y(), high.z()}}};
+      out["bounding_box"] = {{"min", {low.x(), low.y(), low.z()}},
+                             {"max", {high.x(), high.y(), high.z()}}};
       out["inverted"] = report.inverted_tets.size();
       out["degenerate"] = report.degenerate_tets.size();
       out["nonmanifold_faces"] = report.nonmanifold_faces.size();
@@ -92,24 +93,26 @@ Runner add_info_command(CLI::App& app) {
                              mesh.tet_count(), mesh.edge_count());
     std::cout << fmt::format("  bounding box [{:.6g}, {:.6g}, {:.6g}] - [{:.6g}, {:.6g}, {:.6g}]\n",
                              low.x(), low.y(), low.z(), high.x(), high.y(), high.z());
-    std::cout << fmt::format("  volume {:.9g}   tet volume min {:.4g} max {:.4g}\n", volume, smallest,
-                             largest);
-    std::cout << fmt::format("  components {}   boundary triangles {}   watertight {}\n", components,
-                             faces.size(), boundary.watertight() ? "yes" : "no");
+    std::cout << fmt::format("  volume {:.9g}   tet volume min {:.4g} max {:.4g}\n", volume,
+                             smallest, largest);
+    std::cout << fmt::format("  components {}   boundary triangles {}   watertight {}\n",
+                             components, faces.size(), boundary.watertight() ? "yes" : "no");
     std::cout << fmt::format(
         "  quality: min dihedral {:.2f} deg (mean of minima {:.2f}), aspect ratio max {:.3g} mean "
         "{:.3g}\n",
         quality.min_dihedral_deg, quality.mean_min_dihedral_deg, quality.max_aspect_ratio,
         quality.mean_aspect_ratio);
     std::cout << "  min dihedral angle histogram:\n";
-    const std::size_t peak = std::max<std::size_t>(
-        1, *std::max_element(quality.min_dihedral_histogram.begin(), quality.min_dihedral_histogram.end()));
+    const std::size_t peak =
+        std::max<std::size_t>(1, *std::max_element(quality.min_dihedral_histogram.begin(),
+                                                   quality.min_dihedral_histogram.end()));
     for (std::size_t bin = 0; bin < quality.min_dihedral_histogram.size(); ++bin) {
       const std::size_t count = quality.min_dihedral_histogram[bin];
       const std::string label = bin + 1 < quality.min_dihedral_histogram.size()
                                     ? fmt::format("{:2}-{:2} deg", bin * 10, bin * 10 + 10)
                                     : fmt::format("  >={:2} deg", bin * 10);
-      std::cout << fmt::format("    {} {:>8} {}\n", label, count, std::string(40 * count / peak, '#'));
+      std::cout << fmt::format("    {} {:>8} {}\n", label, count,
+                               std::string(40 * count / peak, '#'));
     }
     if (valid) {
       std::cout << "  valid: yes\n";

@@ -19,32 +19,67 @@ Runner add_mesh_command(CLI::App& app) {
   auto input = std::make_shared<std::string>();
   auto output = std::make_shared<std::string>();
   auto options = std::make_shared<TetrahedralizeOptions>();
-  command->add_option("surface", *input, "Closed triangle surface")->required()->check(CLI::ExistingFile);
-  command->add_option("-o,--output", *output, "Output mesh (.msh, .vtu, .mesh, .obj, .node)")->required();
-  command->add_option("--max-volume", options->max_volume,
-                      "Largest tetrahedron volume, in the surface's units cubed (0: no bound)")
+  command->add_option("surface", *input, "Closed triangle surface")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("-o,--output", *output, "Output mesh (.msh, .vtu, .mesh, .obj, .node)")
+      ->required();
+  command
+      ->add_option("--max-volume", options->max_volume,
+                   "Largest tetrahedron volume, in the surface's units cubed (0: no bound)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  command->add_option("--min-quality", options->max_radius_edge_ratio,
-                      "Quality bound: largest radius-edge ratio allowed (TetGen -q; >= 1.1, "
-                      "smaller is better)")
+  command
+      ->add_option("--min-quality", options->max_radius_edge_ratio,
+                   "Quality bound: largest radius-edge ratio allowed (TetGen -q; >= 1.1, "
+                   "smaller is better)")
       ->check(CLI::Range(1.1, 100.0))
       ->capture_default_str();
-  command->add_option("--min-dihedral", options->min_dihedral_deg,
-                      "Smallest dihedral angle to aim for (degrees, 0-18)")
+  command
+      ->add_option("--min-dihedral", options->min_dihedral_deg,
+                   "Smallest dihedral angle to aim for (degrees, 0-18)")
       ->check(CLI::Range(0.0, 18.0))
       ->capture_default_str();
   command->add_flag("--preserve-surface", options->preserve_surface,
                     "Keep the input triangles (no points added on the boundary)");
+  auto remesh = std::make_shared<std::string>("auto");
+  command
+      ->add_option("--remesh", *remesh,
+                   "Remesh the surface first: auto (when it has needle triangles), always, never")
+      ->check(CLI::IsMember({"auto", "always", "never"}))
+      ->capture_default_str();
+  command
+      ->add_option("--edge-length", options->remesh_edge_length,
+                   "Target edge length when remeshing (0: the median input edge)")
+      ->check(CLI::NonNegativeNumber);
+  auto largest = std::make_shared<bool>(false);
+  command->add_flag("--largest-shell", *largest,
+                    "Mesh only the largest closed shell of the surface (drops stray pieces)");
+  command->add_option("--timeout", options->timeout_seconds, "TetGen time limit (s)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   return [=]() {
     const auto start = std::chrono::steady_clock::now();
-    const SurfaceMesh surface = read_surface(*input);
+    SurfaceMesh surface = read_surface(*input);
     for (const std::string& note : surface.notes) {
       std::cerr << "note: " << note << "\n";
     }
-    std::cerr << fmt::format("surface: {} points, {} triangles\n", surface.points.size(),
-                             surface.triangles.size());
-    const TetMesh mesh = tetrahedralize(surface, *options);
+    const std::vector<SurfaceMesh> shells = surface_shells(surface);
+    std::cerr << fmt::format("surface: {} points, {} triangles, {} shell(s)\n",
+                             surface.points.size(), surface.triangles.size(), shells.size());
+    if (*largest && shells.size() > 1) {
+      surface = shells.front();
+      std::cerr << fmt::format("note: kept the largest shell ({} triangles), dropped {} others\n",
+                               surface.triangles.size(), shells.size() - 1);
+    }
+    options->remesh = *remesh == "always"  ? TetrahedralizeOptions::Remesh::kAlways
+                      : *remesh == "never" ? TetrahedralizeOptions::Remesh::kNever
+                                           : TetrahedralizeOptions::Remesh::kAuto;
+    TetrahedralizeResult result = tetrahedralize(surface, *options);
+    for (const std::string& note : result.notes) {
+      std::cerr << "note: " << note << "\n";
+    }
+    const TetMesh& mesh = result.mesh;
     const ValidationReport report = validate(mesh);
     const QualitySummary quality = summarize_quality(mesh);
     write_tet_mesh(*output, mesh);
@@ -52,8 +87,8 @@ Runner add_mesh_command(CLI::App& app) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::cerr << fmt::format(
         "wrote {} ({} vertices, {} tetrahedra, volume {:.6g}, min dihedral {:.1f} deg, {:.2f} s)\n",
-        *output, mesh.vertex_count(), mesh.tet_count(), total_volume(mesh), quality.min_dihedral_deg,
-        seconds);
+        *output, mesh.vertex_count(), mesh.tet_count(), total_volume(mesh),
+        quality.min_dihedral_deg, seconds);
     if (!report.ok()) {
       std::cerr << "warning: the result does not validate:\n" << report.describe();
       return kExitError;

@@ -19,9 +19,10 @@ VertexId MeshBuilder::index_of(long long tag, const std::string& context) const 
   if (implicit_first_ >= 0) {
     const long long index = tag - implicit_first_;
     if (index < 0 || index >= static_cast<long long>(mesh_.points.size())) {
-      source_->fail(context + " refers to point " + std::to_string(tag) + ", but points are numbered " +
-                   std::to_string(implicit_first_) + " to " +
-                   std::to_string(implicit_first_ + static_cast<long long>(mesh_.points.size()) - 1));
+      source_->fail(
+          context + " refers to point " + std::to_string(tag) + ", but points are numbered " +
+          std::to_string(implicit_first_) + " to " +
+          std::to_string(implicit_first_ + static_cast<long long>(mesh_.points.size()) - 1));
     }
     return static_cast<VertexId>(index);
   }
@@ -39,7 +40,7 @@ void MeshBuilder::add_tet(const std::array<long long, 4>& tags) {
     for (int j = 0; j < i; ++j) {
       if (tet[j] == tet[i]) {
         source_->fail("tetrahedron " + std::to_string(mesh_.tets.size()) + " uses point " +
-                     std::to_string(tags[i]) + " twice");
+                      std::to_string(tags[i]) + " twice");
       }
     }
   }

@@ -95,7 +95,8 @@ MeshFormat format_from_content(std::string_view bytes) {
   // Skip blank lines and '#' comment lines to the first significant line.
   std::size_t position = 0;
   for (;;) {
-    while (position < text.size() && std::isspace(static_cast<unsigned char>(text[position])) != 0) {
+    while (position < text.size() &&
+           std::isspace(static_cast<unsigned char>(text[position])) != 0) {
       ++position;
     }
     if (position < text.size() && text[position] == '#') {
@@ -121,7 +122,8 @@ MeshFormat format_from_content(std::string_view bytes) {
   if (starts_with(head, "meshversionformatted")) {
     return MeshFormat::kMedit;
   }
-  if (starts_with(head, "solid") && io_detail::lowercase(text.substr(0, 1024)).find("facet") != std::string::npos) {
+  if (starts_with(head, "solid") &&
+      io_detail::lowercase(text.substr(0, 1024)).find("facet") != std::string::npos) {
     return MeshFormat::kStl;
   }
   for (const char* keyword : {"v ", "vn ", "vt ", "f ", "o ", "g ", "mtllib ", "usemtl ", "s "}) {
@@ -199,12 +201,12 @@ RawMesh read_raw_mesh(const std::filesystem::path& path) {
 TetMeshReadResult read_tet_mesh(const std::filesystem::path& path) {
   RawMesh raw = read_raw_mesh(path);
   if (raw.tets.empty()) {
-    throw InputError(path.string(), 0,
-                     "holds no tetrahedra" +
-                         (raw.triangles.empty()
-                              ? std::string()
-                              : " (it has " + std::to_string(raw.triangles.size()) +
-                                    " triangles: tetrahedralise it with `incise mesh`)"));
+    throw InputError(
+        path.string(), 0,
+        "holds no tetrahedra" + (raw.triangles.empty()
+                                     ? std::string()
+                                     : " (it has " + std::to_string(raw.triangles.size()) +
+                                           " triangles: tetrahedralise it with `incise mesh`)"));
   }
   // Drop points no tetrahedron uses: they would carry no mass.
   std::vector<VertexId> remap(raw.points.size(), kInvalidId);
@@ -228,8 +230,7 @@ TetMeshReadResult read_tet_mesh(const std::filesystem::path& path) {
     }
   }
   if (dropped > 0) {
-    raw.notes.push_back("dropped " + std::to_string(dropped) +
-                        " points that no tetrahedron uses");
+    raw.notes.push_back("dropped " + std::to_string(dropped) + " points that no tetrahedron uses");
   }
   if (!raw.triangles.empty()) {
     raw.notes.push_back("ignored " + std::to_string(raw.triangles.size()) +
@@ -297,7 +298,9 @@ class AtomicFile {
     }
   }
   std::ofstream& stream() { return stream_; }
-  void write(std::string_view text) { stream_.write(text.data(), static_cast<std::streamsize>(text.size())); }
+  void write(std::string_view text) {
+    stream_.write(text.data(), static_cast<std::streamsize>(text.size()));
+  }
   void commit() {
     stream_.close();
     if (!stream_) {
@@ -306,7 +309,8 @@ class AtomicFile {
     std::error_code error;
     std::filesystem::rename(temporary_, path_, error);
     if (error) {
-      throw InputError(path_.string(), 0, "cannot move the written file into place: " + error.message());
+      throw InputError(path_.string(), 0,
+                       "cannot move the written file into place: " + error.message());
     }
     committed_ = true;
   }
@@ -368,8 +372,9 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
       }
       for (std::size_t i = 0; i < reals->size(); ++i) {
         if (!std::isfinite((*reals)[i])) {
-          throw InputError(path.string(), 0, "refusing to write: field '" + field.name +
-                                                 "' value " + std::to_string(i) + " is not finite");
+          throw InputError(path.string(), 0,
+                           "refusing to write: field '" + field.name + "' value " +
+                               std::to_string(i) + " is not finite");
         }
         append_raw(bytes, (*reals)[i]);
       }
@@ -431,7 +436,9 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
     add_array("type=\"Int64\" Name=\"offsets\"", offsets);
     add_array("type=\"UInt8\" Name=\"types\"", types);
   }
-  xml += "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _";
+  xml +=
+      "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   "
+      "_";
   AtomicFile file(path);
   file.write(xml);
   file.write(appended);
@@ -445,7 +452,8 @@ void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
   std::string appended;
   std::string xml = fmt::format(
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"{}\" "
-      "header_type=\"UInt64\">\n  <PolyData>\n    <Piece NumberOfPoints=\"{}\" NumberOfPolys=\"{}\">\n",
+      "header_type=\"UInt64\">\n  <PolyData>\n    <Piece NumberOfPoints=\"{}\" "
+      "NumberOfPolys=\"{}\">\n",
       host_byte_order(), points.size(), triangles.size());
   auto add_array = [&](const std::string& attributes, const std::string& bytes) {
     xml += fmt::format("        <DataArray {} format=\"appended\" offset=\"{}\"/>\n", attributes,
@@ -532,7 +540,8 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
 
 void write_medit(const std::filesystem::path& path, const TetMesh& mesh) {
   check_finite_positions(path, mesh.rest_positions());
-  std::string out = fmt::format("MeshVersionFormatted 2\nDimension 3\nVertices\n{}\n", mesh.vertex_count());
+  std::string out =
+      fmt::format("MeshVersionFormatted 2\nDimension 3\nVertices\n{}\n", mesh.vertex_count());
   for (const Vec3& p : mesh.rest_positions()) {
     out += fmt::format("{} {} {} 0\n", p.x(), p.y(), p.z());
   }
@@ -543,7 +552,8 @@ void write_medit(const std::filesystem::path& path, const TetMesh& mesh) {
   const auto faces = boundary_faces(mesh);
   out += fmt::format("Triangles\n{}\n", faces.size());
   for (const BoundaryFace& face : faces) {
-    out += fmt::format("{} {} {} 0\n", face.vertices[0] + 1, face.vertices[1] + 1, face.vertices[2] + 1);
+    out += fmt::format("{} {} {} 0\n", face.vertices[0] + 1, face.vertices[1] + 1,
+                       face.vertices[2] + 1);
   }
   out += "End\n";
   AtomicFile file(path);

@@ -14,9 +14,9 @@ constexpr std::size_t kMaxCount = std::numeric_limits<std::int32_t>::max();
 
 /// Nodes per element for Gmsh element types 1..31 (0 = unknown).
 int nodes_per_element(long long type) {
-  static constexpr std::array<int, 32> kNodes = {0,  2,  3,  4,  4,  8,  6,  5,  3,  6, 9,
-                                                 10, 27, 18, 14, 1,  8,  20, 15, 13, 9, 10,
-                                                 12, 15, 15, 21, 4,  5,  6,  20, 35, 56};
+  static constexpr std::array<int, 32> kNodes = {0,  2,  3,  4,  4, 8, 6,  5,  3,  6, 9,
+                                                 10, 27, 18, 14, 1, 8, 20, 15, 13, 9, 10,
+                                                 12, 15, 15, 21, 4, 5, 6,  20, 35, 56};
   return type >= 1 && type < static_cast<long long>(kNodes.size()) ? kNodes[type] : 0;
 }
 
@@ -80,7 +80,8 @@ struct GmshReader {
     if (size_t_bytes == 8) {
       const auto value = source.binary<std::uint64_t>(swap, what);
       if (value > kMaxCount) {
-        source.fail_without_line(std::string(what) + " " + std::to_string(value) + " is out of range");
+        source.fail_without_line(std::string(what) + " " + std::to_string(value) +
+                                 " is out of range");
       }
       return static_cast<std::size_t>(value);
     }
@@ -267,7 +268,8 @@ struct GmshReader {
       tags.resize(in_block);
       if (v41) {
         for (auto& tag : tags) {
-          tag = binary ? static_cast<long long>(binary_size("node tag")) : source.integer("node tag");
+          tag =
+              binary ? static_cast<long long>(binary_size("node tag")) : source.integer("node tag");
         }
       }
       for (std::size_t i = 0; i < in_block; ++i) {
@@ -374,7 +376,8 @@ struct GmshReader {
         saw_header = true;
       } else if (section == "$NOD" || section == "$Nodes") {
         if (section == "$NOD" && saw_header) {
-          source.fail("$NOD (version 1) in a file that declared version " + std::to_string(version));
+          source.fail("$NOD (version 1) in a file that declared version " +
+                      std::to_string(version));
         }
         if (saw_nodes) {
           source.fail("a second node section");

@@ -93,14 +93,26 @@ RawMesh read_medit(Source& source) {
   MeshBuilder builder(source);
   builder.set_implicit_tags(1);
   // Sections we skip, with the number of values per entry (3-D files).
-  static const std::map<std::string, int> kSkipped = {
-      {"edges", 3},          {"quadrilaterals", 5},     {"hexahedra", 9},
-      {"prisms", 7},         {"pyramids", 6},           {"corners", 1},
-      {"ridges", 1},         {"requiredvertices", 1},   {"requirededges", 1},
-      {"requiredtriangles", 1}, {"normals", 3},         {"tangents", 3},
-      {"normalatvertices", 2}, {"tangentatedges", 3},   {"normalattrianglevertices", 3},
-      {"tetrahedrap2", 11},  {"trianglesp2", 7},        {"edgesp2", 4},
-      {"requiredtetrahedra", 1}, {"requiredquadrilaterals", 1}};
+  static const std::map<std::string, int> kSkipped = {{"edges", 3},
+                                                      {"quadrilaterals", 5},
+                                                      {"hexahedra", 9},
+                                                      {"prisms", 7},
+                                                      {"pyramids", 6},
+                                                      {"corners", 1},
+                                                      {"ridges", 1},
+                                                      {"requiredvertices", 1},
+                                                      {"requirededges", 1},
+                                                      {"requiredtriangles", 1},
+                                                      {"normals", 3},
+                                                      {"tangents", 3},
+                                                      {"normalatvertices", 2},
+                                                      {"tangentatedges", 3},
+                                                      {"normalattrianglevertices", 3},
+                                                      {"tetrahedrap2", 11},
+                                                      {"trianglesp2", 7},
+                                                      {"edgesp2", 4},
+                                                      {"requiredtetrahedra", 1},
+                                                      {"requiredquadrilaterals", 1}};
   bool saw_version = false;
   for (;;) {
     const std::string_view keyword_token = source.next_token();
@@ -237,7 +249,8 @@ class PointWelder {
   long long add(const Vec3& p) {
     std::array<double, 3> key{p.x() == 0.0 ? 0.0 : p.x(), p.y() == 0.0 ? 0.0 : p.y(),
                               p.z() == 0.0 ? 0.0 : p.z()};  // -0 == +0
-    const auto [it, inserted] = index_.try_emplace(key, static_cast<long long>(builder_.point_count()));
+    const auto [it, inserted] =
+        index_.try_emplace(key, static_cast<long long>(builder_.point_count()));
     if (inserted) {
       builder_.add_point(it->second, p);
     }
@@ -301,7 +314,8 @@ RawMesh read_stl(Source& source) {
       source.fail("expected 'facet' or 'endsolid', found '" + keyword + "'");
     }
     source.skip_line();  // normal: recomputed from the corners when needed
-    if (lowercase(source.token("'outer loop'")) != "outer" || lowercase(source.token("'loop'")) != "loop") {
+    if (lowercase(source.token("'outer loop'")) != "outer" ||
+        lowercase(source.token("'loop'")) != "loop") {
       source.fail("expected 'outer loop'");
     }
     std::array<long long, 3> corners{};
@@ -333,11 +347,11 @@ enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, 
 
 bool ply_type(std::string_view name, PlyType& type) {
   static const std::map<std::string, PlyType, std::less<>> kTypes = {
-      {"char", PlyType::kInt8},     {"int8", PlyType::kInt8},      {"uchar", PlyType::kUint8},
-      {"uint8", PlyType::kUint8},   {"short", PlyType::kInt16},    {"int16", PlyType::kInt16},
-      {"ushort", PlyType::kUint16}, {"uint16", PlyType::kUint16},  {"int", PlyType::kInt32},
-      {"int32", PlyType::kInt32},   {"uint", PlyType::kUint32},    {"uint32", PlyType::kUint32},
-      {"float", PlyType::kFloat32}, {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
+      {"char", PlyType::kInt8},      {"int8", PlyType::kInt8},       {"uchar", PlyType::kUint8},
+      {"uint8", PlyType::kUint8},    {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
+      {"ushort", PlyType::kUint16},  {"uint16", PlyType::kUint16},   {"int", PlyType::kInt32},
+      {"int32", PlyType::kInt32},    {"uint", PlyType::kUint32},     {"uint32", PlyType::kUint32},
+      {"float", PlyType::kFloat32},  {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
       {"float64", PlyType::kFloat64}};
   const auto it = kTypes.find(name);
   if (it == kTypes.end()) {
@@ -406,9 +420,10 @@ RawMesh read_ply(Source& source) {
     }
     if (keyword == "format") {
       const std::string_view name = source.token("format");
-      format = name == "ascii" ? 0 : name == "binary_little_endian" ? 1
-                                 : name == "binary_big_endian"      ? 2
-                                                                    : -1;
+      format = name == "ascii"                  ? 0
+               : name == "binary_little_endian" ? 1
+               : name == "binary_big_endian"    ? 2
+                                                : -1;
       if (format < 0) {
         source.fail("unknown PLY format '" + std::string(name) + "'");
       }
@@ -470,8 +485,8 @@ RawMesh read_ply(Source& source) {
           if (count < 0 || count > 1000) {
             source.fail("list of " + std::to_string(count) + " entries is out of range");
           }
-          const bool is_corners = faces && (property.name == "vertex_indices" ||
-                                            property.name == "vertex_index");
+          const bool is_corners =
+              faces && (property.name == "vertex_indices" || property.name == "vertex_index");
           corners.clear();
           for (int k = 0; k < static_cast<int>(count); ++k) {
             corners.push_back(static_cast<long long>(

@@ -102,7 +102,8 @@ class VtkLegacyReader {
     const std::vector<double> xyz = read_reals(3 * count, type, "point coordinates");
     builder_.set_implicit_tags(0);
     for (std::size_t i = 0; i < count; ++i) {
-      builder_.add_point(static_cast<long long>(i), Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]));
+      builder_.add_point(static_cast<long long>(i),
+                         Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]));
     }
   }
 
@@ -159,7 +160,8 @@ class VtkLegacyReader {
         source_.fail(keyword + ": cell " + std::to_string(c) + " has a bad point count " +
                      std::to_string(count));
       }
-      block.connectivity.insert(block.connectivity.end(), raw.begin() + static_cast<std::ptrdiff_t>(position),
+      block.connectivity.insert(block.connectivity.end(),
+                                raw.begin() + static_cast<std::ptrdiff_t>(position),
                                 raw.begin() + static_cast<std::ptrdiff_t>(position + count));
       position += static_cast<std::size_t>(count);
       block.offsets.push_back(static_cast<long long>(block.connectivity.size()));
@@ -277,7 +279,8 @@ class VtkLegacyReader {
     return values;
   }
 
-  std::vector<long long> read_integers(std::size_t count, const std::string& type, const char* what) {
+  std::vector<long long> read_integers(std::size_t count, const std::string& type,
+                                       const char* what) {
     if (type_size(type) == 0 || type == "float" || type == "double") {
       source_.fail("'" + type + "' is not an integer type for " + what);
     }

@@ -3,12 +3,12 @@
 // pugixml parses the XML; zlib inflates. The binary layout handling is ours because neither
 // library knows VTK's block headers.
 
-#include <pugixml.hpp>
 #include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <pugixml.hpp>
 
 #include "readers.hpp"
 
@@ -52,7 +52,9 @@ int base64_value(char c) {
   return -1;
 }
 
-std::size_t base64_chars(std::size_t bytes) { return 4 * ((bytes + 2) / 3); }
+std::size_t base64_chars(std::size_t bytes) {
+  return 4 * ((bytes + 2) / 3);
+}
 
 class VtkXmlReader {
  public:
@@ -67,7 +69,8 @@ class VtkXmlReader {
     const std::size_t appended_tag = bytes.find("<AppendedData");
     if (appended_tag != std::string_view::npos) {
       const std::size_t tag_end = bytes.find('>', appended_tag);
-      const std::size_t marker = tag_end == std::string_view::npos ? tag_end : bytes.find('_', tag_end);
+      const std::size_t marker =
+          tag_end == std::string_view::npos ? tag_end : bytes.find('_', tag_end);
       if (marker == std::string_view::npos) {
         fail_at(appended_tag, "AppendedData without the '_' that starts the data");
       }
@@ -127,8 +130,10 @@ class VtkXmlReader {
  private:
   [[noreturn]] void fail_at(std::size_t offset, const std::string& message) const {
     const std::string_view bytes = source_.bytes();
-    const auto line = 1 + static_cast<std::size_t>(std::count(
-                              bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(std::min(offset, bytes.size())), '\n'));
+    const auto line =
+        1 + static_cast<std::size_t>(std::count(
+                bytes.begin(),
+                bytes.begin() + static_cast<std::ptrdiff_t>(std::min(offset, bytes.size())), '\n'));
     throw InputError(source_.name(), line, message);
   }
   [[noreturn]] void fail_at(const pugi::xml_node& node, const std::string& message) const {
@@ -168,8 +173,7 @@ class VtkXmlReader {
     }
     if (polydata) {
       for (const char* section : {"Polys", "Strips"}) {
-        const std::size_t count =
-            count_attribute_or_zero(piece, std::string("NumberOf") + section);
+        const std::size_t count = count_attribute_or_zero(piece, std::string("NumberOf") + section);
         if (count == 0) {
           continue;
         }
@@ -179,7 +183,8 @@ class VtkXmlReader {
           const std::size_t begin = c == 0 ? 0 : static_cast<std::size_t>(offsets[c - 1]);
           const std::size_t size = static_cast<std::size_t>(offsets[c]) - begin;
           if (size < 3) {
-            fail_at(block, std::string(section) + " cell " + std::to_string(c) + " has fewer than 3 points");
+            fail_at(block, std::string(section) + " cell " + std::to_string(c) +
+                               " has fewer than 3 points");
           }
           for (std::size_t i = 0; i + 2 < size; ++i) {
             const long long a = first_point + static_cast<long long>(connectivity[begin]);
@@ -286,7 +291,8 @@ class VtkXmlReader {
     return out;
   }
 
-  std::uint64_t header_value(std::string_view bytes, std::size_t index, const pugi::xml_node& node) const {
+  std::uint64_t header_value(std::string_view bytes, std::size_t index,
+                             const pugi::xml_node& node) const {
     if (bytes.size() < (index + 1) * header_bytes_) {
       fail_at(node, "binary data shorter than its header");
     }
@@ -332,7 +338,8 @@ class VtkXmlReader {
   }
 
   /// The raw value bytes of one binary DataArray, from raw or base64 text.
-  std::string binary_payload(std::string_view text, bool is_base64, const pugi::xml_node& node) const {
+  std::string binary_payload(std::string_view text, bool is_base64,
+                             const pugi::xml_node& node) const {
     if (!is_base64) {
       const std::uint64_t first = header_value(text, 0, node);
       if (!compressed_) {
@@ -355,7 +362,8 @@ class VtkXmlReader {
         compact.push_back(c);
       }
     }
-    const std::string lead = decode_base64(std::string_view(compact).substr(0, base64_chars(header_bytes_)), node);
+    const std::string lead =
+        decode_base64(std::string_view(compact).substr(0, base64_chars(header_bytes_)), node);
     const std::uint64_t first = header_value(lead, 0, node);
     if (first > (1ULL << 40U)) {
       fail_at(node, "bad binary header");
@@ -368,7 +376,8 @@ class VtkXmlReader {
     std::string rest;
     if (separate) {
       header = decode_base64(std::string_view(compact).substr(0, header_chars), node);
-      rest = decode_base64(std::string_view(compact).substr(std::min(header_chars, compact.size())), node);
+      rest = decode_base64(std::string_view(compact).substr(std::min(header_chars, compact.size())),
+                           node);
     } else {
       const std::string all = decode_base64(compact, node);
       header = all.substr(0, std::min(header_size, all.size()));
@@ -388,7 +397,8 @@ class VtkXmlReader {
   }
 
   /// Exactly `count` values of a DataArray as doubles.
-  std::vector<double> values(const pugi::xml_node& node, std::size_t count, const char* what) const {
+  std::vector<double> values(const pugi::xml_node& node, std::size_t count,
+                             const char* what) const {
     const std::string type = node.attribute("type").as_string();
     const std::size_t size = type_size(type);
     if (size == 0) {
@@ -429,7 +439,8 @@ class VtkXmlReader {
           static_cast<std::size_t>(offset) >= appended_.size()) {
         fail_at(node, std::string(what) + ": missing or bad appended offset");
       }
-      payload = binary_payload(appended_.substr(static_cast<std::size_t>(offset)), appended_base64_, node);
+      payload = binary_payload(appended_.substr(static_cast<std::size_t>(offset)), appended_base64_,
+                               node);
     } else {
       fail_at(node, std::string(what) + ": unknown DataArray format '" + format + "'");
     }

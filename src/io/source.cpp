@@ -27,9 +27,8 @@ Source Source::open(const std::filesystem::path& path) {
 
 void Source::seek(std::size_t offset) {
   offset_ = std::min(offset, bytes_.size());
-  line_ = 1 + static_cast<std::size_t>(
-                  std::count(bytes_.begin(), bytes_.begin() + static_cast<std::ptrdiff_t>(offset_),
-                             '\n'));
+  line_ = 1 + static_cast<std::size_t>(std::count(
+                  bytes_.begin(), bytes_.begin() + static_cast<std::ptrdiff_t>(offset_), '\n'));
 }
 
 void Source::skip_space_and_comments() {
@@ -53,7 +52,8 @@ void Source::skip_space_and_comments() {
 std::string_view Source::next_token() {
   skip_space_and_comments();
   const std::size_t start = offset_;
-  while (offset_ < bytes_.size() && std::isspace(static_cast<unsigned char>(bytes_[offset_])) == 0 &&
+  while (offset_ < bytes_.size() &&
+         std::isspace(static_cast<unsigned char>(bytes_[offset_])) == 0 &&
          !(comment_ != 0 && bytes_[offset_] == comment_)) {
     ++offset_;
   }

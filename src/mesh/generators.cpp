@@ -10,8 +10,8 @@ namespace incise {
 TetMesh make_box_grid(const BoxGridOptions& options) {
   const auto [nx, ny, nz] = options.cells;
   if (nx < 1 || ny < 1 || nz < 1) {
-    throw InputError("box grid needs at least one cell along each axis, got " +
-                     std::to_string(nx) + " x " + std::to_string(ny) + " x " + std::to_string(nz));
+    throw InputError("box grid needs at least one cell along each axis, got " + std::to_string(nx) +
+                     " x " + std::to_string(ny) + " x " + std::to_string(nz));
   }
   if (!(options.size.array() > 0.0).all() || !options.size.allFinite()) {
     throw InputError("box size must be positive and finite along every axis");
@@ -48,8 +48,8 @@ TetMesh make_box_grid(const BoxGridOptions& options) {
   auto emit = [&](const Tet& tet) {
     // Make every tetrahedron positive (the grid is axis-aligned, so the sign is reliable).
     Tet oriented = tet;
-    if (signed_volume(positions[tet[0]], positions[tet[1]], positions[tet[2]],
-                      positions[tet[3]]) < 0.0) {
+    if (signed_volume(positions[tet[0]], positions[tet[1]], positions[tet[2]], positions[tet[3]]) <
+        0.0) {
       std::swap(oriented[2], oriented[3]);
     }
     tets.push_back(oriented);

@@ -9,7 +9,9 @@ namespace {
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Point = Kernel::Point_3;
 
-Point to_cgal(const Vec3& p) { return {p.x(), p.y(), p.z()}; }
+Point to_cgal(const Vec3& p) {
+  return {p.x(), p.y(), p.z()};
+}
 
 Sign to_sign(CGAL::Sign sign) {
   switch (sign) {

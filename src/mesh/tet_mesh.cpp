@@ -389,9 +389,9 @@ EdgeOrigin TetMesh::edge_parent(EdgeId edge) const {
   if (parent == kInvalidId || parent == edge) {
     return origin;
   }
-  const double parent_length =
-      (rest_positions_[support[0]] - rest_positions_[support[1]]).norm();
-  const double length = (rest_positions_[edges_[edge][0]] - rest_positions_[edges_[edge][1]]).norm();
+  const double parent_length = (rest_positions_[support[0]] - rest_positions_[support[1]]).norm();
+  const double length =
+      (rest_positions_[edges_[edge][0]] - rest_positions_[edges_[edge][1]]).norm();
   origin.parent = parent;
   origin.fraction = parent_length > 0.0 ? length / parent_length : 0.0;
   return origin;
@@ -682,8 +682,8 @@ double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d)
 
 double signed_volume(const TetMesh& mesh, TetId tet) {
   const Tet& v = mesh.tet(tet);
-  return signed_volume(mesh.rest_position(v[0]), mesh.rest_position(v[1]),
-                       mesh.rest_position(v[2]), mesh.rest_position(v[3]));
+  return signed_volume(mesh.rest_position(v[0]), mesh.rest_position(v[1]), mesh.rest_position(v[2]),
+                       mesh.rest_position(v[3]));
 }
 
 double total_volume(const TetMesh& mesh) {

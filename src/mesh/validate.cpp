@@ -9,9 +9,8 @@
 namespace incise {
 
 double normalized_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  const double squared_sum = (b - a).squaredNorm() + (c - a).squaredNorm() +
-                             (d - a).squaredNorm() + (c - b).squaredNorm() +
-                             (d - b).squaredNorm() + (d - c).squaredNorm();
+  const double squared_sum = (b - a).squaredNorm() + (c - a).squaredNorm() + (d - a).squaredNorm() +
+                             (c - b).squaredNorm() + (d - b).squaredNorm() + (d - c).squaredNorm();
   const double rms_edge = std::sqrt(squared_sum / 6.0);
   if (rms_edge == 0.0) {
     return 0.0;

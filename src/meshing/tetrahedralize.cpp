@@ -6,10 +6,10 @@
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 #include <fmt/format.h>
-
 #include <poll.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -20,6 +20,9 @@
 #include <cmath>
 #include <cstring>
 #include <iostream>
+#include <map>
+#include <numbers>
+#include <numeric>
 #include <sstream>
 
 #include "incise/core/error.hpp"
@@ -190,12 +193,14 @@ bool write_all(int fd, const void* data, std::size_t size) {
     for (std::size_t t = 0; t < static_cast<std::size_t>(header[2]); ++t) {
       for (int k = 0; k < 4; ++k) {
         corners[4 * t + static_cast<std::size_t>(k)] =
-            out.tetrahedronlist[t * static_cast<std::size_t>(out.numberofcorners) + static_cast<std::size_t>(k)];
+            out.tetrahedronlist[t * static_cast<std::size_t>(out.numberofcorners) +
+                                static_cast<std::size_t>(k)];
       }
     }
-    const bool sent = write_all(fd, header, sizeof(header)) &&
-                      write_all(fd, out.pointlist, sizeof(double) * 3 * static_cast<std::size_t>(header[1])) &&
-                      write_all(fd, corners.data(), sizeof(std::int32_t) * corners.size());
+    const bool sent =
+        write_all(fd, header, sizeof(header)) &&
+        write_all(fd, out.pointlist, sizeof(double) * 3 * static_cast<std::size_t>(header[1])) &&
+        write_all(fd, corners.data(), sizeof(std::int32_t) * corners.size());
     ::_exit(sent ? 0 : 1);
   } catch (int code) {
     header[0] = code == 0 ? 2 : code;
@@ -232,8 +237,8 @@ TetgenOutcome run_tetgen_isolated(const SurfaceMesh& surface, const std::string&
   }
   ::close(fds[1]);
   std::string received;
-  const auto deadline = std::chrono::steady_clock::now() +
-                        std::chrono::duration<double>(timeout_seconds);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_seconds);
   char buffer[1 << 16];
   for (;;) {
     const double left =
@@ -266,15 +271,19 @@ TetgenOutcome run_tetgen_isolated(const SurfaceMesh& surface, const std::string&
   while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
   }
   if (outcome.timed_out) {
-    outcome.error = fmt::format("TetGen did not finish within {} s; the surface is probably "
-                                "self-intersecting or too finely detailed", timeout_seconds);
+    outcome.error = fmt::format(
+        "TetGen did not finish within {} s; the surface is probably "
+        "self-intersecting or too finely detailed",
+        timeout_seconds);
     return outcome;
   }
   std::int64_t header[3] = {0, 0, 0};
   if (received.size() < sizeof(header)) {
     outcome.error = WIFSIGNALED(status)
-                        ? fmt::format("TetGen crashed (signal {}) on this surface: it could not "
-                                      "recover the boundary", WTERMSIG(status))
+                        ? fmt::format(
+                              "TetGen crashed (signal {}) on this surface: it could not "
+                              "recover the boundary",
+                              WTERMSIG(status))
                         : "TetGen stopped without a result";
     return outcome;
   }
@@ -286,23 +295,135 @@ TetgenOutcome run_tetgen_isolated(const SurfaceMesh& surface, const std::string&
   }
   const auto point_count = static_cast<std::size_t>(header[1]);
   const auto tet_count = static_cast<std::size_t>(header[2]);
-  const std::size_t expected = sizeof(header) + point_count * 3 * sizeof(double) +
-                               tet_count * 4 * sizeof(std::int32_t);
+  const std::size_t expected =
+      sizeof(header) + point_count * 3 * sizeof(double) + tet_count * 4 * sizeof(std::int32_t);
   if (received.size() != expected || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
     outcome.error = "TetGen's result arrived incomplete";
     return outcome;
   }
   outcome.points.resize(point_count * 3);
   outcome.tets.resize(tet_count * 4);
-  std::memcpy(outcome.points.data(), received.data() + sizeof(header), point_count * 3 * sizeof(double));
-  std::memcpy(outcome.tets.data(), received.data() + sizeof(header) + point_count * 3 * sizeof(double),
+  std::memcpy(outcome.points.data(), received.data() + sizeof(header),
+              point_count * 3 * sizeof(double));
+  std::memcpy(outcome.tets.data(),
+              received.data() + sizeof(header) + point_count * 3 * sizeof(double),
               tet_count * 4 * sizeof(std::int32_t));
   return outcome;
 }
 
 }  // namespace
 
-TetMesh tetrahedralize(const SurfaceMesh& surface, const TetrahedralizeOptions& options) {
+double min_triangle_angle_deg(const SurfaceMesh& surface) {
+  double smallest = 180.0;
+  for (const Triangle& t : surface.triangles) {
+    for (int i = 0; i < 3; ++i) {
+      const Vec3 u = surface.points[t[(i + 1) % 3]] - surface.points[t[i]];
+      const Vec3 w = surface.points[t[(i + 2) % 3]] - surface.points[t[i]];
+      const double denominator = u.norm() * w.norm();
+      if (denominator == 0.0) {
+        return 0.0;
+      }
+      smallest = std::min(smallest, std::acos(std::clamp(u.dot(w) / denominator, -1.0, 1.0)) *
+                                        180.0 / std::numbers::pi);
+    }
+  }
+  return smallest;
+}
+
+std::vector<SurfaceMesh> surface_shells(const SurfaceMesh& surface) {
+  // Union-find over triangle corners.
+  std::vector<VertexId> parent(surface.points.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](VertexId v) {
+    while (parent[v] != v) {
+      parent[v] = parent[parent[v]];
+      v = parent[v];
+    }
+    return v;
+  };
+  for (const Triangle& t : surface.triangles) {
+    parent[find(t[0])] = find(t[1]);
+    parent[find(t[1])] = find(t[2]);
+  }
+  std::map<VertexId, std::size_t> shell_of_root;
+  std::vector<SurfaceMesh> shells;
+  std::vector<std::vector<VertexId>> remaps;
+  for (const Triangle& t : surface.triangles) {
+    const VertexId root = find(t[0]);
+    auto [it, inserted] = shell_of_root.try_emplace(root, shells.size());
+    if (inserted) {
+      shells.emplace_back();
+      remaps.emplace_back(surface.points.size(), kInvalidId);
+    }
+    SurfaceMesh& shell = shells[it->second];
+    std::vector<VertexId>& remap = remaps[it->second];
+    Triangle local{};
+    for (int k = 0; k < 3; ++k) {
+      if (remap[t[k]] == kInvalidId) {
+        remap[t[k]] = static_cast<VertexId>(shell.points.size());
+        shell.points.push_back(surface.points[t[k]]);
+      }
+      local[k] = remap[t[k]];
+    }
+    shell.triangles.push_back(local);
+  }
+  std::stable_sort(shells.begin(), shells.end(), [](const SurfaceMesh& a, const SurfaceMesh& b) {
+    return a.triangles.size() > b.triangles.size();
+  });
+  return shells;
+}
+
+SurfaceMesh remesh_surface(const SurfaceMesh& surface, double edge_length) {
+  if (!(edge_length > 0.0) || !std::isfinite(edge_length)) {
+    throw InputError("remeshing edge length must be positive");
+  }
+  using Mesh = CGAL::Surface_mesh<Kernel::Point_3>;
+  std::vector<Kernel::Point_3> points;
+  points.reserve(surface.points.size());
+  for (const Vec3& p : surface.points) {
+    points.emplace_back(p.x(), p.y(), p.z());
+  }
+  std::vector<std::vector<std::size_t>> polygons;
+  polygons.reserve(surface.triangles.size());
+  for (const Triangle& t : surface.triangles) {
+    polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
+                        static_cast<std::size_t>(t[2])});
+  }
+  Mesh mesh;
+  CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(points, polygons, mesh);
+  CGAL::Polygon_mesh_processing::isotropic_remeshing(
+      faces(mesh), edge_length, mesh,
+      CGAL::parameters::number_of_iterations(5).number_of_relaxation_steps(3));
+  mesh.collect_garbage();
+  SurfaceMesh result;
+  result.points.reserve(mesh.number_of_vertices());
+  for (const auto vertex : mesh.vertices()) {
+    const auto& p = mesh.point(vertex);
+    result.points.emplace_back(p.x(), p.y(), p.z());
+  }
+  for (const auto face : mesh.faces()) {
+    Triangle triangle{};
+    int k = 0;
+    for (const auto vertex : CGAL::vertices_around_face(mesh.halfedge(face), mesh)) {
+      if (k < 3) {
+        triangle[k] = static_cast<VertexId>(vertex.idx());
+      }
+      ++k;
+    }
+    if (k != 3) {
+      throw InternalError("remeshing produced a non-triangular face");
+    }
+    result.triangles.push_back(triangle);
+  }
+  return result;
+}
+
+TetrahedralizeResult tetrahedralize(const SurfaceMesh& input,
+                                    const TetrahedralizeOptions& options) {
+  const SurfaceMesh* chosen = &input;
+  SurfaceMesh remeshed;
+  std::vector<std::string> notes;
+  const SurfaceMesh& surface = input;
   if (surface.triangles.size() < 4) {
     throw InputError("a closed surface needs at least 4 triangles, this one has " +
                      std::to_string(surface.triangles.size()));
@@ -324,6 +445,36 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const TetrahedralizeOptions& 
   if (!check.ok()) {
     throw InputError("the surface cannot be tetrahedralised:\n" + check.describe());
   }
+  const double needle = min_triangle_angle_deg(surface);
+  using Remesh = TetrahedralizeOptions::Remesh;
+  if (options.remesh == Remesh::kAlways ||
+      (options.remesh == Remesh::kAuto && needle < options.needle_angle_deg)) {
+    double length = options.remesh_edge_length;
+    if (length <= 0.0) {
+      std::vector<double> lengths;
+      lengths.reserve(surface.triangles.size() * 3);
+      for (const Triangle& t : surface.triangles) {
+        for (int k = 0; k < 3; ++k) {
+          lengths.push_back((surface.points[t[k]] - surface.points[t[(k + 1) % 3]]).norm());
+        }
+      }
+      std::nth_element(lengths.begin(),
+                       lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2),
+                       lengths.end());
+      length = lengths[lengths.size() / 2];
+    }
+    remeshed = remesh_surface(surface, length);
+    const SurfaceCheckReport recheck = check_closed_surface(remeshed);
+    if (!recheck.ok()) {
+      throw InputError("the remeshed surface is not closed and clean:\n" + recheck.describe());
+    }
+    notes.push_back(fmt::format(
+        "remeshed the surface to edge length {:.4g} ({} -> {} triangles; smallest angle {:.3g} -> "
+        "{:.3g} deg)",
+        length, surface.triangles.size(), remeshed.triangles.size(), needle,
+        min_triangle_angle_deg(remeshed)));
+    chosen = &remeshed;
+  }
 
   // p: piecewise linear complex; q: quality bound; a: volume bound; Q: quiet; z: 0-based.
   std::string switches = fmt::format("pzQq{}", options.max_radius_edge_ratio);
@@ -333,13 +484,15 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const TetrahedralizeOptions& 
   if (options.max_volume > 0.0) {
     switches += fmt::format("a{}", options.max_volume);
   }
-  TetgenOutcome outcome = run_tetgen_isolated(surface, switches + (options.preserve_surface ? "Y" : ""),
-                                              options.timeout_seconds);
+  TetgenOutcome outcome = run_tetgen_isolated(
+      *chosen, switches + (options.preserve_surface ? "Y" : ""), options.timeout_seconds);
   if (!outcome.ok() && !options.preserve_surface && !outcome.timed_out) {
-    // TetGen 1.5 sometimes fails to recover boundary segments with Steiner points (e.g. on
-    // finely tessellated scanned skin); keeping the surface as given usually succeeds.
-    TetgenOutcome retry = run_tetgen_isolated(surface, switches + "Y", options.timeout_seconds);
+    // TetGen 1.5 sometimes fails to recover boundary segments with Steiner points; keeping
+    // the surface as given usually succeeds.
+    TetgenOutcome retry = run_tetgen_isolated(*chosen, switches + "Y", options.timeout_seconds);
     if (retry.ok()) {
+      notes.push_back("TetGen could not recover the boundary (" + outcome.error +
+                      "); retried keeping the surface triangles as they are");
       outcome = std::move(retry);
     }
   }
@@ -348,7 +501,8 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const TetrahedralizeOptions& 
   }
   std::vector<Vec3> positions(outcome.points.size() / 3);
   for (std::size_t i = 0; i < positions.size(); ++i) {
-    positions[i] = Vec3(outcome.points[3 * i], outcome.points[3 * i + 1], outcome.points[3 * i + 2]);
+    positions[i] =
+        Vec3(outcome.points[3 * i], outcome.points[3 * i + 1], outcome.points[3 * i + 2]);
   }
   std::vector<Tet> tets(outcome.tets.size() / 4);
   for (std::size_t t = 0; t < tets.size(); ++t) {
@@ -365,7 +519,7 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const TetrahedralizeOptions& 
     }
     tets[t] = tet;
   }
-  return TetMesh(std::move(positions), std::move(tets));
+  return {TetMesh(std::move(positions), std::move(tets)), std::move(notes)};
 }
 
 }  // namespace incise

@@ -46,12 +46,12 @@ struct TrackedMesh {
         data[origin.edge] = edge_length(*data.mesh(), origin.edge);
       }
     });
-    volume.set_hook([](TetData<double>& data, TetId, std::span<const TetId> children,
-                       const double&) {
-      for (TetId child : children) {
-        data[child] = signed_volume(*data.mesh(), child);
-      }
-    });
+    volume.set_hook(
+        [](TetData<double>& data, TetId, std::span<const TetId> children, const double&) {
+          for (TetId child : children) {
+            data[child] = signed_volume(*data.mesh(), child);
+          }
+        });
   }
 
   void check(const std::string& after) const {
@@ -69,8 +69,7 @@ struct TrackedMesh {
           << "edge " << e << " after " << after;
     }
     for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-      ASSERT_NEAR(volume[static_cast<TetId>(t)], signed_volume(mesh, static_cast<TetId>(t)),
-                  1e-15)
+      ASSERT_NEAR(volume[static_cast<TetId>(t)], signed_volume(mesh, static_cast<TetId>(t)), 1e-15)
           << "tet " << t << " after " << after;
     }
   }
@@ -230,7 +229,8 @@ TEST_P(RandomEdits, AdjacencyAndAttributesStayExact) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, RandomEdits,
-                         ::testing::Combine(::testing::Values(1u, 2u, 3u), ::testing::Values(5, 6)));
+                         ::testing::Combine(::testing::Values(1u, 2u, 3u),
+                                            ::testing::Values(5, 6)));
 
 TEST(RandomEdits, SplitsKeepTheMeshValid) {
   std::mt19937 rng(42);

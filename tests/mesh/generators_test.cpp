@@ -1,10 +1,11 @@
 // Box grids: counts, volume, conformity and orientation for 5 and 6 tets per cell.
 
+#include "incise/mesh/generators.hpp"
+
 #include <gtest/gtest.h>
 
 #include "incise/core/error.hpp"
 #include "incise/mesh/boundary.hpp"
-#include "incise/mesh/generators.hpp"
 #include "incise/mesh/quality.hpp"
 #include "incise/mesh/validate.hpp"
 
@@ -52,9 +53,9 @@ INSTANTIATE_TEST_SUITE_P(Sizes, BoxGrid,
 
 TEST(BoxGrid, SeedTableOneSizes) {
   // The seed's Table 1 grids: 2x2x2, 2x4x3 and 4x6x4 cells with 6 tets each.
-  for (const auto& [cells, tets] : {std::pair{std::array{2, 2, 2}, 48},
-                                    std::pair{std::array{2, 4, 3}, 144},
-                                    std::pair{std::array{4, 6, 4}, 576}}) {
+  for (const auto& [cells, tets] :
+       {std::pair{std::array{2, 2, 2}, 48}, std::pair{std::array{2, 4, 3}, 144},
+        std::pair{std::array{4, 6, 4}, 576}}) {
     BoxGridOptions options;
     options.cells = cells;
     EXPECT_EQ(make_box_grid(options).tet_count(), static_cast<std::size_t>(tets));

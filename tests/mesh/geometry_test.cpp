@@ -41,8 +41,7 @@ TEST(Predicates, SegmentTriangle) {
   EXPECT_TRUE(segment_intersects_triangle(Vec3(0, 0, -1), Vec3(0, 0, 1), a, b, c));
   EXPECT_TRUE(segment_intersects_triangle(Vec3(-1, 0, 0), Vec3(2, 0, 0), a, b, c));
   EXPECT_FALSE(segment_intersects_triangle(Vec3(0.2, 0.2, 0.1), Vec3(0.2, 0.2, 1), a, b, c));
-  EXPECT_TRUE(triangles_intersect(a, b, c, Vec3(0.1, 0.1, -1), Vec3(0.1, 0.1, 1),
-                                  Vec3(2, 2, 0.5)));
+  EXPECT_TRUE(triangles_intersect(a, b, c, Vec3(0.1, 0.1, -1), Vec3(0.1, 0.1, 1), Vec3(2, 2, 0.5)));
 }
 
 TEST(Predicates, LocateInTet) {

@@ -1,5 +1,7 @@
 // Unit tests of TetMesh adjacency and the edit operations on small hand-made meshes.
 
+#include "incise/mesh/tet_mesh.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -7,7 +9,6 @@
 #include "incise/core/error.hpp"
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/boundary.hpp"
-#include "incise/mesh/tet_mesh.hpp"
 #include "incise/mesh/validate.hpp"
 #include "test_support.hpp"
 
@@ -24,7 +25,7 @@ TEST(TetMesh, BulkAdjacencyOfTwoTets) {
   const TetMesh mesh = two_tets();
   EXPECT_EQ(mesh.vertex_count(), 5u);
   EXPECT_EQ(mesh.tet_count(), 2u);
-  EXPECT_EQ(mesh.edge_count(), 9u);  // 6 + 6 - 3 shared
+  EXPECT_EQ(mesh.edge_count(), 9u);        // 6 + 6 - 3 shared
   EXPECT_EQ(mesh.tet_neighbors(0)[0], 1);  // face opposite vertex 0 is (1,2,3)
   EXPECT_EQ(mesh.tet_neighbors(1)[0], 0);
   for (int f = 1; f < 4; ++f) {
@@ -43,9 +44,9 @@ TEST(TetMesh, BulkAdjacencyOfTwoTets) {
 TEST(TetMesh, RejectsBadIdsInBulkConstruction) {
   EXPECT_THROW(TetMesh({Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY()}, {Tet{0, 1, 2, 3}}),
                InputError);
-  EXPECT_THROW(TetMesh({Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()},
-                       {Tet{0, 1, 1, 3}}),
-               InputError);
+  EXPECT_THROW(
+      TetMesh({Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()}, {Tet{0, 1, 1, 3}}),
+      InputError);
 }
 
 TEST(TetMesh, DuplicateVertexOpensSharedFace) {
@@ -222,7 +223,8 @@ TEST(Attributes, EdgeRulesOnASplitEdge) {
   EdgeData<double> copied(mesh, -1.0, EdgeRule::kCopy);
   for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
     const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-    length[static_cast<EdgeId>(e)] = (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
+    length[static_cast<EdgeId>(e)] =
+        (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
     copied[static_cast<EdgeId>(e)] = 7.0;
   }
   // Split edge (1, 2), shared by both tetrahedra, at 30 %.

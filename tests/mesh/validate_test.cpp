@@ -1,11 +1,12 @@
 // validate() must catch each kind of defect and name the elements involved.
 
+#include "incise/mesh/validate.hpp"
+
 #include <gtest/gtest.h>
 
 #include <limits>
 
 #include "incise/mesh/generators.hpp"
-#include "incise/mesh/validate.hpp"
 #include "test_support.hpp"
 
 namespace incise {

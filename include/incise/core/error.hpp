@@ -38,11 +38,11 @@ class InternalError : public Error {
 }  // namespace incise
 
 /// Checks an internal invariant in every build type (cheap checks only); throws InternalError.
-#define INCISE_ASSERT(condition, message)                                              \
-  do {                                                                                 \
-    if (!(condition)) {                                                                \
-      throw ::incise::InternalError(std::string("internal invariant violated: ") +     \
-                                    (message) + " [" #condition "] at " + __FILE__ + \
-                                    ":" + std::to_string(__LINE__));                   \
-    }                                                                                  \
+#define INCISE_ASSERT(condition, message)                                                      \
+  do {                                                                                         \
+    if (!(condition)) {                                                                        \
+      throw ::incise::InternalError(std::string("internal invariant violated: ") + (message) + \
+                                    " [" #condition "] at " + __FILE__ + ":" +                 \
+                                    std::to_string(__LINE__));                                 \
+    }                                                                                          \
   } while (false)

@@ -29,8 +29,8 @@ namespace incise {
 /// Types that can be blended: scaled by a double and added.
 template <typename T>
 concept Blendable = requires(const T& a, double w) {
-  { T(a * w) };
-  { T(a + a) };
+  {T(a * w)};
+  {T(a + a)};
 };
 
 enum class VertexRule { kInterpolate, kCopy, kDefault };

@@ -20,9 +20,9 @@ struct BoundaryFace {
 
 /// Closedness of a triangle surface, judged by its edges.
 struct SurfaceEdgeCheck {
-  std::size_t open_edges = 0;         ///< used by one triangle
-  std::size_t nonmanifold_edges = 0;  ///< used by three or more triangles
-  std::size_t misoriented_edges = 0;  ///< used twice in the same direction
+  std::size_t open_edges = 0;            ///< used by one triangle
+  std::size_t nonmanifold_edges = 0;     ///< used by three or more triangles
+  std::size_t misoriented_edges = 0;     ///< used twice in the same direction
   std::size_t degenerate_triangles = 0;  ///< repeating a vertex id
   /// Closed, two-manifold along edges and consistently oriented.
   [[nodiscard]] bool watertight() const {

@@ -25,7 +25,7 @@ enum class Sign : int { kNegative = -1, kZero = 0, kPositive = 1 };
 enum class TetLocation { kOutside, kBoundary, kInside };
 
 /// Exact location of p in the closed tetrahedron (a, b, c, d), which must be positive.
-[[nodiscard]] TetLocation locate_in_tet(const Vec3& p, const Vec3& a, const Vec3& b,
-                                        const Vec3& c, const Vec3& d);
+[[nodiscard]] TetLocation locate_in_tet(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
+                                        const Vec3& d);
 
 }  // namespace incise

@@ -8,8 +8,7 @@
 namespace incise {
 
 /// Smallest of the six dihedral angles (radians); about 1.2310 (70.53 deg) when regular.
-[[nodiscard]] double min_dihedral_angle(const Vec3& a, const Vec3& b, const Vec3& c,
-                                        const Vec3& d);
+[[nodiscard]] double min_dihedral_angle(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 /// Aspect ratio R / (3 r) (circumradius over three inradii): 1 when regular, grows without
 /// bound as the tetrahedron flattens; +inf for a flat one.
 [[nodiscard]] double aspect_ratio(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);

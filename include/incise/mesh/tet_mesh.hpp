@@ -72,15 +72,13 @@ class MeshObserver {
                                std::span<const TetId> /*children*/) {}
   /// `removed` is gone; the tetrahedron that was last (`moved_from`) now lives at `removed`.
   /// When removed == moved_from the last one was removed.
-  virtual void on_tet_removed(const TetMesh& /*mesh*/, TetId /*removed*/, TetId /*moved_from*/) {
-  }
+  virtual void on_tet_removed(const TetMesh& /*mesh*/, TetId /*removed*/, TetId /*moved_from*/) {}
   /// Edges appended by one edit, in id order. Edges that the same edit makes unused are still
   /// present (with no tetrahedra) until their on_edge_removed event follows.
-  virtual void on_edges_created(const TetMesh& /*mesh*/, std::span<const EdgeOrigin> /*edges*/) {
-  }
+  virtual void on_edges_created(const TetMesh& /*mesh*/, std::span<const EdgeOrigin> /*edges*/) {}
   /// Same swap-with-last convention as on_tet_removed.
-  virtual void on_edge_removed(const TetMesh& /*mesh*/, EdgeId /*removed*/,
-                               EdgeId /*moved_from*/) {}
+  virtual void on_edge_removed(const TetMesh& /*mesh*/, EdgeId /*removed*/, EdgeId /*moved_from*/) {
+  }
   /// The observed mesh was moved to a new address (or destroyed: nullptr).
   virtual void on_mesh_relocated(TetMesh* /*mesh*/) {}
 };

@@ -17,9 +17,9 @@ struct ValidationOptions {
 };
 
 struct ValidationReport {
-  std::vector<VertexId> nonfinite_vertices;  ///< NaN or Inf coordinates
-  std::vector<TetId> inverted_tets;          ///< exactly negative orientation
-  std::vector<TetId> degenerate_tets;        ///< zero or tiny normalised volume
+  std::vector<VertexId> nonfinite_vertices;                ///< NaN or Inf coordinates
+  std::vector<TetId> inverted_tets;                        ///< exactly negative orientation
+  std::vector<TetId> degenerate_tets;                      ///< zero or tiny normalised volume
   std::vector<std::array<VertexId, 3>> nonmanifold_faces;  ///< shared by 3+ tetrahedra
   /// Interior faces whose two tetrahedra lie on the same side (they overlap).
   std::vector<std::pair<TetId, TetId>> overlapping_tets;

@@ -23,7 +23,29 @@ struct TetrahedralizeOptions {
   bool preserve_surface = false;
   /// Wall-clock limit for TetGen (s); it runs in a child process that is stopped after this.
   double timeout_seconds = 600.0;
+  /// Remesh the surface (CGAL isotropic remeshing) before tetrahedralising. kAuto does so when
+  /// the surface has needle triangles (an angle below `needle_angle_deg`), which would
+  /// otherwise become flat boundary tetrahedra or stop TetGen.
+  enum class Remesh { kAuto, kNever, kAlways };
+  Remesh remesh = Remesh::kAuto;
+  double needle_angle_deg = 1.0;
+  /// Target edge length of the remeshed surface (surface units); 0: the median input edge.
+  double remesh_edge_length = 0.0;
 };
+
+struct TetrahedralizeResult {
+  TetMesh mesh;
+  std::vector<std::string> notes;  ///< what was done to get there (remeshing, retries)
+};
+
+/// Smallest corner angle of any triangle (degrees).
+[[nodiscard]] double min_triangle_angle_deg(const SurfaceMesh& surface);
+
+/// Connected pieces of a surface, largest (by triangle count) first.
+[[nodiscard]] std::vector<SurfaceMesh> surface_shells(const SurfaceMesh& surface);
+
+/// Isotropic remeshing of a closed surface to a target edge length (CGAL), keeping it closed.
+[[nodiscard]] SurfaceMesh remesh_surface(const SurfaceMesh& surface, double edge_length);
 
 struct SurfaceCheckReport {
   std::size_t open_edges = 0;
@@ -43,7 +65,7 @@ struct SurfaceCheckReport {
 /// Tetrahedralises the volume bounded by `surface`. Throws InputError naming the problem when
 /// the surface is open, self-intersecting or otherwise unusable; never hangs on such input.
 /// The result is positively oriented.
-[[nodiscard]] TetMesh tetrahedralize(const SurfaceMesh& surface,
-                                     const TetrahedralizeOptions& options = {});
+[[nodiscard]] TetrahedralizeResult tetrahedralize(const SurfaceMesh& surface,
+                                                  const TetrahedralizeOptions& options = {});
 
 }  // namespace incise

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Installs dependencies, builds with warnings as errors, runs the whole test suite, checks
+# formatting, and proves the installed package works with find_package(incise).
+# Usage (as root on Debian 12): bash scripts/test.sh
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+cd "$root"
+bash scripts/install-deps.sh
+
+echo "== format check (clang-format)"
+mapfile -t sources < <(git ls-files '*.cpp' '*.hpp' 2>/dev/null || find include src apps tests bench -name '*.[ch]pp')
+clang-format --dry-run --Werror "${sources[@]}"
+
+echo "== build (CI preset: -Wall -Wextra -Werror)"
+cmake --preset ci >/dev/null
+cmake --build --preset ci
+
+echo "== tests"
+ctest --preset ci
+
+echo "== installed package: find_package(incise) from a consumer project"
+prefix=$(mktemp -d)
+trap 'rm -rf "$prefix"' EXIT
+cmake --install build/ci --prefix "$prefix/install" >/dev/null
+cmake -S tests/consumer -B "$prefix/consumer" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DCMAKE_PREFIX_PATH="$prefix/install" >/dev/null
+cmake --build "$prefix/consumer" >/dev/null
+"$prefix/consumer/consumer"
+echo "all checks passed"
