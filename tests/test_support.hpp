@@ -1,8 +1,12 @@
 #pragma once
 // Helpers shared by the tests: where the third-party test data lives, small meshes.
 
+#include <gtest/gtest.h>
+
+#include <cctype>
 #include <cstdlib>
 #include <filesystem>
+#include <set>
 #include <string>
 
 #include "incise/mesh/tet_mesh.hpp"
@@ -21,10 +25,22 @@ inline std::filesystem::path data_file(const std::string& relative) {
   return data_dir() / relative;
 }
 
-/// A scratch directory for one test, emptied first.
+/// A scratch directory for one test, emptied the first time this process asks for it. Named
+/// after the running test as well, so tests run in parallel processes never share one.
 inline std::filesystem::path scratch_dir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("incise-test-" + name);
-  std::filesystem::remove_all(dir);
+  std::string test_name = "no-test";
+  if (const auto* info = ::testing::UnitTest::GetInstance()->current_test_info()) {
+    test_name = std::string(info->test_suite_name()) + "." + info->name();
+  }
+  for (char& c : test_name) {
+    c = std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '.' ? c : '_';
+  }
+  const auto dir =
+      std::filesystem::temp_directory_path() / "incise-tests" / (test_name + "-" + name);
+  static std::set<std::filesystem::path> emptied;
+  if (emptied.insert(dir).second) {
+    std::filesystem::remove_all(dir);
+  }
   std::filesystem::create_directories(dir);
   return dir;
 }

@@ -224,6 +224,7 @@ struct GmshReader {
     std::size_t blocks = 0;
     std::size_t total = 0;
     if (binary) {
+      source.skip_line();  // the binary data starts after the section line
       blocks = binary_size("entity block count");
       total = binary_size("node count");
       (void)binary_size("minimum node tag");
@@ -299,6 +300,7 @@ struct GmshReader {
     std::size_t blocks = 0;
     std::size_t total = 0;
     if (binary) {
+      source.skip_line();
       blocks = binary_size("entity block count");
       total = binary_size("element count");
       (void)binary_size("minimum element tag");

@@ -74,6 +74,7 @@ class VtkLegacyReader {
         }
       } else if (keyword == "CELL_TYPES") {
         const std::size_t count = source_.count("cell type count", kMaxCount);
+        end_of_header_line();
         cell_types = read_integers(count, "int", "cell types");
       } else {
         source_.fail("unexpected keyword '" + std::string(keyword) + "'");
@@ -98,12 +99,19 @@ class VtkLegacyReader {
   void read_points() {
     const std::size_t count = source_.count("point count", kMaxCount);
     const std::string type(source_.token("point data type"));
-    source_.skip_line();
+    end_of_header_line();
     const std::vector<double> xyz = read_reals(3 * count, type, "point coordinates");
     builder_.set_implicit_tags(0);
     for (std::size_t i = 0; i < count; ++i) {
       builder_.add_point(static_cast<long long>(i),
                          Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]));
+    }
+  }
+
+  /// Binary data starts right after the line of its header; ASCII data may follow anywhere.
+  void end_of_header_line() {
+    if (binary_) {
+      source_.skip_line();
     }
   }
 
@@ -121,17 +129,17 @@ class VtkLegacyReader {
   CellBlock read_cells(const std::string& keyword) {
     const std::size_t first = source_.count("cell count", kMaxCount);
     const std::size_t second = source_.count("cell list size", kMaxCount);
-    source_.skip_line();
+    end_of_header_line();
     CellBlock block;
     if (source_.peek_token() == "OFFSETS") {
       // File version 5.1: first = offsets count (cells + 1), second = connectivity size.
       source_.expect("OFFSETS");
       const std::string offset_type(source_.token("offset type"));
-      source_.skip_line();
+      end_of_header_line();
       block.offsets = read_integers(first, offset_type, "offsets");
       source_.expect("CONNECTIVITY");
       const std::string connectivity_type(source_.token("connectivity type"));
-      source_.skip_line();
+      end_of_header_line();
       block.connectivity = read_integers(second, connectivity_type, "connectivity");
       if (block.offsets.empty() || block.offsets.front() != 0) {
         source_.fail(keyword + " offsets must start at 0");

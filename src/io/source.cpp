@@ -63,7 +63,15 @@ std::string_view Source::next_token() {
 std::string_view Source::token(const char* what) {
   const std::string_view result = next_token();
   if (result.empty()) {
-    fail(std::string("unexpected end of file while reading ") + what);
+    // Name the last line with content, not the empty line after the final newline.
+    const std::size_t last = bytes_.find_last_not_of(" \t\r\n");
+    const auto line =
+        last == std::string::npos
+            ? 1
+            : 1 + static_cast<std::size_t>(std::count(
+                      bytes_.begin(), bytes_.begin() + static_cast<std::ptrdiff_t>(last), '\n'));
+    throw InputError(name_, line_numbers_ ? line : 0,
+                     std::string("unexpected end of file while reading ") + what);
   }
   return result;
 }
