@@ -3,11 +3,18 @@
 namespace incise {
 namespace {
 std::string located(const std::string& file, std::size_t line, const std::string& message) {
-  std::string where = file;
-  if (line > 0) {
-    where += ":" + std::to_string(line);
+  if (file.empty()) {
+    return message;
   }
-  return where.empty() ? message : where + ": " + message;
+  // Appended piece by piece: GCC 12 warns (-Wrestrict, a false positive) on chained operator+.
+  std::string where;
+  where.reserve(file.size() + message.size() + 24);
+  where.append(file);
+  if (line > 0) {
+    where.append(":").append(std::to_string(line));
+  }
+  where.append(": ").append(message);
+  return where;
 }
 }  // namespace
 

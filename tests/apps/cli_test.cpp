@@ -1,0 +1,199 @@
+// The incise command line, run as a user would: exit codes, JSON, messages on stderr.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "test_support.hpp"
+
+namespace incise {
+namespace {
+
+struct CommandResult {
+  int code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+CommandResult incise(const std::string& arguments) {
+  const auto dir = test::scratch_dir("cli-run");
+  const std::string command = std::string(INCISE_EXECUTABLE) + " " + arguments + " >" +
+                              (dir / "out").string() + " 2>" + (dir / "err").string();
+  const int status = std::system(command.c_str());
+  CommandResult run;
+  run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  run.out = slurp(dir / "out");
+  run.err = slurp(dir / "err");
+  return run;
+}
+
+std::string data(const std::string& relative) { return test::data_file(relative).string(); }
+
+bool have_data() { return std::filesystem::exists(test::data_file("sofa/liver.msh")); }
+
+TEST(Cli, HelpOnEveryCommand) {
+  for (const char* command : {"", "info", "convert", "generate", "generate box", "mesh"}) {
+    const CommandResult run = incise(std::string(command) + " --help");
+    EXPECT_EQ(run.code, 0) << command;
+    EXPECT_NE(run.out.find("Usage"), std::string::npos) << command << ": " << run.out;
+  }
+}
+
+TEST(Cli, NoOrUnknownCommandFails) {
+  EXPECT_NE(incise("").code, 0);
+  const CommandResult run = incise("dissect");
+  EXPECT_NE(run.code, 0);
+  EXPECT_FALSE(run.err.empty());
+}
+
+TEST(Cli, InfoJsonOnTheLiver) {
+  if (!have_data()) {
+    GTEST_SKIP();
+  }
+  const CommandResult run = incise("info --json " + data("sofa/liver.msh"));
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto json = nlohmann::json::parse(run.out);
+  for (const char* key : {"vertices", "tets", "volume", "inverted", "degenerate",
+                          "nonmanifold_faces", "components", "boundary_triangles", "watertight"}) {
+    EXPECT_TRUE(json.contains(key)) << key;
+  }
+  EXPECT_EQ(json["vertices"], 181);
+  EXPECT_EQ(json["tets"], 596);
+  EXPECT_NEAR(json["volume"].template get<double>(), 36.56085106149485, 1e-10);
+  EXPECT_EQ(json["inverted"], 0);
+  EXPECT_EQ(json["components"], 1);
+  EXPECT_EQ(json["watertight"], true);
+  EXPECT_EQ(json["valid"], true);
+}
+
+TEST(Cli, InfoExitsOneOnInvalidMeshes) {
+  if (!have_data()) {
+    GTEST_SKIP();
+  }
+  for (const char* file : {"sofa/single_tetra.msh", "sofa/6_tetra_bad.msh"}) {
+    const CommandResult run = incise("info --json " + data(file));
+    EXPECT_EQ(run.code, 1) << file;
+    const auto json = nlohmann::json::parse(run.out);
+    EXPECT_EQ(json["inverted"], 1) << file;
+    EXPECT_EQ(json["valid"], false);
+  }
+  const CommandResult text = incise("info " + data("sofa/6_tetra_bad.msh"));
+  EXPECT_EQ(text.code, 1);
+  EXPECT_NE(text.out.find("inverted tetrahedra"), std::string::npos) << text.out;
+}
+
+TEST(Cli, InfoOnEveryTetMeshInTheData) {
+  if (!have_data()) {
+    GTEST_SKIP();
+  }
+  for (const char* file : {"sofa/liver.msh", "sofa/cylinder.msh", "sofa/cube_low_res.msh",
+                           "sofa-mor/liverTinyMesh.vtu", "sofa-mor/liverSemiFine.vtu",
+                           "pbd/armadillo_4k.ele", "libigl/octopus-low.mesh"}) {
+    const CommandResult run = incise("info " + data(file));
+    EXPECT_EQ(run.code, 0) << file << ": " << run.err;
+    EXPECT_NE(run.out.find("valid: yes"), std::string::npos) << run.out;
+  }
+}
+
+TEST(Cli, ErrorsNameTheFileAndLine) {
+  const auto dir = test::scratch_dir("cli-errors");
+  std::ofstream(dir / "broken.msh") << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n2\n1 0 0 0\n2 x 0 0\n";
+  const CommandResult run = incise("info " + (dir / "broken.msh").string());
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("broken.msh:7"), std::string::npos) << run.err;
+  EXPECT_TRUE(run.out.empty());
+  const CommandResult missing = incise("info " + (dir / "missing.msh").string());
+  EXPECT_NE(missing.code, 0);
+  EXPECT_FALSE(missing.err.empty());
+}
+
+TEST(Cli, ConvertFixesOrientation) {
+  if (!have_data()) {
+    GTEST_SKIP();
+  }
+  const auto dir = test::scratch_dir("cli-convert");
+  const std::string fixed = (dir / "fixed.vtu").string();
+  const CommandResult run = incise("convert " + data("sofa/single_tetra.msh") + " " + fixed + " --fix-orientation");
+  ASSERT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.err.find("flipped 1"), std::string::npos) << run.err;
+  const auto json = nlohmann::json::parse(incise("info --json " + fixed).out);
+  EXPECT_EQ(json["inverted"], 0);
+  EXPECT_NEAR(json["volume"].template get<double>(), 12.5, 1e-12);
+  // Without the flag the mesh is converted as it is, with a warning.
+  const CommandResult plain = incise("convert " + data("sofa/single_tetra.msh") + " " + (dir / "plain.msh").string());
+  EXPECT_EQ(plain.code, 0);
+  EXPECT_NE(plain.err.find("not valid"), std::string::npos) << plain.err;
+}
+
+TEST(Cli, ConvertChainKeepsTheMesh) {
+  if (!have_data()) {
+    GTEST_SKIP();
+  }
+  const auto dir = test::scratch_dir("cli-chain");
+  std::string previous = data("libigl/octopus-low.mesh");
+  for (const char* name : {"a.msh", "b.vtu", "c.node", "d.mesh"}) {
+    const std::string next = (dir / name).string();
+    ASSERT_EQ(incise("convert " + previous + " " + next).code, 0) << name;
+    previous = next;
+  }
+  const auto json = nlohmann::json::parse(incise("info --json " + previous).out);
+  EXPECT_EQ(json["tets"], 1140);
+  EXPECT_EQ(json["vertices"], 452);
+  EXPECT_NEAR(json["volume"].template get<double>(), 0.009135547847518207, 1e-15);
+}
+
+TEST(Cli, GenerateBox) {
+  const auto dir = test::scratch_dir("cli-generate");
+  const std::string out = (dir / "box.msh").string();
+  const CommandResult run =
+      incise("generate box --cells 2 3 4 --size 0.02 0.03 0.04 --tets-per-cell 5 -o " + out);
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto json = nlohmann::json::parse(incise("info --json " + out).out);
+  EXPECT_EQ(json["tets"], 2 * 3 * 4 * 5);
+  EXPECT_NEAR(json["volume"].template get<double>(), 0.02 * 0.03 * 0.04, 1e-15);
+  EXPECT_EQ(json["valid"], true);
+  EXPECT_NE(incise("generate box --tets-per-cell 4 -o " + out).code, 0);
+  EXPECT_NE(incise("generate box --cells 0 1 1 -o " + out).code, 0);
+}
+
+TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
+  if (!have_data()) {
+    GTEST_SKIP();
+  }
+  const auto dir = test::scratch_dir("cli-mesh");
+  const std::string out = (dir / "liver.vtu").string();
+  const CommandResult run = incise("mesh " + data("sofa/liver.obj") + " -o " + out + " --max-volume 0.05");
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto json = nlohmann::json::parse(incise("info --json " + out).out);
+  EXPECT_EQ(json["valid"], true);
+  EXPECT_GT(json["tets"].template get<int>(), 596);
+  // An open surface: the liver with one triangle removed.
+  std::ifstream in(data("sofa/liver.obj"));
+  std::ofstream open_surface(dir / "open.obj");
+  bool dropped = false;
+  for (std::string line; std::getline(in, line);) {
+    if (!dropped && line.rfind("f ", 0) == 0) {
+      dropped = true;
+      continue;
+    }
+    open_surface << line << "\n";
+  }
+  open_surface.close();
+  const CommandResult open = incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
+  EXPECT_EQ(open.code, 2);
+  EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
+}
+
+}  // namespace
+}  // namespace incise
