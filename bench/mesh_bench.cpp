@@ -11,6 +11,7 @@
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
+#include "incise/mesh/operations.hpp"
 #include "incise/mesh/validate.hpp"
 
 namespace {
@@ -49,20 +50,7 @@ void BM_SplitEdge(benchmark::State& state) {
   std::mt19937 rng(7);
   std::size_t splits = 0;
   for (auto _ : state) {
-    const auto edge = static_cast<EdgeId>(rng() % mesh.edge_count());
-    const auto [a, b] = mesh.edge(edge);
-    const std::array<VertexId, 2> parents{a, b};
-    const std::array<double, 2> weights{0.5, 0.5};
-    const VertexId m = mesh.add_vertex(parents, weights);
-    const std::vector<TetId> around(mesh.edge_tets(edge).begin(), mesh.edge_tets(edge).end());
-    for (TetId t : around) {
-      Tet first = mesh.tet(t);
-      Tet second = mesh.tet(t);
-      std::replace(first.begin(), first.end(), b, m);
-      std::replace(second.begin(), second.end(), a, m);
-      const std::array<Tet, 2> children{first, second};
-      mesh.replace_tet(t, children);
-    }
+    benchmark::DoNotOptimize(split_edge(mesh, static_cast<EdgeId>(rng() % mesh.edge_count()), 0.5));
     ++splits;
   }
   state.counters["tets_at_end"] = static_cast<double>(mesh.tet_count());
@@ -90,27 +78,17 @@ void BM_BoundaryAndComponents(benchmark::State& state) {
 BENCHMARK(BM_BoundaryAndComponents)->Arg(20)->Arg(46)->Unit(benchmark::kMillisecond);
 
 /// Writing and reading the 584k-tet cube as .vtu (binary appended) and .msh (ASCII).
-void BM_WriteReadVtu(benchmark::State& state) {
+void BM_WriteRead(benchmark::State& state, const std::string& extension) {
   const TetMesh mesh = cube(46);
-  const auto path = std::filesystem::temp_directory_path() / "incise-bench.vtu";
+  const auto path = std::filesystem::temp_directory_path() / ("incise-bench" + extension);
   for (auto _ : state) {
-    write_vtu(path, mesh);
+    write_tet_mesh(path, mesh);
     benchmark::DoNotOptimize(read_tet_mesh(path).mesh.tet_count());
   }
   std::filesystem::remove(path);
 }
-BENCHMARK(BM_WriteReadVtu)->Unit(benchmark::kMillisecond);
-
-void BM_WriteReadMsh(benchmark::State& state) {
-  const TetMesh mesh = cube(46);
-  const auto path = std::filesystem::temp_directory_path() / "incise-bench.msh";
-  for (auto _ : state) {
-    write_msh(path, mesh);
-    benchmark::DoNotOptimize(read_tet_mesh(path).mesh.tet_count());
-  }
-  std::filesystem::remove(path);
-}
-BENCHMARK(BM_WriteReadMsh)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_WriteRead, vtu, std::string(".vtu"))->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_WriteRead, msh, std::string(".msh"))->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -45,6 +45,14 @@ inline std::filesystem::path scratch_dir(const std::string& name) {
   return dir;
 }
 
+/// `text` with every character that may not appear in a test name replaced by '_'.
+inline std::string test_name_from(std::string text) {
+  for (char& c : text) {
+    c = std::isalnum(static_cast<unsigned char>(c)) != 0 ? c : '_';
+  }
+  return text;
+}
+
 /// The standard tetrahedron (0,0,0), e1, e2, e3 scaled by `size` (m); volume size^3 / 6.
 inline TetMesh unit_tet(double size = 1.0) {
   return TetMesh({Vec3(0, 0, 0), Vec3(size, 0, 0), Vec3(0, size, 0), Vec3(0, 0, size)},

@@ -341,6 +341,43 @@ const char* host_byte_order() {
   return std::endian::native == std::endian::little ? "LittleEndian" : "BigEndian";
 }
 
+/// VTK XML with every array in one raw AppendedData block (UInt64 byte count before each).
+class AppendedVtkXml {
+ public:
+  /// Adds a DataArray element referring to `bytes` in the appended block.
+  void add_array(const std::string& attributes, const std::string& bytes) {
+    xml += fmt::format("        <DataArray {} format=\"appended\" offset=\"{}\"/>\n", attributes,
+                       appended_.size());
+    append_raw(appended_, static_cast<std::uint64_t>(bytes.size()));
+    appended_ += bytes;
+  }
+  /// Closes the document and writes it atomically.
+  void write(const std::filesystem::path& path, const char* grid) {
+    xml += fmt::format("    </Piece>\n  </{}>\n  <AppendedData encoding=\"raw\">\n   _", grid);
+    AtomicFile file(path);
+    file.write(xml);
+    file.write(appended_);
+    file.write("\n  </AppendedData>\n</VTKFile>\n");
+    file.commit();
+  }
+
+  std::string xml;  ///< the document up to the point written so far
+
+ private:
+  std::string appended_;
+};
+
+std::string xyz_bytes(std::span<const Vec3> points) {
+  std::string bytes;
+  bytes.reserve(points.size() * 24);
+  for (const Vec3& p : points) {
+    append_raw(bytes, p.x());
+    append_raw(bytes, p.y());
+    append_raw(bytes, p.z());
+  }
+  return bytes;
+}
+
 }  // namespace
 
 void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
@@ -355,15 +392,8 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
   const std::size_t n_points = mesh.vertex_count();
   const std::size_t n_cells = mesh.tet_count();
 
-  std::string xml;
-  std::string appended;
-  // Each array: UInt64 byte count, then the bytes.
-  auto add_array = [&](const std::string& attributes, const std::string& bytes) {
-    xml += fmt::format("        <DataArray {} format=\"appended\" offset=\"{}\"/>\n", attributes,
-                       appended.size());
-    append_raw(appended, static_cast<std::uint64_t>(bytes.size()));
-    appended += bytes;
-  };
+  AppendedVtkXml document;
+  std::string& xml = document.xml;
   auto field_xml = [&](const FieldArray& field, std::size_t expected_tuples) {
     std::string bytes;
     if (const auto* reals = std::get_if<std::vector<double>>(&field.values)) {
@@ -378,9 +408,9 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
         }
         append_raw(bytes, (*reals)[i]);
       }
-      add_array(fmt::format("type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\"", field.name,
-                            field.components),
-                bytes);
+      document.add_array(fmt::format("type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\"",
+                                     field.name, field.components),
+                         bytes);
     } else {
       const auto& integers = std::get<std::vector<std::int32_t>>(field.values);
       if (integers.size() != expected_tuples * static_cast<std::size_t>(field.components)) {
@@ -389,9 +419,9 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
       for (std::int32_t value : integers) {
         append_raw(bytes, value);
       }
-      add_array(fmt::format("type=\"Int32\" Name=\"{}\" NumberOfComponents=\"{}\"", field.name,
-                            field.components),
-                bytes);
+      document.add_array(fmt::format("type=\"Int32\" Name=\"{}\" NumberOfComponents=\"{}\"",
+                                     field.name, field.components),
+                         bytes);
     }
   };
 
@@ -409,67 +439,40 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
     field_xml(field, n_cells);
   }
   xml += "      </CellData>\n      <Points>\n";
-  {
-    std::string bytes;
-    bytes.reserve(n_points * 24);
-    for (const Vec3& p : positions) {
-      append_raw(bytes, p.x());
-      append_raw(bytes, p.y());
-      append_raw(bytes, p.z());
-    }
-    add_array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"", bytes);
-  }
+  document.add_array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"",
+                     xyz_bytes(positions));
   xml += "      </Points>\n      <Cells>\n";
-  {
-    std::string connectivity;
-    std::string offsets;
-    std::string types;
-    connectivity.reserve(n_cells * 32);
-    for (std::size_t c = 0; c < n_cells; ++c) {
-      for (VertexId v : mesh.tet(static_cast<TetId>(c))) {
-        append_raw(connectivity, static_cast<std::int64_t>(v));
-      }
-      append_raw(offsets, static_cast<std::int64_t>(4 * (c + 1)));
-      append_raw(types, static_cast<std::uint8_t>(10));  // VTK_TETRA
+  std::string connectivity;
+  std::string offsets;
+  std::string types;
+  connectivity.reserve(n_cells * 32);
+  for (std::size_t c = 0; c < n_cells; ++c) {
+    for (VertexId v : mesh.tet(static_cast<TetId>(c))) {
+      append_raw(connectivity, static_cast<std::int64_t>(v));
     }
-    add_array("type=\"Int64\" Name=\"connectivity\"", connectivity);
-    add_array("type=\"Int64\" Name=\"offsets\"", offsets);
-    add_array("type=\"UInt8\" Name=\"types\"", types);
+    append_raw(offsets, static_cast<std::int64_t>(4 * (c + 1)));
+    append_raw(types, static_cast<std::uint8_t>(10));  // VTK_TETRA
   }
-  xml +=
-      "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   "
-      "_";
-  AtomicFile file(path);
-  file.write(xml);
-  file.write(appended);
-  file.write("\n  </AppendedData>\n</VTKFile>\n");
-  file.commit();
+  document.add_array("type=\"Int64\" Name=\"connectivity\"", connectivity);
+  document.add_array("type=\"Int64\" Name=\"offsets\"", offsets);
+  document.add_array("type=\"UInt8\" Name=\"types\"", types);
+  xml += "      </Cells>\n";
+  document.write(path, "UnstructuredGrid");
 }
 
 void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
                std::span<const Triangle> triangles) {
   check_finite_positions(path, points);
-  std::string appended;
-  std::string xml = fmt::format(
+  AppendedVtkXml document;
+  document.xml = fmt::format(
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"{}\" "
       "header_type=\"UInt64\">\n  <PolyData>\n    <Piece NumberOfPoints=\"{}\" "
-      "NumberOfPolys=\"{}\">\n",
+      "NumberOfPolys=\"{}\">\n"
+      "      <Points>\n",
       host_byte_order(), points.size(), triangles.size());
-  auto add_array = [&](const std::string& attributes, const std::string& bytes) {
-    xml += fmt::format("        <DataArray {} format=\"appended\" offset=\"{}\"/>\n", attributes,
-                       appended.size());
-    append_raw(appended, static_cast<std::uint64_t>(bytes.size()));
-    appended += bytes;
-  };
-  std::string bytes;
-  for (const Vec3& p : points) {
-    append_raw(bytes, p.x());
-    append_raw(bytes, p.y());
-    append_raw(bytes, p.z());
-  }
-  xml += "      <Points>\n";
-  add_array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"", bytes);
-  xml += "      </Points>\n      <Polys>\n";
+  document.add_array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"",
+                     xyz_bytes(points));
+  document.xml += "      </Points>\n      <Polys>\n";
   std::string connectivity;
   std::string offsets;
   for (std::size_t t = 0; t < triangles.size(); ++t) {
@@ -478,14 +481,10 @@ void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
     }
     append_raw(offsets, static_cast<std::int64_t>(3 * (t + 1)));
   }
-  add_array("type=\"Int64\" Name=\"connectivity\"", connectivity);
-  add_array("type=\"Int64\" Name=\"offsets\"", offsets);
-  xml += "      </Polys>\n    </Piece>\n  </PolyData>\n  <AppendedData encoding=\"raw\">\n   _";
-  AtomicFile file(path);
-  file.write(xml);
-  file.write(appended);
-  file.write("\n  </AppendedData>\n</VTKFile>\n");
-  file.commit();
+  document.add_array("type=\"Int64\" Name=\"connectivity\"", connectivity);
+  document.add_array("type=\"Int64\" Name=\"offsets\"", offsets);
+  document.xml += "      </Polys>\n";
+  document.write(path, "PolyData");
 }
 
 PvdSeries::PvdSeries(std::filesystem::path pvd_path) : path_(std::move(pvd_path)) {}

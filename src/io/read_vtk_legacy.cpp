@@ -54,7 +54,7 @@ class VtkLegacyReader {
       } else if (keyword == "METADATA") {
         skip_metadata();
       } else if (keyword == "FIELD") {
-        source_.fail("FIELD data before the cells is not supported");
+        skip_field();
       } else if (keyword == "CELLS" || keyword == "POLYGONS" || keyword == "TRIANGLE_STRIPS" ||
                  keyword == "VERTICES" || keyword == "LINES") {
         if (!has_points) {
@@ -105,6 +105,28 @@ class VtkLegacyReader {
     for (std::size_t i = 0; i < count; ++i) {
       builder_.add_point(static_cast<long long>(i),
                          Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]));
+    }
+  }
+
+  /// FIELD name n, then n arrays "name components tuples type" with their values (ParaView
+  /// writes TIME and CYCLE this way right after DATASET). Not needed for the mesh.
+  void skip_field() {
+    (void)source_.token("field name");
+    const std::size_t arrays = source_.count("field array count", 10000);
+    for (std::size_t a = 0; a < arrays; ++a) {
+      (void)source_.token("field array name");
+      const std::size_t components = source_.count("field components", 1000000);
+      const std::size_t tuples = source_.count("field tuples", kMaxCount);
+      const std::string type(source_.token("field data type"));
+      end_of_header_line();
+      if (type == "string") {
+        source_.fail("string arrays in FIELD data are not supported");
+      }
+      (void)read_reals(components * tuples, type, "FIELD data");
+      if (source_.peek_token() == "METADATA") {
+        (void)source_.next_token();
+        skip_metadata();
+      }
     }
   }
 

@@ -63,6 +63,27 @@ namespace {
 
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 
+using CgalMesh = CGAL::Surface_mesh<Kernel::Point_3>;
+
+/// A clean (closed, manifold, oriented) triangle surface as a CGAL halfedge mesh; faces keep
+/// the triangles' order, so face index == triangle index.
+CgalMesh to_cgal_mesh(const SurfaceMesh& surface) {
+  std::vector<Kernel::Point_3> points;
+  points.reserve(surface.points.size());
+  for (const Vec3& p : surface.points) {
+    points.emplace_back(p.x(), p.y(), p.z());
+  }
+  std::vector<std::vector<std::size_t>> polygons;
+  polygons.reserve(surface.triangles.size());
+  for (const Triangle& t : surface.triangles) {
+    polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
+                        static_cast<std::size_t>(t[2])});
+  }
+  CgalMesh mesh;
+  CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(points, polygons, mesh);
+  return mesh;
+}
+
 bool collinear(const Vec3& a, const Vec3& b, const Vec3& c) {
   return CGAL::collinear(Kernel::Point_3(a.x(), a.y(), a.z()), Kernel::Point_3(b.x(), b.y(), b.z()),
                          Kernel::Point_3(c.x(), c.y(), c.z()));
@@ -86,21 +107,8 @@ SurfaceCheckReport check_closed_surface(const SurfaceMesh& surface) {
   if (!report.ok()) {
     return report;  // the self-intersection test needs a clean two-manifold
   }
-  using Mesh = CGAL::Surface_mesh<Kernel::Point_3>;
-  std::vector<Kernel::Point_3> points;
-  points.reserve(surface.points.size());
-  for (const Vec3& p : surface.points) {
-    points.emplace_back(p.x(), p.y(), p.z());
-  }
-  std::vector<std::vector<std::size_t>> polygons;
-  polygons.reserve(surface.triangles.size());
-  for (const Triangle& t : surface.triangles) {
-    polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
-                        static_cast<std::size_t>(t[2])});
-  }
-  Mesh mesh;
-  CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(points, polygons, mesh);
-  std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+  CgalMesh mesh = to_cgal_mesh(surface);
+  std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> pairs;
   CGAL::Polygon_mesh_processing::self_intersections(mesh, std::back_inserter(pairs));
   for (std::size_t i = 0; i < std::min<std::size_t>(pairs.size(), 10); ++i) {
     // Faces are created in soup order, so face indices are triangle indices.
@@ -377,20 +385,7 @@ SurfaceMesh remesh_surface(const SurfaceMesh& surface, double edge_length) {
   if (!(edge_length > 0.0) || !std::isfinite(edge_length)) {
     throw InputError("remeshing edge length must be positive");
   }
-  using Mesh = CGAL::Surface_mesh<Kernel::Point_3>;
-  std::vector<Kernel::Point_3> points;
-  points.reserve(surface.points.size());
-  for (const Vec3& p : surface.points) {
-    points.emplace_back(p.x(), p.y(), p.z());
-  }
-  std::vector<std::vector<std::size_t>> polygons;
-  polygons.reserve(surface.triangles.size());
-  for (const Triangle& t : surface.triangles) {
-    polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
-                        static_cast<std::size_t>(t[2])});
-  }
-  Mesh mesh;
-  CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(points, polygons, mesh);
+  CgalMesh mesh = to_cgal_mesh(surface);
   CGAL::Polygon_mesh_processing::isotropic_remeshing(
       faces(mesh), edge_length, mesh,
       CGAL::parameters::number_of_iterations(5).number_of_relaxation_steps(3));

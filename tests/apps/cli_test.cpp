@@ -38,9 +38,13 @@ CommandResult incise(const std::string& arguments) {
   return run;
 }
 
-std::string data(const std::string& relative) { return test::data_file(relative).string(); }
+std::string data(const std::string& relative) {
+  return test::data_file(relative).string();
+}
 
-bool have_data() { return std::filesystem::exists(test::data_file("sofa/liver.msh")); }
+bool have_data() {
+  return std::filesystem::exists(test::data_file("sofa/liver.msh"));
+}
 
 TEST(Cli, HelpOnEveryCommand) {
   for (const char* command : {"", "info", "convert", "generate", "generate box", "mesh"}) {
@@ -108,7 +112,8 @@ TEST(Cli, InfoOnEveryTetMeshInTheData) {
 
 TEST(Cli, ErrorsNameTheFileAndLine) {
   const auto dir = test::scratch_dir("cli-errors");
-  std::ofstream(dir / "broken.msh") << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n2\n1 0 0 0\n2 x 0 0\n";
+  std::ofstream(dir / "broken.msh")
+      << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n2\n1 0 0 0\n2 x 0 0\n";
   const CommandResult run = incise("info " + (dir / "broken.msh").string());
   EXPECT_EQ(run.code, 2);
   EXPECT_NE(run.err.find("broken.msh:7"), std::string::npos) << run.err;
@@ -124,14 +129,16 @@ TEST(Cli, ConvertFixesOrientation) {
   }
   const auto dir = test::scratch_dir("cli-convert");
   const std::string fixed = (dir / "fixed.vtu").string();
-  const CommandResult run = incise("convert " + data("sofa/single_tetra.msh") + " " + fixed + " --fix-orientation");
+  const CommandResult run =
+      incise("convert " + data("sofa/single_tetra.msh") + " " + fixed + " --fix-orientation");
   ASSERT_EQ(run.code, 0) << run.err;
   EXPECT_NE(run.err.find("flipped 1"), std::string::npos) << run.err;
   const auto json = nlohmann::json::parse(incise("info --json " + fixed).out);
   EXPECT_EQ(json["inverted"], 0);
   EXPECT_NEAR(json["volume"].template get<double>(), 12.5, 1e-12);
   // Without the flag the mesh is converted as it is, with a warning.
-  const CommandResult plain = incise("convert " + data("sofa/single_tetra.msh") + " " + (dir / "plain.msh").string());
+  const CommandResult plain =
+      incise("convert " + data("sofa/single_tetra.msh") + " " + (dir / "plain.msh").string());
   EXPECT_EQ(plain.code, 0);
   EXPECT_NE(plain.err.find("not valid"), std::string::npos) << plain.err;
 }
@@ -173,7 +180,8 @@ TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
   }
   const auto dir = test::scratch_dir("cli-mesh");
   const std::string out = (dir / "liver.vtu").string();
-  const CommandResult run = incise("mesh " + data("sofa/liver.obj") + " -o " + out + " --max-volume 0.05");
+  const CommandResult run =
+      incise("mesh " + data("sofa/liver.obj") + " -o " + out + " --max-volume 0.05");
   ASSERT_EQ(run.code, 0) << run.err;
   const auto json = nlohmann::json::parse(incise("info --json " + out).out);
   EXPECT_EQ(json["valid"], true);
@@ -190,7 +198,8 @@ TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
     open_surface << line << "\n";
   }
   open_surface.close();
-  const CommandResult open = incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
+  const CommandResult open =
+      incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
   EXPECT_EQ(open.code, 2);
   EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
 }

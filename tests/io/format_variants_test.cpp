@@ -226,6 +226,17 @@ TEST(VtkLegacyVariants, AsciiUnstructuredGridWithMixedCells) {
   EXPECT_TRUE(has_note(mesh, "skipped 1 polygons"));
 }
 
+TEST(VtkLegacyVariants, FieldDataBeforePoints) {
+  // As ParaView writes it: TIME and CYCLE in a FIELD block right after DATASET.
+  const auto mesh = read_raw_mesh(write(
+      "field.vtk",
+      std::string("# vtk DataFile Version 4.2\nparaview\nASCII\nDATASET UNSTRUCTURED_GRID\n") +
+          "FIELD FieldData 2\nTIME 1 1 double\n0.5\nCYCLE 1 1 int\n3\n" + kVtkPoints +
+          "CELLS 2 10\n4 0 1 2 3\n4 4 1 3 2\nCELL_TYPES 2\n10\n10\n"
+          "CELL_DATA 2\nFIELD FieldData 1\nids 1 2 int\n0 1\n"));
+  expect_two_tets(mesh);
+}
+
 TEST(VtkLegacyVariants, Version51OffsetsLayout) {
   const auto mesh = read_raw_mesh(
       write("v51.vtk",

@@ -174,11 +174,7 @@ TEST_P(MalformedInput, GivesALocatedError) {
 
 INSTANTIATE_TEST_SUITE_P(AllFormats, MalformedInput, ::testing::ValuesIn(kCases),
                          [](const ::testing::TestParamInfo<Malformed>& param_info) {
-                           std::string name = param_info.param.name;
-                           for (char& ch : name) {
-                             ch = std::isalnum(static_cast<unsigned char>(ch)) != 0 ? ch : '_';
-                           }
-                           return name;
+                           return test::test_name_from(param_info.param.name);
                          });
 
 TEST(MalformedInput, MissingFileAndCompanion) {

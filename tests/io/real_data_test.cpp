@@ -83,11 +83,7 @@ INSTANTIATE_TEST_SUITE_P(
         VolumeCase{"libigl/octopus-low.mesh", MeshFormat::kMedit, 452, 1140, 0.009135547847518207,
                    0}),
     [](const ::testing::TestParamInfo<VolumeCase>& param_info) {
-      std::string name = param_info.param.file;
-      for (char& c : name) {
-        c = std::isalnum(static_cast<unsigned char>(c)) != 0 ? c : '_';
-      }
-      return name;
+      return test::test_name_from(param_info.param.file);
     });
 
 TEST(RealVolumeMeshes, InvertedTetsAreTheOnesSofaMarked) {
@@ -140,11 +136,7 @@ INSTANTIATE_TEST_SUITE_P(
                       SurfaceCase{"eit-mesher/NNskull_lowpoly.STL", MeshFormat::kStl, 10000,
                                   20000}),
     [](const ::testing::TestParamInfo<SurfaceCase>& param_info) {
-      std::string name = param_info.param.file;
-      for (char& c : name) {
-        c = std::isalnum(static_cast<unsigned char>(c)) != 0 ? c : '_';
-      }
-      return name;
+      return test::test_name_from(param_info.param.file);
     });
 
 TEST(RealSurfaces, LiverObjIsTheBoundaryOfLiverMsh) {

@@ -9,6 +9,7 @@
 
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/generators.hpp"
+#include "incise/mesh/operations.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 #include "incise/mesh/validate.hpp"
 
@@ -82,58 +83,6 @@ struct TrackedMesh {
   std::map<int, double> ancestor_volume;
 };
 
-/// Replaces every tetrahedron around edge (a, b) by its two halves at vertex m.
-void split_edge(TetMesh& mesh, EdgeId edge, double fraction) {
-  const auto [a, b] = mesh.edge(edge);
-  const std::array<VertexId, 2> parents{a, b};
-  const std::array<double, 2> weights{1.0 - fraction, fraction};
-  const VertexId m = mesh.add_vertex(parents, weights);
-  const std::vector<TetId> around(mesh.edge_tets(edge).begin(), mesh.edge_tets(edge).end());
-  for (TetId t : around) {
-    Tet first = mesh.tet(t);
-    Tet second = mesh.tet(t);
-    std::replace(first.begin(), first.end(), b, m);
-    std::replace(second.begin(), second.end(), a, m);
-    const std::array<Tet, 2> children{first, second};
-    mesh.replace_tet(t, children);
-  }
-}
-
-/// Replaces the tetrahedra on face f of tet t by three each, around a point inside the face.
-void split_face(TetMesh& mesh, TetId t, int f, const std::array<double, 3>& weights) {
-  const auto& local = tet_local::kFaces[f];
-  const std::array<VertexId, 3> face{mesh.tet(t)[local[0]], mesh.tet(t)[local[1]],
-                                     mesh.tet(t)[local[2]]};
-  const TetId neighbor = mesh.tet_neighbors(t)[f];
-  const VertexId p = mesh.add_vertex(face, weights);
-  std::vector<TetId> sides{t};
-  if (neighbor >= 0) {
-    sides.push_back(neighbor);
-  }
-  for (TetId side : sides) {
-    std::vector<Tet> children;
-    for (VertexId corner : face) {
-      Tet child = mesh.tet(side);
-      std::replace(child.begin(), child.end(), corner, p);
-      children.push_back(child);
-    }
-    mesh.replace_tet(side, children);
-  }
-}
-
-/// 1:4 split of a tetrahedron at an interior point.
-void split_tet(TetMesh& mesh, TetId t, const std::array<double, 4>& weights) {
-  const Tet parent = mesh.tet(t);
-  const VertexId p = mesh.add_vertex(parent, weights);
-  std::vector<Tet> children;
-  for (int i = 0; i < 4; ++i) {
-    Tet child = parent;
-    child[i] = p;
-    children.push_back(child);
-  }
-  mesh.replace_tet(t, children);
-}
-
 class RandomEdits : public ::testing::TestWithParam<std::tuple<unsigned, int>> {};
 
 TEST_P(RandomEdits, AdjacencyAndAttributesStayExact) {
@@ -173,17 +122,17 @@ TEST_P(RandomEdits, AdjacencyAndAttributesStayExact) {
     const double choice = unit(rng);
     std::string what;
     if (choice < 0.3) {
-      split_edge(mesh, pick(mesh.edge_count()), 0.2 + 0.6 * unit(rng));
+      (void)split_edge(mesh, pick(mesh.edge_count()), 0.2 + 0.6 * unit(rng));
       what = "split_edge";
     } else if (choice < 0.5) {
       std::array<double, 3> weights{};
       simplex_weights(weights);
-      split_face(mesh, pick(mesh.tet_count()), pick(4), weights);
+      (void)split_face(mesh, pick(mesh.tet_count()), pick(4), weights);
       what = "split_face";
     } else if (choice < 0.7) {
       std::array<double, 4> weights{};
       simplex_weights(weights);
-      split_tet(mesh, pick(mesh.tet_count()), weights);
+      (void)split_tet(mesh, pick(mesh.tet_count()), weights);
       what = "split_tet";
     } else if (choice < 0.85 || !conserving) {
       const VertexId v = pick(mesh.vertex_count());
@@ -242,13 +191,13 @@ TEST(RandomEdits, SplitsKeepTheMeshValid) {
     const auto t = static_cast<TetId>(rng() % mesh.tet_count());
     switch (rng() % 3) {
       case 0:
-        split_edge(mesh, mesh.tet_edges(t)[rng() % 6], 0.5);
+        (void)split_edge(mesh, mesh.tet_edges(t)[rng() % 6], 0.5);
         break;
       case 1:
-        split_face(mesh, t, static_cast<int>(rng() % 4), {0.3, 0.3, 0.4});
+        (void)split_face(mesh, t, static_cast<int>(rng() % 4), {0.3, 0.3, 0.4});
         break;
       default:
-        split_tet(mesh, t, {0.25, 0.25, 0.25, 0.25});
+        (void)split_tet(mesh, t, {0.25, 0.25, 0.25, 0.25});
     }
   }
   const auto report = validate(mesh, {.degenerate_tolerance = 0.0});

@@ -1,6 +1,8 @@
 // Tetrahedralisation with TetGen: valid output that fills the surface, clear errors (never a
 // hang or a crash) for surfaces that bound no volume.
 
+#include "incise/meshing/tetrahedralize.hpp"
+
 #include <gtest/gtest.h>
 
 #include "incise/core/error.hpp"
@@ -9,7 +11,6 @@
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/quality.hpp"
 #include "incise/mesh/validate.hpp"
-#include "incise/meshing/tetrahedralize.hpp"
 #include "test_support.hpp"
 
 namespace incise {
@@ -36,6 +37,18 @@ SurfaceMesh box_surface(const Vec3& origin = Vec3::Zero(), double size = 1.0) {
     surface.triangles.push_back(face.vertices);
   }
   return surface;
+}
+
+/// Adds another surface's points and triangles to `into`.
+void append_surface(SurfaceMesh& into, const SurfaceMesh& other) {
+  const auto offset = static_cast<VertexId>(into.points.size());
+  into.points.insert(into.points.end(), other.points.begin(), other.points.end());
+  for (Triangle t : other.triangles) {
+    for (VertexId& v : t) {
+      v += offset;
+    }
+    into.triangles.push_back(t);
+  }
 }
 
 TEST(Tetrahedralize, BoxFillsItsSurface) {
@@ -124,15 +137,7 @@ TEST(Tetrahedralize, OpenSurfaceIsRejected) {
 TEST(Tetrahedralize, SelfIntersectingSurfaceIsRejected) {
   // Two overlapping closed boxes in one surface.
   SurfaceMesh surface = box_surface();
-  const SurfaceMesh other = box_surface(Vec3(0.5, 0.5, 0.5));
-  const auto offset = static_cast<VertexId>(surface.points.size());
-  surface.points.insert(surface.points.end(), other.points.begin(), other.points.end());
-  for (Triangle t : other.triangles) {
-    for (VertexId& v : t) {
-      v += offset;
-    }
-    surface.triangles.push_back(t);
-  }
+  append_surface(surface, box_surface(Vec3(0.5, 0.5, 0.5)));
   const SurfaceCheckReport check = check_closed_surface(surface);
   EXPECT_FALSE(check.self_intersections.empty());
   try {
@@ -174,15 +179,7 @@ TEST(Tetrahedralize, BadOptions) {
 
 TEST(SurfaceShells, SplitsDisjointPieces) {
   SurfaceMesh surface = box_surface();
-  const SurfaceMesh small = box_surface(Vec3(5, 5, 5), 0.1);
-  const auto offset = static_cast<VertexId>(surface.points.size());
-  surface.points.insert(surface.points.end(), small.points.begin(), small.points.end());
-  for (Triangle t : small.triangles) {
-    for (VertexId& v : t) {
-      v += offset;
-    }
-    surface.triangles.push_back(t);
-  }
+  append_surface(surface, box_surface(Vec3(5, 5, 5), 0.1));
   const auto shells = surface_shells(surface);
   ASSERT_EQ(shells.size(), 2u);
   EXPECT_NEAR(enclosed_volume(shells[0]), 1.0, 1e-12);
