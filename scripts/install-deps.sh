@@ -6,7 +6,7 @@ set -euo pipefail
 
 packages=(
   # toolchain
-  build-essential cmake ninja-build pkg-config clang-format
+  build-essential clang cmake ninja-build pkg-config clang-format
   # core numerics and parallel loops
   libeigen3-dev libtbb-dev
   # robust geometry (CGAL is header-only in 5.x; GMP/MPFR back its exact kernel)

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs dependencies, builds with warnings as errors, runs the whole test suite, checks
-# formatting, and proves the installed package works with find_package(incise).
+# Installs dependencies, builds with warnings as errors (g++ and clang), runs the whole test
+# suite under both, checks formatting, and proves the installed package works with
+# find_package(incise).
 # Usage (as root on Debian 12): bash scripts/test.sh
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -17,6 +18,11 @@ cmake --build --preset ci
 
 echo "== tests"
 ctest --preset ci
+
+echo "== the same with clang (-Werror)"
+cmake --preset ci-clang >/dev/null
+cmake --build --preset ci-clang
+ctest --preset ci-clang
 
 echo "== installed package: find_package(incise) from a consumer project"
 prefix=$(mktemp -d)

@@ -212,7 +212,10 @@ class VtkXmlReader {
     if (!cells) {
       fail_at(piece, "a Piece without Cells");
     }
-    const auto [connectivity, offsets] = cell_arrays(cells, cell_count, "Cells");
+    // A named pair, not a structured binding: clang 14 cannot capture those in lambdas.
+    const auto cell_data = cell_arrays(cells, cell_count, "Cells");
+    const std::vector<double>& connectivity = cell_data.first;
+    const std::vector<double>& offsets = cell_data.second;
     const pugi::xml_node types_node = named_array(cells, "types");
     if (!types_node) {
       fail_at(cells, "Cells without a 'types' DataArray");

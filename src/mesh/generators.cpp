@@ -8,7 +8,10 @@
 namespace incise {
 
 TetMesh make_box_grid(const BoxGridOptions& options) {
-  const auto [nx, ny, nz] = options.cells;
+  // Plain variables, not a structured binding: clang 14 cannot capture those in lambdas.
+  const int nx = options.cells[0];
+  const int ny = options.cells[1];
+  const int nz = options.cells[2];
   if (nx < 1 || ny < 1 || nz < 1) {
     throw InputError("box grid needs at least one cell along each axis, got " + std::to_string(nx) +
                      " x " + std::to_string(ny) + " x " + std::to_string(nz));

@@ -399,7 +399,8 @@ TEST(VtkXmlVariants, InlineBase64EncodedTogether) {
 class VtuAppended : public ::testing::TestWithParam<std::tuple<bool, bool>> {};
 
 TEST_P(VtuAppended, Decodes) {
-  const auto [encode_base64, compress] = GetParam();
+  const bool encode_base64 = std::get<0>(GetParam());  // not a structured binding: clang 14
+  const bool compress = std::get<1>(GetParam());       // cannot capture those in lambdas
   const VtuArrays a = vtu_arrays(false);
   std::string appended;
   auto array = [&](const std::string& attributes, const std::string& data) {
