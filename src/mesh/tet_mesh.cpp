@@ -512,6 +512,11 @@ VertexId TetMesh::duplicate_vertex(VertexId original, std::span<const TetId> tet
                        " does not use vertex " + std::to_string(original));
     }
   }
+  std::vector<TetId> distinct(tets_to_move.begin(), tets_to_move.end());
+  std::sort(distinct.begin(), distinct.end());
+  if (std::adjacent_find(distinct.begin(), distinct.end()) != distinct.end()) {
+    throw InputError("duplicate_vertex: a tetrahedron is listed twice");
+  }
   VertexOrigin origin;
   origin.kind = VertexOrigin::Kind::kDuplicate;
   origin.parent_count = 1;
@@ -528,6 +533,13 @@ VertexId TetMesh::duplicate_vertex(VertexId original, std::span<const TetId> tet
   }
   for (TetId t : tets_to_move) {
     attach(t);
+  }
+  for (TetId t : tets_to_move) {
+    Tet old_vertices = tets_[t];
+    std::replace(old_vertices.begin(), old_vertices.end(), copy, original);
+    for (MeshObserver* observer : observers_) {
+      observer->on_tet_reconnected(*this, t, old_vertices);
+    }
   }
   finish_edit();
   return copy;
@@ -557,6 +569,7 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
   for (const Tet& child : children) {
     check_tet_ids(child);
   }
+  const Tet parent_vertices = tets_[parent];
   detach(parent);
   std::vector<TetId> ids;
   ids.reserve(children.size());
@@ -572,7 +585,7 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
     attach(id);
   }
   for (MeshObserver* observer : observers_) {
-    observer->on_tet_replaced(*this, parent, ids);
+    observer->on_tet_replaced(*this, parent, ids, parent_vertices);
   }
   finish_edit();
   return ids;
@@ -582,6 +595,7 @@ void TetMesh::remove_tet(TetId t) {
   if (t < 0 || static_cast<std::size_t>(t) >= tets_.size()) {
     throw InputError("remove_tet: tetrahedron " + std::to_string(t) + " does not exist");
   }
+  const Tet removed_vertices = tets_[t];
   detach(t);
   const auto last = static_cast<TetId>(tets_.size() - 1);
   if (t != last) {
@@ -604,7 +618,7 @@ void TetMesh::remove_tet(TetId t) {
   tet_neighbors_.pop_back();
   tet_edges_.pop_back();
   for (MeshObserver* observer : observers_) {
-    observer->on_tet_removed(*this, t, last);
+    observer->on_tet_removed(*this, t, last, removed_vertices);
   }
   finish_edit();
 }

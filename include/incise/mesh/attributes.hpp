@@ -168,8 +168,8 @@ class TetData final : public detail::AttributeBase<T> {
     this->values_.push_back(this->default_value_);
   }
 
-  void on_tet_replaced(const TetMesh& /*mesh*/, TetId parent,
-                       std::span<const TetId> children) override {
+  void on_tet_replaced(const TetMesh& /*mesh*/, TetId parent, std::span<const TetId> children,
+                       const Tet& /*parent_vertices*/) override {
     const T parent_value = this->values_[parent];
     const T& child_value = rule_ == TetRule::kCopy ? parent_value : this->default_value_;
     this->values_.resize(this->values_.size() + children.size() - 1, child_value);
@@ -181,7 +181,8 @@ class TetData final : public detail::AttributeBase<T> {
     }
   }
 
-  void on_tet_removed(const TetMesh& /*mesh*/, TetId removed, TetId moved_from) override {
+  void on_tet_removed(const TetMesh& /*mesh*/, TetId removed, TetId moved_from,
+                      const Tet& /*removed_vertices*/) override {
     this->swap_remove(removed, moved_from);
   }
 

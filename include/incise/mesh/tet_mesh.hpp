@@ -67,12 +67,19 @@ class MeshObserver {
   /// A tetrahedron appended with no parent.
   virtual void on_tet_added(const TetMesh& /*mesh*/, TetId /*tet*/) {}
   /// `parent` was replaced by `children`; children[0] == parent (the slot is reused), the
-  /// others were appended. Observers still hold the parent's old value at `parent`.
+  /// others were appended. `parent_vertices` are the parent's vertices before the edit.
+  /// Observers still hold the parent's old value at `parent`.
   virtual void on_tet_replaced(const TetMesh& /*mesh*/, TetId /*parent*/,
-                               std::span<const TetId> /*children*/) {}
-  /// `removed` is gone; the tetrahedron that was last (`moved_from`) now lives at `removed`.
-  /// When removed == moved_from the last one was removed.
-  virtual void on_tet_removed(const TetMesh& /*mesh*/, TetId /*removed*/, TetId /*moved_from*/) {}
+                               std::span<const TetId> /*children*/,
+                               const Tet& /*parent_vertices*/) {}
+  /// `removed` (whose vertices were `removed_vertices`) is gone; the tetrahedron that was last
+  /// (`moved_from`) now lives at `removed`. When removed == moved_from the last one was removed.
+  virtual void on_tet_removed(const TetMesh& /*mesh*/, TetId /*removed*/, TetId /*moved_from*/,
+                              const Tet& /*removed_vertices*/) {}
+  /// A tetrahedron kept its id but now uses other vertices (duplicate_vertex moved it to the
+  /// copy); `old_vertices` are those it used before.
+  virtual void on_tet_reconnected(const TetMesh& /*mesh*/, TetId /*tet*/,
+                                  const Tet& /*old_vertices*/) {}
   /// Edges appended by one edit, in id order. Edges that the same edit makes unused are still
   /// present (with no tetrahedra) until their on_edge_removed event follows.
   virtual void on_edges_created(const TetMesh& /*mesh*/, std::span<const EdgeOrigin> /*edges*/) {}

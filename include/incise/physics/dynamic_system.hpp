@@ -1,0 +1,63 @@
+#pragma once
+// The integrators' view of a simulated body: M a = f(t, x, v) per vertex, with some vertices'
+// motion prescribed. Positions in m, velocities in m/s, forces in N, masses in kg, time in s.
+
+#include <functional>
+#include <span>
+
+#include "incise/core/types.hpp"
+
+namespace incise {
+
+/// Reads the current state (x, v) of another vertex during a per-vertex force evaluation.
+using NeighborState = std::function<void(VertexId vertex, Vec3& position, Vec3& velocity)>;
+
+class DynamicSystem {
+ public:
+  DynamicSystem() = default;
+  DynamicSystem(const DynamicSystem&) = delete;
+  DynamicSystem& operator=(const DynamicSystem&) = delete;
+  virtual ~DynamicSystem() = default;
+
+  /// Brings internal data up to date after mesh edits (cheap when nothing changed).
+  virtual void refresh() {}
+  [[nodiscard]] virtual std::size_t vertex_count() const = 0;
+  /// Lumped masses (kg).
+  [[nodiscard]] virtual std::span<const double> masses() const = 0;
+
+  /// Total force on every vertex (internal, external, damping) at time t.
+  virtual void forces(double t, std::span<const Vec3> x, std::span<const Vec3> v,
+                      std::span<Vec3> f) = 0;
+  /// Total force on one vertex, the others read through `neighbor`.
+  virtual Vec3 vertex_force(double t, VertexId vertex, const Vec3& x, const Vec3& v,
+                            const NeighborState& neighbor) = 0;
+  /// Vertices whose state enters vertex_force(vertex) (graph neighbours, for traversals).
+  [[nodiscard]] virtual std::span<const VertexId> neighbors(VertexId vertex) const = 0;
+
+  /// Whether the vertex's motion is prescribed; then prescribed_state gives it.
+  [[nodiscard]] virtual bool is_constrained(VertexId vertex) const = 0;
+  virtual void prescribed_state(double t, VertexId vertex, Vec3& x, Vec3& v) const = 0;
+
+  /// Linearisation of the force about (x, v): prepare once, then y += a K p + b D p with
+  /// K = -df/dx and D = -df/dv (symmetric positive semi-definite approximations).
+  virtual void prepare_linearization(double t, std::span<const Vec3> x,
+                                     std::span<const Vec3> v) = 0;
+  virtual void add_linearized_product(double a, double b, std::span<const Vec3> p,
+                                      std::span<Vec3> y) const = 0;
+  /// Adds the diagonal 3x3 blocks of a K + b D (for preconditioning).
+  virtual void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const = 0;
+
+  /// Potential energy (J): elastic plus that of conservative external loads.
+  [[nodiscard]] virtual double potential_energy(double t, std::span<const Vec3> x) const = 0;
+  /// Upper estimate of the highest natural angular frequency (rad/s), for step-size limits.
+  [[nodiscard]] virtual double max_frequency() const = 0;
+  /// Called by integrators after each step of length dt on the velocities of the vertices they
+  /// advanced (e.g. to apply velocity-penalty damping); does nothing by default.
+  virtual void end_step(double /*dt*/, std::span<Vec3> /*v*/) {}
+  virtual void end_step(double /*dt*/, VertexId /*vertex*/, Vec3& /*v*/) {}
+};
+
+/// Kinetic energy (J) of velocities v with masses m.
+[[nodiscard]] double kinetic_energy(std::span<const double> masses, std::span<const Vec3> v);
+
+}  // namespace incise

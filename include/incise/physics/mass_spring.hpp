@@ -1,0 +1,92 @@
+#pragma once
+// Mass-spring tissue after Bielser et al. (seed 000, section 5): a mass at every vertex, a
+// damped spring on every tetrahedron edge. All data lives in attribute containers of the mesh,
+// and the model updates only what an edit touched.
+
+#include <vector>
+
+#include "incise/mesh/attributes.hpp"
+#include "incise/physics/force_model.hpp"
+#include "incise/physics/material.hpp"
+
+namespace incise {
+
+struct MassSpringParameters {
+  /// Damping ratio of each spring: c = ratio * 2 sqrt(k m_reduced) (dimensionless).
+  double spring_damping_ratio = 0.1;
+  /// Springs rest at (1 - prestrain) times their initial length, so the tissue is under
+  /// tension and a cut opens (dimensionless, in [0, 1)).
+  double prestrain = 0.0;
+};
+
+/// A damped linear spring.
+struct Spring {
+  double rest_length = 0.0;  ///< m
+  double stiffness = 0.0;    ///< N/m
+  double damping = 0.0;      ///< N s/m
+};
+
+class MassSpringModel final : public ForceModel, public MeshObserver {
+ public:
+  MassSpringModel(TetMesh& mesh, const Material& material, const MassSpringParameters& parameters);
+  ~MassSpringModel() override;
+
+  [[nodiscard]] std::string name() const override { return "mass-spring"; }
+  void refresh() override;
+  [[nodiscard]] std::span<const double> masses() const override { return masses_.values(); }
+  void add_forces(std::span<const Vec3> x, std::span<const Vec3> v,
+                  std::span<Vec3> f) const override;
+  [[nodiscard]] Vec3 vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
+                                  const NeighborState& neighbor) const override;
+  [[nodiscard]] std::span<const VertexId> neighbors(VertexId vertex) const override;
+  void prepare_linearization(std::span<const Vec3> x, std::span<const Vec3> v) override;
+  void add_linearized_product(double a, double b, std::span<const Vec3> p,
+                              std::span<Vec3> y) const override;
+  void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const override;
+  [[nodiscard]] double elastic_energy(std::span<const Vec3> x) const override;
+  [[nodiscard]] double max_vertex_frequency() const override;
+
+  [[nodiscard]] const Spring& spring(EdgeId edge) const { return springs_[edge]; }
+  [[nodiscard]] double total_mass() const;
+  [[nodiscard]] const Material& material() const { return material_; }
+
+  // MeshObserver: collects the vertices whose mass or springs an edit changed.
+  void on_vertex_added(const TetMesh& mesh, VertexId vertex, const VertexOrigin& origin) override;
+  void on_tet_added(const TetMesh& mesh, TetId tet) override;
+  void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
+                       const Tet& parent_vertices) override;
+  void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
+                      const Tet& removed_vertices) override;
+  void on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
+  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+
+ private:
+  void mark(VertexId vertex);
+  void mark(const Tet& tet);
+  void rebuild_adjacency();
+  /// Spring force on vertex a from the spring to b (the force on b is its negative).
+  [[nodiscard]] Vec3 spring_force(const Spring& spring, const Vec3& xa, const Vec3& va,
+                                  const Vec3& xb, const Vec3& vb) const;
+
+  TetMesh* mesh_;
+  Material material_;
+  MassSpringParameters parameters_;
+  /// Mass of each tetrahedron (kg): density times rest volume, split among children in
+  /// proportion to their volumes so the total never drifts.
+  TetData<double> tet_mass_;
+  VertexData<double> masses_;  ///< lumped: a quarter of each adjacent tetrahedron's mass
+  EdgeData<Spring> springs_;
+
+  std::vector<VertexId> dirty_;
+  std::vector<char> is_dirty_;
+  std::uint64_t adjacency_revision_ = ~std::uint64_t{0};
+  // Vertex -> (neighbour, edge) in compressed rows.
+  std::vector<std::size_t> row_start_;
+  std::vector<VertexId> neighbor_vertex_;
+  std::vector<EdgeId> neighbor_edge_;
+  // Linearisation: per-edge stiffness and damping blocks.
+  std::vector<Mat3> stiffness_blocks_;
+  std::vector<Mat3> damping_blocks_;
+};
+
+}  // namespace incise

@@ -1,0 +1,72 @@
+#pragma once
+// A deformable body ready to integrate: a force model, its boundary conditions, gravity and
+// global damping, and its state (positions and velocities that follow mesh edits).
+
+#include "incise/mesh/attributes.hpp"
+#include "incise/physics/boundary_conditions.hpp"
+#include "incise/physics/force_model.hpp"
+
+namespace incise {
+
+/// Positions (m) and velocities (m/s) per vertex, interpolated onto vertices a cut creates.
+struct SimulationState {
+  explicit SimulationState(TetMesh& mesh);
+  VertexData<Vec3> x;
+  VertexData<Vec3> v;
+  double time = 0.0;  ///< s
+};
+
+struct DampingParameters {
+  /// Mass-proportional viscous damping in the force, f = -alpha m v (1/s).
+  double viscous = 0.0;
+  /// Velocity penalty applied exactly after each step, v <- v exp(-rate dt) (1/s): stable at
+  /// any strength, unlike viscous damping in an explicit scheme (the seed's "penalty based
+  /// damping", section 5.2).
+  double penalty = 0.0;
+};
+
+class MechanicalSystem final : public DynamicSystem {
+ public:
+  MechanicalSystem(TetMesh& mesh, ForceModel& model, BoundaryConditions& conditions,
+                   const DampingParameters& damping = {});
+
+  void refresh() override { model_.refresh(); }
+  [[nodiscard]] std::size_t vertex_count() const override { return mesh_.vertex_count(); }
+  [[nodiscard]] std::span<const double> masses() const override { return model_.masses(); }
+  void forces(double t, std::span<const Vec3> x, std::span<const Vec3> v,
+              std::span<Vec3> f) override;
+  Vec3 vertex_force(double t, VertexId vertex, const Vec3& x, const Vec3& v,
+                    const NeighborState& neighbor) override;
+  [[nodiscard]] std::span<const VertexId> neighbors(VertexId vertex) const override {
+    return model_.neighbors(vertex);
+  }
+  [[nodiscard]] bool is_constrained(VertexId vertex) const override {
+    return conditions_.is_constrained(vertex);
+  }
+  void prescribed_state(double t, VertexId vertex, Vec3& x, Vec3& v) const override {
+    conditions_.prescribed_state(t, vertex, mesh_.rest_position(vertex), x, v);
+  }
+  void prepare_linearization(double t, std::span<const Vec3> x, std::span<const Vec3> v) override;
+  void add_linearized_product(double a, double b, std::span<const Vec3> p,
+                              std::span<Vec3> y) const override;
+  void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const override;
+  [[nodiscard]] double potential_energy(double t, std::span<const Vec3> x) const override;
+  [[nodiscard]] double max_frequency() const override;
+  void end_step(double dt, std::span<Vec3> v) override;
+  void end_step(double dt, VertexId vertex, Vec3& v) override;
+
+  [[nodiscard]] ForceModel& model() { return model_; }
+  [[nodiscard]] BoundaryConditions& conditions() { return conditions_; }
+  [[nodiscard]] const TetMesh& mesh() const { return mesh_; }
+
+ private:
+  TetMesh& mesh_;
+  ForceModel& model_;
+  BoundaryConditions& conditions_;
+  DampingParameters damping_;
+};
+
+/// Puts constrained vertices at their prescribed state for time t.
+void apply_constraints(DynamicSystem& system, double t, std::span<Vec3> x, std::span<Vec3> v);
+
+}  // namespace incise

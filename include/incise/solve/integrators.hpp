@@ -1,0 +1,143 @@
+#pragma once
+// Time integrators for a DynamicSystem. Each advances positions x (m) and velocities v (m/s)
+// over dt (s); constrained vertices follow their prescribed motion.
+
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "incise/physics/dynamic_system.hpp"
+
+namespace incise {
+
+struct IntegratorStats {
+  std::uint64_t vertex_updates = 0;             ///< single-vertex integration steps (all steps)
+  std::uint64_t force_evaluations = 0;          ///< whole-system force evaluations (all steps)
+  std::size_t touched_last_step = 0;            ///< vertices advanced by the last step
+  std::size_t solver_iterations_last_step = 0;  ///< CG iterations (implicit schemes)
+  double solver_residual_last_step = 0.0;       ///< relative residual reached
+};
+
+class Integrator {
+ public:
+  Integrator() = default;
+  Integrator(const Integrator&) = delete;
+  Integrator& operator=(const Integrator&) = delete;
+  virtual ~Integrator() = default;
+
+  [[nodiscard]] virtual std::string name() const = 0;
+  /// Advances the state from time t to t + dt.
+  virtual void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+                    double dt) = 0;
+  [[nodiscard]] const IntegratorStats& stats() const { return stats_; }
+
+ protected:
+  IntegratorStats stats_;
+};
+
+/// x += dt v, v += dt a(x, v): first order, gains energy; for comparison only.
+class ExplicitEuler final : public Integrator {
+ public:
+  [[nodiscard]] std::string name() const override { return "explicit-euler"; }
+  void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+            double dt) override;
+
+ private:
+  std::vector<Vec3> force_;
+};
+
+/// v += dt a(x, v), then x += dt v: first order, symplectic (bounded energy error).
+class SymplecticEuler final : public Integrator {
+ public:
+  [[nodiscard]] std::string name() const override { return "symplectic-euler"; }
+  void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+            double dt) override;
+
+ private:
+  std::vector<Vec3> force_;
+};
+
+/// Classical fourth-order Runge-Kutta on the first-order system (x' = v, v' = a): the seed's
+/// two-level scheme (eqs. 5-6) applied to all vertices at once.
+class RungeKutta4 final : public Integrator {
+ public:
+  [[nodiscard]] std::string name() const override { return "rk4"; }
+  void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+            double dt) override;
+
+ private:
+  void accelerations(DynamicSystem& system, double t, std::span<const Vec3> x,
+                     std::span<const Vec3> v, std::span<Vec3> a);
+  std::vector<Vec3> xs_, vs_, k_[4], l_[4], force_;
+};
+
+struct HierarchicalOptions {
+  /// I: RK4 sub-steps per step at the focus; a vertex s edges away gets ceil(I / 2^s).
+  int iterations = 8;
+  /// s_max: vertices further than this from the focus are not advanced.
+  int max_depth = 3;
+};
+
+/// The seed's hierarchical breadth-first relaxation (section 5.2): vertex-by-vertex RK4 in
+/// breadth-first order from a focus vertex (later, the scalpel tip), with i(s) = I 2^-s
+/// sub-steps up to depth s_max and none beyond. Each vertex keeps a time stamp and integrates
+/// over the time since its last update; neighbours' positions are extrapolated linearly with
+/// their velocities. Without a focus every vertex is advanced every step (full relaxation).
+class HierarchicalRungeKutta4 final : public Integrator {
+ public:
+  explicit HierarchicalRungeKutta4(const HierarchicalOptions& options = {});
+  [[nodiscard]] std::string name() const override { return "rk4-hierarchical"; }
+  void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+            double dt) override;
+  /// Focus of the traversal, or kInvalidId for full relaxation.
+  void set_focus(VertexId focus) { focus_ = focus; }
+  [[nodiscard]] VertexId focus() const { return focus_; }
+  /// Breadth-first depth of each vertex advanced by the last step (-1: not advanced).
+  [[nodiscard]] const std::vector<int>& last_depths() const { return depth_; }
+  /// Sub-steps for a vertex at depth s: ceil(I / 2^s) for s <= s_max, else 0.
+  [[nodiscard]] int iterations_at_depth(int depth) const;
+
+ private:
+  HierarchicalOptions options_;
+  VertexId focus_ = kInvalidId;
+  std::vector<double> stamp_;  ///< time (s) up to which each vertex has been advanced
+  std::vector<int> depth_;
+  std::vector<VertexId> order_;
+};
+
+struct LinearSolverOptions {
+  double tolerance = 1e-8;  ///< relative residual |r| / |b|
+  int max_iterations = 500;
+};
+
+struct BackwardEulerOptions {
+  /// Newton steps per time step; 1 is the linearised step of Baraff and Witkin (1998).
+  int newton_steps = 1;
+  LinearSolverOptions solver;
+};
+
+/// Backward (implicit) Euler: M (v1 - v0) = dt f(x0 + dt v1, v1), solved by Newton's method on
+/// the linearised force with block-Jacobi preconditioned conjugate gradients. Stable at any
+/// step size; damps high frequencies.
+class BackwardEuler final : public Integrator {
+ public:
+  explicit BackwardEuler(const BackwardEulerOptions& options = {});
+  [[nodiscard]] std::string name() const override { return "backward-euler"; }
+  void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+            double dt) override;
+
+ private:
+  BackwardEulerOptions options_;
+  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, residual_, direction_, product_,
+      preconditioned_, velocity_change_;
+  std::vector<Mat3> diagonal_;
+  std::vector<char> constrained_;
+};
+
+/// Largest stable step (s) of an explicit scheme for the system's highest frequency: about
+/// 2 / omega (Euler) and 2.8 / omega (RK4).
+[[nodiscard]] double explicit_stability_limit(const DynamicSystem& system,
+                                              const std::string& scheme);
+
+}  // namespace incise

@@ -1,0 +1,299 @@
+#include "incise/physics/mass_spring.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+
+MassSpringModel::MassSpringModel(TetMesh& mesh, const Material& material,
+                                 const MassSpringParameters& parameters)
+    : mesh_(&mesh),
+      material_(material),
+      parameters_(parameters),
+      tet_mass_(mesh, 0.0, TetRule::kDefault),
+      masses_(mesh, 0.0, VertexRule::kDefault),
+      springs_(mesh, Spring{}, EdgeRule::kDefault) {
+  material_.check();
+  if (!(parameters_.prestrain >= 0.0 && parameters_.prestrain < 1.0)) {
+    throw InputError("prestrain must lie in [0, 1)");
+  }
+  if (!(parameters_.spring_damping_ratio >= 0.0) ||
+      !std::isfinite(parameters_.spring_damping_ratio)) {
+    throw InputError("spring damping ratio must be non-negative");
+  }
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    tet_mass_[static_cast<TetId>(t)] =
+        material_.density * std::abs(signed_volume(mesh, static_cast<TetId>(t)));
+  }
+  // Children share their parent's mass in proportion to their rest volumes: the total is
+  // conserved exactly, whatever rounding the new vertices' positions carry.
+  tet_mass_.set_hook([this](TetData<double>& mass, TetId, std::span<const TetId> children,
+                            const double& parent_mass) {
+    double volume_sum = 0.0;
+    for (TetId child : children) {
+      volume_sum += std::abs(signed_volume(*mesh_, child));
+    }
+    for (TetId child : children) {
+      mass[child] = volume_sum > 0.0
+                        ? parent_mass * std::abs(signed_volume(*mesh_, child)) / volume_sum
+                        : parent_mass / static_cast<double>(children.size());
+    }
+  });
+  mesh.add_observer(this);
+  is_dirty_.assign(mesh.vertex_count(), 0);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    mark(static_cast<VertexId>(v));
+  }
+  refresh();
+}
+
+MassSpringModel::~MassSpringModel() {
+  if (mesh_ != nullptr) {
+    mesh_->remove_observer(this);
+  }
+}
+
+// ---- following edits ------------------------------------------------------------------------
+
+void MassSpringModel::mark(VertexId vertex) {
+  if (static_cast<std::size_t>(vertex) >= is_dirty_.size()) {
+    is_dirty_.resize(static_cast<std::size_t>(vertex) + 1, 0);
+  }
+  if (is_dirty_[vertex] == 0) {
+    is_dirty_[vertex] = 1;
+    dirty_.push_back(vertex);
+  }
+}
+
+void MassSpringModel::mark(const Tet& tet) {
+  for (VertexId v : tet) {
+    mark(v);
+  }
+}
+
+void MassSpringModel::on_vertex_added(const TetMesh&, VertexId vertex, const VertexOrigin&) {
+  mark(vertex);
+}
+
+void MassSpringModel::on_tet_added(const TetMesh& mesh, TetId tet) {
+  tet_mass_[tet] = material_.density * std::abs(signed_volume(mesh, tet));
+  mark(mesh.tet(tet));
+}
+
+void MassSpringModel::on_tet_replaced(const TetMesh& mesh, TetId, std::span<const TetId> children,
+                                      const Tet& parent_vertices) {
+  mark(parent_vertices);
+  for (TetId child : children) {
+    mark(mesh.tet(child));
+  }
+}
+
+void MassSpringModel::on_tet_removed(const TetMesh&, TetId, TetId, const Tet& removed_vertices) {
+  mark(removed_vertices);
+}
+
+void MassSpringModel::on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) {
+  mark(old_vertices);
+  mark(mesh.tet(tet));
+}
+
+void MassSpringModel::rebuild_adjacency() {
+  const TetMesh& mesh = *mesh_;
+  const std::size_t n = mesh.vertex_count();
+  row_start_.assign(n + 1, 0);
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
+    ++row_start_[ends[0] + 1];
+    ++row_start_[ends[1] + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    row_start_[v + 1] += row_start_[v];
+  }
+  neighbor_vertex_.resize(row_start_[n]);
+  neighbor_edge_.resize(row_start_[n]);
+  std::vector<std::size_t> fill(row_start_.begin(), row_start_.end() - 1);
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
+    neighbor_vertex_[fill[ends[0]]] = ends[1];
+    neighbor_edge_[fill[ends[0]]++] = static_cast<EdgeId>(e);
+    neighbor_vertex_[fill[ends[1]]] = ends[0];
+    neighbor_edge_[fill[ends[1]]++] = static_cast<EdgeId>(e);
+  }
+  adjacency_revision_ = mesh.revision();
+}
+
+void MassSpringModel::refresh() {
+  if (dirty_.empty() && adjacency_revision_ == mesh_->revision()) {
+    return;
+  }
+  const TetMesh& mesh = *mesh_;
+  if (adjacency_revision_ != mesh.revision()) {
+    rebuild_adjacency();
+  }
+  // Masses of touched vertices, summed afresh so no error accumulates.
+  for (VertexId v : dirty_) {
+    double mass = 0.0;
+    for (TetId t : mesh.vertex_tets(v)) {
+      mass += 0.25 * tet_mass_[t];
+    }
+    masses_[v] = mass;
+  }
+  // Springs at touched vertices (van Gelder's rule, extended to tetrahedra: the stiffness of
+  // an edge is E times the summed rest volume of the tetrahedra around it over its squared
+  // rest length; A. van Gelder, J. Graphics Tools 3(2), 1998).
+  for (VertexId v : dirty_) {
+    for (std::size_t k = row_start_[v]; k < row_start_[v + 1]; ++k) {
+      const EdgeId e = neighbor_edge_[k];
+      const auto& ends = mesh.edge(e);
+      const double length = (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
+      double volume = 0.0;
+      for (TetId t : mesh.edge_tets(e)) {
+        volume += std::abs(signed_volume(mesh, t));
+      }
+      Spring& spring = springs_[e];
+      spring.rest_length = (1.0 - parameters_.prestrain) * length;
+      spring.stiffness = length > 0.0 ? material_.young_modulus * volume / (length * length) : 0.0;
+      const double ma = masses_[ends[0]];
+      const double mb = masses_[ends[1]];
+      const double reduced = ma + mb > 0.0 ? ma * mb / (ma + mb) : 0.0;
+      spring.damping =
+          parameters_.spring_damping_ratio * 2.0 * std::sqrt(spring.stiffness * reduced);
+    }
+  }
+  for (VertexId v : dirty_) {
+    is_dirty_[v] = 0;
+  }
+  dirty_.clear();
+}
+
+// ---- forces --------------------------------------------------------------------------------
+
+Vec3 MassSpringModel::spring_force(const Spring& spring, const Vec3& xa, const Vec3& va,
+                                   const Vec3& xb, const Vec3& vb) const {
+  const Vec3 d = xb - xa;
+  const double length = d.norm();
+  if (length == 0.0) {
+    return Vec3::Zero();  // no direction: coincident ends exert nothing
+  }
+  const Vec3 u = d / length;
+  return (spring.stiffness * (length - spring.rest_length) + spring.damping * (vb - va).dot(u)) * u;
+}
+
+void MassSpringModel::add_forces(std::span<const Vec3> x, std::span<const Vec3> v,
+                                 std::span<Vec3> f) const {
+  const TetMesh& mesh = *mesh_;
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& [a, b] = mesh.edge(static_cast<EdgeId>(e));
+    const Vec3 force = spring_force(springs_[static_cast<EdgeId>(e)], x[a], v[a], x[b], v[b]);
+    f[a] += force;
+    f[b] -= force;
+  }
+}
+
+Vec3 MassSpringModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
+                                   const NeighborState& neighbor) const {
+  Vec3 force = Vec3::Zero();
+  for (std::size_t k = row_start_[vertex]; k < row_start_[vertex + 1]; ++k) {
+    Vec3 xb;
+    Vec3 vb;
+    neighbor(neighbor_vertex_[k], xb, vb);
+    force += spring_force(springs_[neighbor_edge_[k]], x, v, xb, vb);
+  }
+  return force;
+}
+
+std::span<const VertexId> MassSpringModel::neighbors(VertexId vertex) const {
+  return std::span<const VertexId>(neighbor_vertex_)
+      .subspan(row_start_[vertex], row_start_[vertex + 1] - row_start_[vertex]);
+}
+
+void MassSpringModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
+  const TetMesh& mesh = *mesh_;
+  stiffness_blocks_.resize(mesh.edge_count());
+  damping_blocks_.resize(mesh.edge_count());
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& [a, b] = mesh.edge(static_cast<EdgeId>(e));
+    const Spring& spring = springs_[static_cast<EdgeId>(e)];
+    const Vec3 d = x[b] - x[a];
+    const double length = d.norm();
+    if (length == 0.0) {
+      stiffness_blocks_[e].setZero();
+      damping_blocks_[e].setZero();
+      continue;
+    }
+    const Vec3 u = d / length;
+    const Mat3 axial = u * u.transpose();
+    // The transverse term (1 - L/l) is clamped at zero for compressed springs, which keeps
+    // the matrix positive semi-definite (Choi and Ko, SIGGRAPH 2002).
+    const double transverse = std::max(0.0, 1.0 - spring.rest_length / length);
+    stiffness_blocks_[e] = spring.stiffness * (axial + transverse * (Mat3::Identity() - axial));
+    damping_blocks_[e] = spring.damping * axial;
+  }
+}
+
+void MassSpringModel::add_linearized_product(double a, double b, std::span<const Vec3> p,
+                                             std::span<Vec3> y) const {
+  const TetMesh& mesh = *mesh_;
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& [i, j] = mesh.edge(static_cast<EdgeId>(e));
+    const Vec3 difference = p[i] - p[j];
+    const Vec3 product =
+        a * (stiffness_blocks_[e] * difference) + b * (damping_blocks_[e] * difference);
+    y[i] += product;
+    y[j] -= product;
+  }
+}
+
+void MassSpringModel::add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const {
+  const TetMesh& mesh = *mesh_;
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& [i, j] = mesh.edge(static_cast<EdgeId>(e));
+    const Mat3 block = a * stiffness_blocks_[e] + b * damping_blocks_[e];
+    diagonal[i] += block;
+    diagonal[j] += block;
+  }
+}
+
+double MassSpringModel::elastic_energy(std::span<const Vec3> x) const {
+  const TetMesh& mesh = *mesh_;
+  double energy = 0.0;
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& [a, b] = mesh.edge(static_cast<EdgeId>(e));
+    const Spring& spring = springs_[static_cast<EdgeId>(e)];
+    const double stretch = (x[b] - x[a]).norm() - spring.rest_length;
+    energy += 0.5 * spring.stiffness * stretch * stretch;
+  }
+  return energy;
+}
+
+double MassSpringModel::max_vertex_frequency() const {
+  // Gershgorin bound on the eigenvalues of M^-1/2 K M^-1/2 at rest: row i holds
+  // sum_j k_ij / m_i on the diagonal and k_ij / sqrt(m_i m_j) off it.
+  double highest = 0.0;
+  for (std::size_t v = 0; v + 1 < row_start_.size(); ++v) {
+    const double mv = masses_[static_cast<VertexId>(v)];
+    if (mv <= 0.0) {
+      continue;
+    }
+    double row = 0.0;
+    for (std::size_t k = row_start_[v]; k < row_start_[v + 1]; ++k) {
+      const double stiffness = springs_[neighbor_edge_[k]].stiffness;
+      const double mw = masses_[neighbor_vertex_[k]];
+      row += stiffness / mv + (mw > 0.0 ? stiffness / std::sqrt(mv * mw) : 0.0);
+    }
+    highest = std::max(highest, row);
+  }
+  return std::sqrt(highest);
+}
+
+double MassSpringModel::total_mass() const {
+  double total = 0.0;
+  for (double m : tet_mass_.values()) {
+    total += m;
+  }
+  return total;
+}
+
+}  // namespace incise

@@ -1,0 +1,124 @@
+#include "incise/physics/mechanical_system.hpp"
+
+#include <cmath>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+
+double kinetic_energy(std::span<const double> masses, std::span<const Vec3> v) {
+  double energy = 0.0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    energy += 0.5 * masses[i] * v[i].squaredNorm();
+  }
+  return energy;
+}
+
+SimulationState::SimulationState(TetMesh& mesh)
+    : x(mesh, Vec3::Zero(), VertexRule::kInterpolate),
+      v(mesh, Vec3::Zero(), VertexRule::kInterpolate) {
+  for (std::size_t i = 0; i < mesh.vertex_count(); ++i) {
+    x[static_cast<VertexId>(i)] = mesh.rest_position(static_cast<VertexId>(i));
+  }
+  // A fresh vertex starts at its rest position; combinations are interpolated by the rule.
+  x.set_hook([](VertexData<Vec3>& positions, VertexId vertex, const VertexOrigin& origin) {
+    if (origin.kind == VertexOrigin::Kind::kFresh) {
+      positions[vertex] = positions.mesh()->rest_position(vertex);
+    }
+  });
+}
+
+MechanicalSystem::MechanicalSystem(TetMesh& mesh, ForceModel& model, BoundaryConditions& conditions,
+                                   const DampingParameters& damping)
+    : mesh_(mesh), model_(model), conditions_(conditions), damping_(damping) {
+  if (!(damping_.viscous >= 0.0) || !(damping_.penalty >= 0.0) ||
+      !std::isfinite(damping_.viscous) || !std::isfinite(damping_.penalty)) {
+    throw InputError("damping rates must be non-negative (1/s)");
+  }
+}
+
+void MechanicalSystem::forces(double, std::span<const Vec3> x, std::span<const Vec3> v,
+                              std::span<Vec3> f) {
+  const auto masses = model_.masses();
+  const Vec3& gravity = conditions_.gravity();
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const auto vertex = static_cast<VertexId>(i);
+    f[i] = masses[i] * (gravity - damping_.viscous * v[i]) + conditions_.point_force(vertex);
+  }
+  model_.add_forces(x, v, f);
+}
+
+Vec3 MechanicalSystem::vertex_force(double, VertexId vertex, const Vec3& x, const Vec3& v,
+                                    const NeighborState& neighbor) {
+  const double mass = model_.masses()[static_cast<std::size_t>(vertex)];
+  return mass * (conditions_.gravity() - damping_.viscous * v) + conditions_.point_force(vertex) +
+         model_.vertex_force(vertex, x, v, neighbor);
+}
+
+void MechanicalSystem::prepare_linearization(double, std::span<const Vec3> x,
+                                             std::span<const Vec3> v) {
+  model_.prepare_linearization(x, v);
+}
+
+void MechanicalSystem::add_linearized_product(double a, double b, std::span<const Vec3> p,
+                                              std::span<Vec3> y) const {
+  model_.add_linearized_product(a, b, p, y);
+  if (damping_.viscous > 0.0 && b != 0.0) {
+    const auto masses = model_.masses();
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      y[i] += b * damping_.viscous * masses[i] * p[i];
+    }
+  }
+}
+
+void MechanicalSystem::add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const {
+  model_.add_linearized_diagonal(a, b, diagonal);
+  if (damping_.viscous > 0.0 && b != 0.0) {
+    const auto masses = model_.masses();
+    for (std::size_t i = 0; i < diagonal.size(); ++i) {
+      diagonal[i] += b * damping_.viscous * masses[i] * Mat3::Identity();
+    }
+  }
+}
+
+double MechanicalSystem::potential_energy(double, std::span<const Vec3> x) const {
+  double energy = model_.elastic_energy(x);
+  const auto masses = model_.masses();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const auto vertex = static_cast<VertexId>(i);
+    // Conservative loads: gravity and constant point forces, measured from the rest shape.
+    energy -= (masses[i] * conditions_.gravity() + conditions_.point_force(vertex))
+                  .dot(x[i] - mesh_.rest_position(vertex));
+  }
+  return energy;
+}
+
+double MechanicalSystem::max_frequency() const {
+  return model_.max_vertex_frequency();
+}
+
+void MechanicalSystem::end_step(double dt, std::span<Vec3> v) {
+  if (damping_.penalty > 0.0) {
+    const double factor = std::exp(-damping_.penalty * dt);
+    for (Vec3& velocity : v) {
+      velocity *= factor;
+    }
+  }
+}
+
+void MechanicalSystem::end_step(double dt, VertexId, Vec3& v) {
+  if (damping_.penalty > 0.0) {
+    v *= std::exp(-damping_.penalty * dt);
+  }
+}
+
+void apply_constraints(DynamicSystem& system, double t, std::span<Vec3> x, std::span<Vec3> v) {
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const auto vertex = static_cast<VertexId>(i);
+    if (system.is_constrained(vertex)) {
+      system.prescribed_state(t, vertex, x[i], v[i]);
+    }
+  }
+}
+
+}  // namespace incise

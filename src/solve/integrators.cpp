@@ -1,0 +1,427 @@
+#include "incise/solve/integrators.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+namespace {
+
+/// a = f / m for free vertices, 0 for constrained or massless ones.
+void divide_by_mass(const DynamicSystem& system, std::span<const Vec3> f, std::span<Vec3> a) {
+  const auto masses = system.masses();
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const bool free = !system.is_constrained(static_cast<VertexId>(i)) && masses[i] > 0.0;
+    a[i] = free ? Vec3(f[i] / masses[i]) : Vec3::Zero();
+  }
+}
+
+void constrain(DynamicSystem& system, double t, std::span<Vec3> x, std::span<Vec3> v) {
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (system.is_constrained(static_cast<VertexId>(i))) {
+      system.prescribed_state(t, static_cast<VertexId>(i), x[i], v[i]);
+    }
+  }
+}
+
+void check_step(double dt) {
+  if (!(dt > 0.0) || !std::isfinite(dt)) {
+    throw InputError("time step must be positive and finite");
+  }
+}
+
+}  // namespace
+
+double explicit_stability_limit(const DynamicSystem& system, const std::string& scheme) {
+  const double omega = system.max_frequency();
+  if (omega <= 0.0) {
+    return std::numeric_limits<double>::infinity();
+  }
+  // Undamped oscillator: Euler-type schemes need omega dt < 2, RK4 omega dt < 2.78.
+  return (scheme == "rk4" || scheme == "rk4-hierarchical" ? 2.78 : 2.0) / omega;
+}
+
+// ---- Euler ----------------------------------------------------------------------------------
+
+void ExplicitEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+                         double dt) {
+  check_step(dt);
+  system.refresh();
+  force_.assign(x.size(), Vec3::Zero());
+  system.forces(t, x, v, force_);
+  divide_by_mass(system, force_, force_);
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    x[i] += dt * v[i];
+    v[i] += dt * force_[i];
+  }
+  constrain(system, t + dt, x, v);
+  system.end_step(dt, v);
+  ++stats_.force_evaluations;
+  stats_.vertex_updates += x.size();
+  stats_.touched_last_step = x.size();
+}
+
+void SymplecticEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+                           double dt) {
+  check_step(dt);
+  system.refresh();
+  force_.assign(x.size(), Vec3::Zero());
+  system.forces(t, x, v, force_);
+  divide_by_mass(system, force_, force_);
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    v[i] += dt * force_[i];
+    x[i] += dt * v[i];
+  }
+  constrain(system, t + dt, x, v);
+  system.end_step(dt, v);
+  ++stats_.force_evaluations;
+  stats_.vertex_updates += x.size();
+  stats_.touched_last_step = x.size();
+}
+
+// ---- RK4 ------------------------------------------------------------------------------------
+
+void RungeKutta4::accelerations(DynamicSystem& system, double t, std::span<const Vec3> x,
+                                std::span<const Vec3> v, std::span<Vec3> a) {
+  force_.assign(x.size(), Vec3::Zero());
+  system.forces(t, x, v, force_);
+  divide_by_mass(system, force_, a);
+  ++stats_.force_evaluations;
+}
+
+void RungeKutta4::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+                       double dt) {
+  check_step(dt);
+  system.refresh();
+  const std::size_t n = x.size();
+  xs_.resize(n);
+  vs_.resize(n);
+  for (int s = 0; s < 4; ++s) {
+    k_[s].resize(n);
+    l_[s].resize(n);
+  }
+  // Seed eq. 5 with its typesetting slips corrected: the velocity estimates are
+  // k2 = v + dt/2 l1, k3 = v + dt/2 l2, k4 = v + dt l3 (the seed prints l_i dt), as in the
+  // classical method it cites.
+  constexpr double kStageFraction[4] = {0.0, 0.5, 0.5, 1.0};
+  for (int s = 0; s < 4; ++s) {
+    const double h = kStageFraction[s] * dt;
+    for (std::size_t i = 0; i < n; ++i) {
+      xs_[i] = s == 0 ? x[i] : Vec3(x[i] + h * k_[s - 1][i]);
+      vs_[i] = s == 0 ? v[i] : Vec3(v[i] + h * l_[s - 1][i]);
+    }
+    constrain(system, t + h, xs_, vs_);
+    for (std::size_t i = 0; i < n; ++i) {
+      k_[s][i] = vs_[i];
+    }
+    accelerations(system, t + h, xs_, vs_, l_[s]);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] += dt / 6.0 * (k_[0][i] + 2.0 * k_[1][i] + 2.0 * k_[2][i] + k_[3][i]);
+    v[i] += dt / 6.0 * (l_[0][i] + 2.0 * l_[1][i] + 2.0 * l_[2][i] + l_[3][i]);
+  }
+  constrain(system, t + dt, x, v);
+  system.end_step(dt, v);
+  stats_.vertex_updates += n;
+  stats_.touched_last_step = n;
+}
+
+// ---- hierarchical RK4 -----------------------------------------------------------------------
+
+HierarchicalRungeKutta4::HierarchicalRungeKutta4(const HierarchicalOptions& options)
+    : options_(options) {
+  if (options_.iterations < 1 || options_.iterations > 1 << 20) {
+    throw InputError("hierarchical RK4 needs at least one iteration at the focus");
+  }
+  if (options_.max_depth < 0) {
+    throw InputError("hierarchical RK4 maximum depth must be non-negative");
+  }
+}
+
+int HierarchicalRungeKutta4::iterations_at_depth(int depth) const {
+  if (depth < 0 || depth > options_.max_depth) {
+    return 0;
+  }
+  const double share = options_.iterations * std::ldexp(1.0, -depth);
+  return std::max(1, static_cast<int>(std::ceil(share - 1e-9)));
+}
+
+void HierarchicalRungeKutta4::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v,
+                                   double t, double dt) {
+  check_step(dt);
+  system.refresh();
+  const std::size_t n = x.size();
+  const double end = t + dt;
+  // Vertices created since the last step (a cut) start up to date.
+  stamp_.resize(n, t);
+  depth_.assign(n, -1);
+  order_.clear();
+
+  // Breadth-first order from the focus, or every vertex at depth 0 without one.
+  if (focus_ == kInvalidId) {
+    for (std::size_t i = 0; i < n; ++i) {
+      depth_[i] = 0;
+      order_.push_back(static_cast<VertexId>(i));
+    }
+  } else {
+    if (focus_ < 0 || static_cast<std::size_t>(focus_) >= n) {
+      throw InputError("hierarchical RK4 focus vertex " + std::to_string(focus_) +
+                       " does not exist");
+    }
+    depth_[focus_] = 0;
+    order_.push_back(focus_);
+    for (std::size_t head = 0; head < order_.size(); ++head) {
+      const VertexId vertex = order_[head];
+      if (depth_[vertex] == options_.max_depth) {
+        continue;
+      }
+      for (VertexId neighbor : system.neighbors(vertex)) {
+        if (depth_[neighbor] < 0) {
+          depth_[neighbor] = depth_[vertex] + 1;
+          order_.push_back(neighbor);
+        }
+      }
+    }
+  }
+
+  const auto masses = system.masses();
+  // Step bound from the system's highest frequency: catch-up intervals are subdivided so no
+  // sub-step is unstable (the seed leaves this to the choice of dt).
+  const double stable = 0.9 * explicit_stability_limit(system, "rk4");
+  // Neighbour state at time tau: prescribed, or extrapolated with its velocity from its stamp;
+  // extrapolation reaches at most one step, so frozen far vertices do not drift.
+  double tau = t;
+  const NeighborState neighbor = [&](VertexId j, Vec3& xj, Vec3& vj) {
+    if (system.is_constrained(j)) {
+      system.prescribed_state(tau, j, xj, vj);
+      return;
+    }
+    const double lag = std::clamp(tau - stamp_[static_cast<std::size_t>(j)], -dt, dt);
+    xj = x[static_cast<std::size_t>(j)] + lag * v[static_cast<std::size_t>(j)];
+    vj = v[static_cast<std::size_t>(j)];
+  };
+
+  for (VertexId vertex : order_) {
+    const auto i = static_cast<std::size_t>(vertex);
+    if (system.is_constrained(vertex)) {
+      system.prescribed_state(end, vertex, x[i], v[i]);
+      stamp_[i] = end;
+      continue;
+    }
+    // Catch up at most a few steps: far from the focus this is relaxation, not history.
+    const double elapsed = std::min(end - stamp_[i], 4.0 * dt);
+    const double mass = masses[i];
+    if (elapsed <= 0.0 || mass <= 0.0) {
+      stamp_[i] = end;
+      continue;
+    }
+    int substeps =
+        iterations_at_depth(depth_[i]) * static_cast<int>(std::ceil(elapsed / dt - 1e-9));
+    if (std::isfinite(stable) && stable > 0.0) {
+      substeps = std::max(substeps, static_cast<int>(std::ceil(elapsed / stable)));
+    }
+    const double h = elapsed / substeps;
+    double time = end - elapsed;
+    Vec3 xi = x[i];
+    Vec3 vi = v[i];
+    auto acceleration = [&](double at, const Vec3& position, const Vec3& velocity) {
+      tau = at;
+      return Vec3(system.vertex_force(at, vertex, position, velocity, neighbor) / mass);
+    };
+    for (int s = 0; s < substeps; ++s) {
+      const Vec3 k1 = vi;
+      const Vec3 l1 = acceleration(time, xi, vi);
+      const Vec3 k2 = vi + 0.5 * h * l1;
+      const Vec3 l2 = acceleration(time + 0.5 * h, xi + 0.5 * h * k1, k2);
+      const Vec3 k3 = vi + 0.5 * h * l2;
+      const Vec3 l3 = acceleration(time + 0.5 * h, xi + 0.5 * h * k2, k3);
+      const Vec3 k4 = vi + h * l3;
+      const Vec3 l4 = acceleration(time + h, xi + h * k3, k4);
+      xi += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+      vi += h / 6.0 * (l1 + 2.0 * l2 + 2.0 * l3 + l4);
+      time += h;
+    }
+    system.end_step(elapsed, vertex, vi);
+    x[i] = xi;
+    v[i] = vi;
+    stamp_[i] = end;
+    stats_.vertex_updates += static_cast<std::uint64_t>(substeps);
+  }
+  stats_.touched_last_step = order_.size();
+}
+
+// ---- backward Euler -------------------------------------------------------------------------
+
+BackwardEuler::BackwardEuler(const BackwardEulerOptions& options) : options_(options) {
+  if (options_.newton_steps < 1) {
+    throw InputError("backward Euler needs at least one Newton step");
+  }
+  if (!(options_.solver.tolerance > 0.0) || options_.solver.max_iterations < 1) {
+    throw InputError("linear solver tolerance must be positive and iterations at least 1");
+  }
+}
+
+void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+                         double dt) {
+  check_step(dt);
+  system.refresh();
+  const std::size_t n = x.size();
+  const auto masses = system.masses();
+  const double end = t + dt;
+  constrained_.assign(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    constrained_[i] = system.is_constrained(static_cast<VertexId>(i)) || masses[i] <= 0.0 ? 1 : 0;
+  }
+  // Unknown: the end velocity v1. Newton on r(v1) = M (v1 - v0) - dt f(x0 + dt v1, v1) with
+  // Jacobian J = M + dt D + dt^2 K. The first iterate v1 = v0 gives Baraff-Witkin's step.
+  v_trial_.assign(v.begin(), v.end());
+  x_trial_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (system.is_constrained(static_cast<VertexId>(i))) {
+      Vec3 position;
+      system.prescribed_state(end, static_cast<VertexId>(i), position, v_trial_[i]);
+    }
+  }
+  force_.resize(n);
+  rhs_.resize(n);
+  delta_.resize(n);
+  residual_.resize(n);
+  direction_.resize(n);
+  product_.resize(n);
+  preconditioned_.resize(n);
+  diagonal_.resize(n);
+  stats_.solver_iterations_last_step = 0;
+
+  auto apply_jacobian = [&](std::span<const Vec3> p, std::span<Vec3> y) {
+    for (std::size_t i = 0; i < n; ++i) {
+      y[i] = masses[i] * p[i];
+    }
+    system.add_linearized_product(dt * dt, dt, p, y);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (constrained_[i] != 0) {
+        y[i].setZero();
+      }
+    }
+  };
+
+  for (int newton = 0; newton < options_.newton_steps; ++newton) {
+    for (std::size_t i = 0; i < n; ++i) {
+      x_trial_[i] = x[i] + dt * v_trial_[i];
+    }
+    if (newton == 0) {
+      // Linearise at the start state, as Baraff and Witkin do.
+      system.prepare_linearization(t, x, v);
+    } else {
+      system.prepare_linearization(end, x_trial_, v_trial_);
+    }
+    std::fill(force_.begin(), force_.end(), Vec3::Zero());
+    if (newton == 0) {
+      // f(x0 + dt v1, v1) ~ f0 - K dt v1 - D (v1 - v0): right-hand side for Delta v = v1 - v0
+      // is dt (f0 - dt K v0).
+      system.forces(t, x, v, force_);
+      std::fill(product_.begin(), product_.end(), Vec3::Zero());
+      system.add_linearized_product(1.0, 0.0, v, product_);
+      for (std::size_t i = 0; i < n; ++i) {
+        rhs_[i] = dt * (force_[i] - dt * product_[i]);
+      }
+      // Constrained vertices: the known velocity change moves to the right-hand side.
+      for (std::size_t i = 0; i < n; ++i) {
+        delta_[i] = constrained_[i] != 0 ? Vec3(v_trial_[i] - v[i]) : Vec3::Zero();
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        product_[i] = masses[i] * delta_[i];
+      }
+      system.add_linearized_product(dt * dt, dt, delta_, product_);
+      for (std::size_t i = 0; i < n; ++i) {
+        rhs_[i] -= product_[i];
+      }
+    } else {
+      system.forces(end, x_trial_, v_trial_, force_);
+      for (std::size_t i = 0; i < n; ++i) {
+        rhs_[i] = dt * force_[i] - masses[i] * (v_trial_[i] - v[i]);
+      }
+    }
+    ++stats_.force_evaluations;
+    // Block-Jacobi preconditioned conjugate gradients on the free vertices.
+    for (std::size_t i = 0; i < n; ++i) {
+      diagonal_[i] = masses[i] * Mat3::Identity();
+    }
+    system.add_linearized_diagonal(dt * dt, dt, diagonal_);
+    for (std::size_t i = 0; i < n; ++i) {
+      diagonal_[i] = constrained_[i] != 0 ? Mat3::Identity() : Mat3(diagonal_[i].inverse());
+    }
+    double rhs_norm = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (constrained_[i] != 0) {
+        rhs_[i].setZero();
+      }
+      residual_[i] = rhs_[i];
+      delta_[i].setZero();
+      rhs_norm += rhs_[i].squaredNorm();
+    }
+    rhs_norm = std::sqrt(rhs_norm);
+    int iteration = 0;
+    double relative = 0.0;
+    if (rhs_norm > 0.0) {
+      double rz = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        preconditioned_[i] = diagonal_[i] * residual_[i];
+        direction_[i] = preconditioned_[i];
+        rz += residual_[i].dot(preconditioned_[i]);
+      }
+      for (; iteration < options_.solver.max_iterations; ++iteration) {
+        apply_jacobian(direction_, product_);
+        double curvature = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+          curvature += direction_[i].dot(product_[i]);
+        }
+        if (!(curvature > 0.0)) {
+          break;  // numerically converged or not positive definite: keep the iterate
+        }
+        const double alpha = rz / curvature;
+        double residual_norm = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+          delta_[i] += alpha * direction_[i];
+          residual_[i] -= alpha * product_[i];
+          residual_norm += residual_[i].squaredNorm();
+        }
+        relative = std::sqrt(residual_norm) / rhs_norm;
+        if (relative <= options_.solver.tolerance) {
+          ++iteration;
+          break;
+        }
+        double rz_next = 0.0;
+        for (std::size_t i = 0; i < n; ++i) {
+          preconditioned_[i] = diagonal_[i] * residual_[i];
+          rz_next += residual_[i].dot(preconditioned_[i]);
+        }
+        const double beta = rz_next / rz;
+        rz = rz_next;
+        for (std::size_t i = 0; i < n; ++i) {
+          direction_[i] = preconditioned_[i] + beta * direction_[i];
+        }
+      }
+    }
+    stats_.solver_iterations_last_step += static_cast<std::size_t>(iteration);
+    stats_.solver_residual_last_step = relative;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (constrained_[i] == 0) {
+        v_trial_[i] += delta_[i];
+      }
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (system.is_constrained(static_cast<VertexId>(i))) {
+      system.prescribed_state(end, static_cast<VertexId>(i), x[i], v[i]);
+    } else if (masses[i] > 0.0) {
+      v[i] = v_trial_[i];
+      x[i] += dt * v[i];
+    }
+  }
+  system.end_step(dt, v);
+  stats_.vertex_updates += n;
+  stats_.touched_last_step = n;
+}
+
+}  // namespace incise
