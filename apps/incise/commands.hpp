@@ -10,6 +10,8 @@ namespace incise::app {
 /// Exit codes: 0 success, 1 the input is invalid (info), 2 an error stopped the command.
 inline constexpr int kExitInvalid = 1;
 inline constexpr int kExitError = 2;
+/// The simulation diverged (NaN, blow-up); frames written before stay valid.
+inline constexpr int kExitDiverged = 3;
 
 using Runner = std::function<int()>;
 
@@ -17,5 +19,6 @@ Runner add_info_command(CLI::App& app);
 Runner add_convert_command(CLI::App& app);
 Runner add_generate_command(CLI::App& app);
 Runner add_mesh_command(CLI::App& app);
+Runner add_run_command(CLI::App& app);
 
 }  // namespace incise::app

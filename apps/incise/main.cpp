@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   add(incise::app::add_convert_command);
   add(incise::app::add_generate_command);
   add(incise::app::add_mesh_command);
+  add(incise::app::add_run_command);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

@@ -47,7 +47,7 @@ bool have_data() {
 }
 
 TEST(Cli, HelpOnEveryCommand) {
-  for (const char* command : {"", "info", "convert", "generate", "generate box", "mesh"}) {
+  for (const char* command : {"", "info", "convert", "generate", "generate box", "mesh", "run"}) {
     const CommandResult run = incise(std::string(command) + " --help");
     EXPECT_EQ(run.code, 0) << command;
     EXPECT_NE(run.out.find("Usage"), std::string::npos) << command << ": " << run.out;
@@ -202,6 +202,54 @@ TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
       incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
   EXPECT_EQ(open.code, 2);
   EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
+}
+
+TEST(Cli, RunTheDefaultSceneWithAReport) {
+  const auto dir = test::scratch_dir("cli-run-default");
+  const std::string report = (dir / "report.json").string();
+  const CommandResult run =
+      incise("run --frames 20 --out " + (dir / "out").string() + " --report " + report);
+  ASSERT_EQ(run.code, 0) << run.err;
+  for (const char* stage : {"cd", "gc", "rx", "rd"}) {
+    EXPECT_NE(run.out.find(std::string("\n") + stage + " "), std::string::npos) << run.out;
+  }
+  const auto json = nlohmann::json::parse(slurp(report));
+  for (const char* key : {"vertices", "tets", "kinetic_energy", "max_displacement", "diverged",
+                          "mean_ms", "per_frame_ms"}) {
+    EXPECT_TRUE(json.contains(key)) << key;
+  }
+  for (const char* stage : {"cd", "gc", "rx", "rd"}) {
+    EXPECT_TRUE(json["mean_ms"].contains(stage)) << stage;
+    EXPECT_TRUE(json["per_frame_ms"][0].contains(stage)) << stage;
+  }
+  EXPECT_EQ(json["tets"], 576);
+  EXPECT_EQ(json["diverged"], false);
+  EXPECT_EQ(json["per_frame_ms"].size(), 20u);
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default.pvd"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000020.vtu"));
+}
+
+TEST(Cli, RunReportsDivergenceWithExitCodeThree) {
+  const auto dir = test::scratch_dir("cli-run-diverge");
+  std::ofstream(dir / "bad.json")
+      << R"({"mesh": {"box": {"cells": [2, 2, 2], "size": [0.01, 0.01, 0.01]}},
+    "integrator": {"type": "symplectic-euler", "dt": 0.002},
+    "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}], "gravity": [0, 0, -9.81], "frames": 200})";
+  const CommandResult run =
+      incise("run " + (dir / "bad.json").string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(run.code, 3);
+  EXPECT_NE(run.err.find("diverged"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("warning"), std::string::npos) << run.err;
+}
+
+TEST(Cli, RunRejectsUnknownSceneKeys) {
+  const auto dir = test::scratch_dir("cli-run-keys");
+  std::ofstream(dir / "typo.json")
+      << "{\"mesh\": {\"box\": {\"cells\": [2, 2, 2]}},\n\"frmes\": 3}";
+  const CommandResult run = incise("run " + (dir / "typo.json").string());
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("typo.json:2"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("did you mean 'frames'"), std::string::npos) << run.err;
 }
 
 }  // namespace

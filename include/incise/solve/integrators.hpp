@@ -97,8 +97,15 @@ class HierarchicalRungeKutta4 final : public Integrator {
   [[nodiscard]] const std::vector<int>& last_depths() const { return depth_; }
   /// Sub-steps for a vertex at depth s: ceil(I / 2^s) for s <= s_max, else 0.
   [[nodiscard]] int iterations_at_depth(int depth) const;
+  /// Breadth-first sweeps the last step was split into (1 while dt is within the limit).
+  [[nodiscard]] int last_sweeps() const { return last_sweeps_; }
+  /// Fraction of the explicit stability limit one sweep may cover (default 0.9).
+  void set_sweep_fraction(double fraction) { sweep_fraction_ = fraction; }
 
  private:
+  void sweep(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t, double dt);
+  double sweep_fraction_ = 0.9;
+  int last_sweeps_ = 1;
   HierarchicalOptions options_;
   VertexId focus_ = kInvalidId;
   std::vector<double> stamp_;  ///< time (s) up to which each vertex has been advanced

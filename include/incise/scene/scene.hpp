@@ -1,0 +1,78 @@
+#pragma once
+// Scene files: a JSON description of what to simulate. The top-level keys are a contract
+// (docs in scenes/README.md); unknown keys and wrong types are errors that name the file, the
+// key and the closest valid key. Relative paths resolve against the scene file's folder.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "incise/mesh/generators.hpp"
+#include "incise/physics/mass_spring.hpp"
+#include "incise/physics/material.hpp"
+#include "incise/physics/mechanical_system.hpp"
+#include "incise/solve/integrators.hpp"
+
+namespace incise {
+
+/// A set of vertices: those whose rest position lies in a box, or explicit ids.
+struct RegionSpec {
+  std::optional<std::pair<Vec3, Vec3>> box;  ///< [low, high] (m)
+  std::vector<VertexId> vertices;
+  std::string where;  ///< "fixed[1]": for error messages
+};
+
+struct DisplacementSpec {
+  RegionSpec region;
+  Vec3 displacement = Vec3::Zero();  ///< m
+  double ramp_time = 0.0;            ///< s
+};
+
+struct ForceSpec {
+  RegionSpec region;
+  Vec3 force = Vec3::Zero();  ///< N, total over the region
+};
+
+struct IntegratorSpec {
+  std::string type = "rk4-hierarchical";
+  double dt = 1e-3;  ///< s
+  HierarchicalOptions hierarchical;
+  /// Focus of the hierarchical traversal: a vertex id or the vertex nearest a point (m).
+  std::variant<std::monostate, VertexId, Vec3> focus;
+  BackwardEulerOptions backward_euler;
+};
+
+struct SceneDescription {
+  std::filesystem::path file;  ///< empty for the built-in default scene
+  std::string description;
+  std::optional<std::filesystem::path> mesh_file;
+  double mesh_scale = 1.0;    ///< metres per file unit (files carry no units)
+  BoxGridOptions box;         ///< used when mesh_file is empty
+  std::string material_name;  ///< preset name, or "custom"
+  Material material;
+  std::string model_type = "mass-spring";
+  MassSpringParameters mass_spring;
+  DampingParameters damping;
+  IntegratorSpec integrator;
+  std::vector<RegionSpec> fixed;
+  std::vector<DisplacementSpec> displacements;
+  std::vector<ForceSpec> forces;
+  Vec3 gravity = Vec3::Zero();  ///< m/s^2
+  int frames = 100;
+  double frame_dt = 0.0;  ///< s per frame; 0 means one integrator step per frame
+  std::filesystem::path output_dir = "out";
+  int vtu_every = 1;  ///< write every n-th frame (the first and last always)
+};
+
+/// Parses a scene from JSON text; `file` names it in errors and anchors relative paths.
+[[nodiscard]] SceneDescription parse_scene(const std::string& json_text,
+                                           const std::filesystem::path& file);
+/// Reads and parses a scene file.
+[[nodiscard]] SceneDescription load_scene(const std::filesystem::path& file);
+/// The default scene (the text of scenes/default.json, built in).
+[[nodiscard]] SceneDescription default_scene();
+[[nodiscard]] const std::string& default_scene_text();
+
+}  // namespace incise

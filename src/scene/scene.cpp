@@ -1,0 +1,472 @@
+#include "incise/scene/scene.hpp"
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+namespace {
+
+using Json = nlohmann::json;
+
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) {
+    row[j] = j;
+  }
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+std::string type_name(const Json& value) {
+  if (value.is_number()) {
+    return "a number";
+  }
+  if (value.is_string()) {
+    return "a string";
+  }
+  if (value.is_boolean()) {
+    return "true/false";
+  }
+  if (value.is_array()) {
+    return "a list";
+  }
+  if (value.is_object()) {
+    return "an object";
+  }
+  return "null";
+}
+
+/// Error context: the file, its text (to find the line of a key) and where in the scene we are.
+class Context {
+ public:
+  Context(std::string text, std::filesystem::path file)
+      : text_(std::move(text)), file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const std::string& path, const std::string& message) const {
+    throw InputError(name(), line_of(path), "scene key '" + path + "': " + message);
+  }
+  [[noreturn]] void fail_line(std::size_t line, const std::string& message) const {
+    throw InputError(name(), line, message);
+  }
+  [[nodiscard]] std::string name() const {
+    return file_.empty() ? "<default scene>" : file_.string();
+  }
+  [[nodiscard]] const std::filesystem::path& file() const { return file_; }
+
+  /// Line of the first occurrence of the last key of `path` in the text (best effort).
+  [[nodiscard]] std::size_t line_of(const std::string& path) const {
+    std::string key = path.substr(path.find_last_of('.') + 1);
+    key = key.substr(0, key.find('['));
+    const std::size_t at = text_.find("\"" + key + "\"");
+    if (at == std::string::npos) {
+      return 0;
+    }
+    return 1 + static_cast<std::size_t>(std::count(
+                   text_.begin(), text_.begin() + static_cast<std::ptrdiff_t>(at), '\n'));
+  }
+
+ private:
+  std::string text_;
+  std::filesystem::path file_;
+};
+
+/// Reads one JSON object, refusing keys it does not know.
+class ObjectReader {
+ public:
+  ObjectReader(const Context& context, const Json& object, std::string path,
+               std::vector<std::string> allowed)
+      : context_(context), object_(object), path_(std::move(path)), allowed_(std::move(allowed)) {
+    if (!object_.is_object()) {
+      context_.fail(path_.empty() ? "(top level)" : path_,
+                    "must be an object, not " + type_name(object_));
+    }
+    for (const auto& [key, value] : object_.items()) {
+      if (std::find(allowed_.begin(), allowed_.end(), key) == allowed_.end()) {
+        std::string closest;
+        std::size_t best = std::string::npos;
+        for (const std::string& candidate : allowed_) {
+          const std::size_t distance = edit_distance(key, candidate);
+          if (distance < best) {
+            best = distance;
+            closest = candidate;
+          }
+        }
+        std::string valid;
+        for (const std::string& candidate : allowed_) {
+          valid += (valid.empty() ? "" : ", ") + candidate;
+        }
+        context_.fail(child(key),
+                      "unknown key" +
+                          (closest.empty() ? std::string() : "; did you mean '" + closest + "'?") +
+                          " (valid here: " + valid + ")");
+      }
+    }
+  }
+
+  [[nodiscard]] bool has(const std::string& key) const { return object_.contains(key); }
+  [[nodiscard]] const Json& at(const std::string& key) const { return object_.at(key); }
+  [[nodiscard]] std::string child(const std::string& key) const {
+    return path_.empty() ? key : path_ + "." + key;
+  }
+
+  double number(const std::string& key, double fallback) const {
+    if (!has(key)) {
+      return fallback;
+    }
+    const Json& value = at(key);
+    if (!value.is_number()) {
+      context_.fail(child(key), "must be a number, not " + type_name(value));
+    }
+    const double result = value.get<double>();
+    if (!std::isfinite(result)) {
+      context_.fail(child(key), "must be finite");
+    }
+    return result;
+  }
+  double positive(const std::string& key, double fallback) const {
+    const double value = number(key, fallback);
+    if (!(value > 0.0)) {
+      context_.fail(child(key), "must be positive");
+    }
+    return value;
+  }
+  double non_negative(const std::string& key, double fallback) const {
+    const double value = number(key, fallback);
+    if (!(value >= 0.0)) {
+      context_.fail(child(key), "must not be negative");
+    }
+    return value;
+  }
+  int integer(const std::string& key, int fallback, int low, int high) const {
+    if (!has(key)) {
+      return fallback;
+    }
+    const Json& value = at(key);
+    if (!value.is_number_integer()) {
+      context_.fail(child(key), "must be an integer, not " + type_name(value));
+    }
+    const long long result = value.get<long long>();
+    if (result < low || result > high) {
+      context_.fail(child(key),
+                    "must lie in [" + std::to_string(low) + ", " + std::to_string(high) + "]");
+    }
+    return static_cast<int>(result);
+  }
+  std::string string(const std::string& key, const std::string& fallback) const {
+    if (!has(key)) {
+      return fallback;
+    }
+    const Json& value = at(key);
+    if (!value.is_string()) {
+      context_.fail(child(key), "must be a string, not " + type_name(value));
+    }
+    return value.get<std::string>();
+  }
+  Vec3 vec3(const std::string& key, const Vec3& fallback) const {
+    return has(key) ? parse_vec3(context_, at(key), child(key)) : fallback;
+  }
+
+  static Vec3 parse_vec3(const Context& context, const Json& value, const std::string& path) {
+    if (!value.is_array() || value.size() != 3 ||
+        !std::all_of(value.begin(), value.end(), [](const Json& c) { return c.is_number(); })) {
+      context.fail(path, "must be a list of three numbers [x, y, z]");
+    }
+    const Vec3 result(value[0].get<double>(), value[1].get<double>(), value[2].get<double>());
+    if (!result.allFinite()) {
+      context.fail(path, "must be finite");
+    }
+    return result;
+  }
+
+ private:
+  const Context& context_;
+  const Json& object_;
+  std::string path_;
+  std::vector<std::string> allowed_;
+};
+
+std::filesystem::path resolve(const Context& context, const std::string& path) {
+  std::filesystem::path result(path);
+  if (result.is_relative() && !context.file().empty()) {
+    result = context.file().parent_path() / result;
+  }
+  return result.lexically_normal();
+}
+
+RegionSpec parse_region(const Context& context, const Json& value, const std::string& path,
+                        const std::vector<std::string>& extra_keys) {
+  std::vector<std::string> allowed{"box", "vertices"};
+  allowed.insert(allowed.end(), extra_keys.begin(), extra_keys.end());
+  const ObjectReader reader(context, value, path, allowed);
+  RegionSpec region;
+  region.where = path;
+  if (reader.has("box") == reader.has("vertices")) {
+    context.fail(path,
+                 "give exactly one of \"box\": [[x0,y0,z0],[x1,y1,z1]] and \"vertices\": [ids]");
+  }
+  if (reader.has("box")) {
+    const Json& box = reader.at("box");
+    if (!box.is_array() || box.size() != 2) {
+      context.fail(reader.child("box"), "must be [[x0,y0,z0],[x1,y1,z1]]");
+    }
+    const Vec3 low = ObjectReader::parse_vec3(context, box[0], reader.child("box") + "[0]");
+    const Vec3 high = ObjectReader::parse_vec3(context, box[1], reader.child("box") + "[1]");
+    if (!(low.array() <= high.array()).all()) {
+      context.fail(reader.child("box"), "its first corner must not exceed the second");
+    }
+    region.box = std::make_pair(low, high);
+  } else {
+    const Json& ids = reader.at("vertices");
+    if (!ids.is_array() || ids.empty() || !std::all_of(ids.begin(), ids.end(), [](const Json& id) {
+          return id.is_number_integer() && id.get<long long>() >= 0;
+        })) {
+      context.fail(reader.child("vertices"),
+                   "must be a non-empty list of vertex ids (integers >= 0)");
+    }
+    for (const Json& id : ids) {
+      region.vertices.push_back(static_cast<VertexId>(id.get<long long>()));
+    }
+  }
+  return region;
+}
+
+template <typename Parse>
+void parse_list(const Context& context, const ObjectReader& top, const std::string& key,
+                Parse parse) {
+  if (!top.has(key)) {
+    return;
+  }
+  const Json& list = top.at(key);
+  if (!list.is_array()) {
+    context.fail(key, "must be a list");
+  }
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    parse(list[i], key + "[" + std::to_string(i) + "]");
+  }
+}
+
+}  // namespace
+
+SceneDescription parse_scene(const std::string& json_text, const std::filesystem::path& file) {
+  const Context context(json_text, file);
+  Json root;
+  try {
+    root = Json::parse(json_text);
+  } catch (const Json::parse_error& error) {
+    const auto byte = std::min<std::size_t>(error.byte, json_text.size());
+    const auto line =
+        1 + static_cast<std::size_t>(std::count(
+                json_text.begin(),
+                json_text.begin() + static_cast<std::ptrdiff_t>(byte > 0 ? byte - 1 : 0), '\n'));
+    std::string what = error.what();
+    what = what.substr(what.find(':') == std::string::npos ? 0 : what.rfind(": ") + 2);
+    context.fail_line(line, "malformed JSON: " + what);
+  }
+  const ObjectReader top(
+      context, root, "",
+      {"description", "mesh", "material", "model", "damping", "integrator", "fixed",
+       "displacements", "forces", "gravity", "frames", "frame_dt", "output"});
+  SceneDescription scene;
+  scene.file = file;
+  scene.description = top.string("description", "");
+
+  // mesh
+  if (!top.has("mesh")) {
+    context.fail("mesh", "is required: {\"file\": PATH} or {\"box\": {...}}");
+  }
+  {
+    const ObjectReader mesh(context, top.at("mesh"), "mesh", {"file", "scale", "box"});
+    if (mesh.has("file") == mesh.has("box")) {
+      context.fail("mesh", "give exactly one of \"file\" and \"box\"");
+    }
+    if (mesh.has("file")) {
+      scene.mesh_file = resolve(context, mesh.string("file", ""));
+      scene.mesh_scale = mesh.positive("scale", 1.0);
+    } else {
+      if (mesh.has("scale")) {
+        context.fail("mesh.scale", "applies to a mesh file only");
+      }
+      const ObjectReader box(context, mesh.at("box"), "mesh.box",
+                             {"cells", "size", "origin", "tets_per_cell"});
+      if (!box.has("cells")) {
+        context.fail("mesh.box.cells", "is required: [nx, ny, nz]");
+      }
+      const Json& cells = box.at("cells");
+      if (!cells.is_array() || cells.size() != 3 ||
+          !std::all_of(cells.begin(), cells.end(), [](const Json& c) {
+            return c.is_number_integer() && c.get<long long>() >= 1 && c.get<long long>() <= 1000;
+          })) {
+        context.fail("mesh.box.cells", "must be three integers in [1, 1000]");
+      }
+      scene.box.cells = {cells[0].get<int>(), cells[1].get<int>(), cells[2].get<int>()};
+      scene.box.size = box.vec3("size", Vec3(0.04, 0.06, 0.04));
+      scene.box.origin = box.vec3("origin", Vec3::Zero());
+      if (!(scene.box.size.array() > 0.0).all()) {
+        context.fail("mesh.box.size", "must be positive along every axis (m)");
+      }
+      scene.box.tets_per_cell = box.integer("tets_per_cell", 6, 5, 6);
+    }
+  }
+
+  // material
+  if (top.has("material") && top.at("material").is_string()) {
+    scene.material_name = top.at("material").get<std::string>();
+    try {
+      scene.material = material_preset(scene.material_name);
+    } catch (const InputError& error) {
+      context.fail("material", error.what());
+    }
+  } else if (top.has("material")) {
+    const ObjectReader material(context, top.at("material"), "material",
+                                {"young_modulus", "poisson_ratio", "density"});
+    scene.material_name = "custom";
+    scene.material.young_modulus = material.positive("young_modulus", scene.material.young_modulus);
+    scene.material.poisson_ratio = material.number("poisson_ratio", scene.material.poisson_ratio);
+    scene.material.density = material.positive("density", scene.material.density);
+    try {
+      scene.material.check();
+    } catch (const InputError& error) {
+      context.fail("material", error.what());
+    }
+  } else {
+    scene.material_name = "liver";
+    scene.material = material_preset("liver");
+  }
+
+  // model
+  if (top.has("model")) {
+    const ObjectReader model(context, top.at("model"), "model",
+                             {"type", "spring_damping_ratio", "prestrain"});
+    scene.model_type = model.string("type", "mass-spring");
+    if (scene.model_type != "mass-spring") {
+      context.fail("model.type", "unknown model '" + scene.model_type + "' (known: mass-spring)");
+    }
+    scene.mass_spring.spring_damping_ratio =
+        model.non_negative("spring_damping_ratio", scene.mass_spring.spring_damping_ratio);
+    scene.mass_spring.prestrain = model.non_negative("prestrain", scene.mass_spring.prestrain);
+    if (scene.mass_spring.prestrain >= 1.0) {
+      context.fail("model.prestrain", "must be below 1");
+    }
+  }
+
+  // damping
+  if (top.has("damping")) {
+    const ObjectReader damping(context, top.at("damping"), "damping", {"viscous", "penalty"});
+    scene.damping.viscous = damping.non_negative("viscous", 0.0);
+    scene.damping.penalty = damping.non_negative("penalty", 0.0);
+  }
+
+  // integrator
+  if (top.has("integrator")) {
+    const ObjectReader integrator(
+        context, top.at("integrator"), "integrator",
+        {"type", "dt", "iterations", "max_depth", "focus", "newton_steps", "solver"});
+    IntegratorSpec& spec = scene.integrator;
+    spec.type = integrator.string("type", spec.type);
+    const std::vector<std::string> known{"explicit-euler", "symplectic-euler", "rk4",
+                                         "rk4-hierarchical", "backward-euler"};
+    if (std::find(known.begin(), known.end(), spec.type) == known.end()) {
+      context.fail(
+          "integrator.type",
+          "unknown integrator '" + spec.type +
+              "' (known: explicit-euler, symplectic-euler, rk4, rk4-hierarchical, backward-euler)");
+    }
+    spec.dt = integrator.positive("dt", spec.dt);
+    spec.hierarchical.iterations =
+        integrator.integer("iterations", spec.hierarchical.iterations, 1, 1 << 20);
+    spec.hierarchical.max_depth =
+        integrator.integer("max_depth", spec.hierarchical.max_depth, 0, 1 << 20);
+    if (integrator.has("focus")) {
+      const Json& focus = integrator.at("focus");
+      if (focus.is_number_integer() && focus.get<long long>() >= 0) {
+        spec.focus = static_cast<VertexId>(focus.get<long long>());
+      } else {
+        spec.focus = ObjectReader::parse_vec3(context, focus, "integrator.focus");
+      }
+    }
+    spec.backward_euler.newton_steps = integrator.integer("newton_steps", 1, 1, 100);
+    if (integrator.has("solver")) {
+      const ObjectReader solver(context, integrator.at("solver"), "integrator.solver",
+                                {"type", "preconditioner", "tolerance", "max_iterations"});
+      const std::string type = solver.string("type", "cg");
+      if (type != "cg") {
+        context.fail("integrator.solver.type", "unknown solver '" + type + "' (known: cg)");
+      }
+      const std::string preconditioner = solver.string("preconditioner", "block-jacobi");
+      if (preconditioner != "block-jacobi") {
+        context.fail("integrator.solver.preconditioner",
+                     "unknown preconditioner '" + preconditioner + "' (known: block-jacobi)");
+      }
+      spec.backward_euler.solver.tolerance = solver.positive("tolerance", 1e-8);
+      spec.backward_euler.solver.max_iterations = solver.integer("max_iterations", 500, 1, 1000000);
+    }
+  }
+
+  // boundary conditions
+  parse_list(context, top, "fixed", [&](const Json& value, const std::string& path) {
+    scene.fixed.push_back(parse_region(context, value, path, {}));
+  });
+  parse_list(context, top, "displacements", [&](const Json& value, const std::string& path) {
+    const RegionSpec region = parse_region(context, value, path, {"displacement", "ramp_time"});
+    const ObjectReader reader(context, value, path,
+                              {"box", "vertices", "displacement", "ramp_time"});
+    if (!reader.has("displacement")) {
+      context.fail(path + ".displacement", "is required: [dx, dy, dz] (m)");
+    }
+    scene.displacements.push_back(
+        {region, reader.vec3("displacement", Vec3::Zero()), reader.non_negative("ramp_time", 0.0)});
+  });
+  parse_list(context, top, "forces", [&](const Json& value, const std::string& path) {
+    const RegionSpec region = parse_region(context, value, path, {"force"});
+    const ObjectReader reader(context, value, path, {"box", "vertices", "force"});
+    if (!reader.has("force")) {
+      context.fail(path + ".force", "is required: [fx, fy, fz] (N, total over the region)");
+    }
+    scene.forces.push_back({region, reader.vec3("force", Vec3::Zero())});
+  });
+  scene.gravity = top.vec3("gravity", Vec3::Zero());
+
+  scene.frames = top.integer("frames", scene.frames, 0, 100000000);
+  scene.frame_dt = top.has("frame_dt") ? top.positive("frame_dt", 0.0) : scene.integrator.dt;
+  const double ratio = scene.frame_dt / scene.integrator.dt;
+  if (std::abs(ratio - std::round(ratio)) > 1e-6 * ratio || std::round(ratio) < 1.0) {
+    context.fail("frame_dt", "must be a whole multiple of integrator.dt");
+  }
+
+  if (top.has("output")) {
+    const ObjectReader output(context, top.at("output"), "output", {"dir", "vtu_every"});
+    scene.output_dir = resolve(context, output.string("dir", "out"));
+    scene.vtu_every = output.integer("vtu_every", 1, 1, 100000000);
+  } else {
+    scene.output_dir = resolve(context, "out");
+  }
+  return scene;
+}
+
+SceneDescription load_scene(const std::filesystem::path& file) {
+  std::ifstream stream(file, std::ios::binary);
+  if (!stream) {
+    throw InputError(file.string(), 0, "cannot open the scene file");
+  }
+  std::stringstream buffer;
+  buffer << stream.rdbuf();
+  return parse_scene(buffer.str(), file);
+}
+
+SceneDescription default_scene() {
+  return parse_scene(default_scene_text(), {});
+}
+
+}  // namespace incise

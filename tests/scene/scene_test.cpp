@@ -1,0 +1,193 @@
+// Scene parsing (the key contract and its errors) and running scenes.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "incise/core/error.hpp"
+#include "incise/scene/simulation.hpp"
+#include "test_support.hpp"
+
+namespace incise {
+namespace {
+
+const char* kMinimal = R"({"mesh": {"box": {"cells": [2, 2, 2]}}})";
+
+std::string error_of(const std::string& json, const std::filesystem::path& file = "scene.json") {
+  try {
+    (void)parse_scene(json, file);
+  } catch (const InputError& error) {
+    return error.what();
+  }
+  return "";
+}
+
+TEST(SceneParsing, DefaultSceneIsTheSeedBlock) {
+  const SceneDescription scene = default_scene();
+  EXPECT_FALSE(scene.mesh_file.has_value());
+  EXPECT_EQ(scene.box.cells, (std::array<int, 3>{4, 6, 4}));
+  EXPECT_EQ(scene.box.tets_per_cell, 6);
+  EXPECT_EQ(scene.integrator.type, "rk4-hierarchical");
+  EXPECT_EQ(scene.material_name, "liver");
+  EXPECT_EQ(scene.fixed.size(), 2u);
+  EXPECT_GT(scene.frames, 0);
+}
+
+TEST(SceneParsing, EveryExampleSceneParses) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes")) {
+    if (entry.path().extension() == ".json") {
+      EXPECT_NO_THROW((void)load_scene(entry.path())) << entry.path();
+    }
+  }
+}
+
+TEST(SceneParsing, UnknownKeyNamesFileLineAndClosestKey) {
+  const std::string message = error_of(
+      "{\n  \"mesh\": {\"box\": {\"cells\": [2, 2, 2]}},\n  \"integrator\": {\"type\": \"rk4\", "
+      "\"dtt\": 0.01}\n}");
+  EXPECT_NE(message.find("scene.json:3"), std::string::npos) << message;
+  EXPECT_NE(message.find("integrator.dtt"), std::string::npos) << message;
+  EXPECT_NE(message.find("did you mean 'dt'"), std::string::npos) << message;
+  const std::string top =
+      error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "gravty": [0, 0, -9.81]})");
+  EXPECT_NE(top.find("did you mean 'gravity'"), std::string::npos) << top;
+}
+
+TEST(SceneParsing, WrongTypesAndValues) {
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "frames": "ten"})")
+                .find("must be an integer"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2]}}})").find("mesh.box.cells"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "gravity": [0, -9.81]})")
+                .find("three numbers"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "material": "liverr"})")
+                .find("known: liver"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"type": "verlet"}})")
+                .find("unknown integrator 'verlet'"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "material": {"young_modulus": -1}})")
+          .find("must be positive"),
+      std::string::npos);
+  EXPECT_NE(error_of(R"({"integrator": {"dt": 0.01}})").find("mesh"), std::string::npos);
+  EXPECT_NE(
+      error_of(
+          R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "fixed": [{"box": [[1, 1, 1], [0, 0, 0]]}]})")
+          .find("must not exceed"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of(
+          R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"dt": 0.01}, "frame_dt": 0.015})")
+          .find("whole multiple"),
+      std::string::npos);
+}
+
+TEST(SceneParsing, MalformedJsonNamesTheLine) {
+  const std::string message =
+      error_of("{\n  \"mesh\": {\"box\": {\"cells\": [2, 2, 2]}},\n  \"frames\": 10,\n}\n");
+  EXPECT_NE(message.find("malformed JSON"), std::string::npos) << message;
+  EXPECT_NE(message.find("scene.json:4"), std::string::npos) << message;
+}
+
+TEST(SceneParsing, RelativePathsResolveAgainstTheSceneFile) {
+  const SceneDescription scene =
+      parse_scene(R"({"mesh": {"file": "meshes/body.msh"}, "output": {"dir": "results"}})",
+                  "/data/scenes/a.json");
+  EXPECT_EQ(*scene.mesh_file, std::filesystem::path("/data/scenes/meshes/body.msh"));
+  EXPECT_EQ(scene.output_dir, std::filesystem::path("/data/scenes/results"));
+}
+
+TEST(SceneParsing, MinimalSceneGetsDefaults) {
+  const SceneDescription scene = parse_scene(kMinimal, "m.json");
+  EXPECT_EQ(scene.material_name, "liver");
+  EXPECT_EQ(scene.frame_dt, scene.integrator.dt);
+  EXPECT_TRUE(scene.gravity.isZero());
+}
+
+TEST(SceneParsing, RegionsThatSelectNothingAreErrors) {
+  const SceneDescription scene = parse_scene(
+      R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "fixed": [{"box": [[5, 5, 5], [6, 6, 6]]}]})",
+      "r.json");
+  try {
+    Simulation simulation(scene);
+    FAIL();
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("fixed[0] selects no vertex"), std::string::npos)
+        << error.what();
+  }
+}
+
+std::string slurp(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+TEST(Simulation, SameSceneSameBytes) {
+  const auto dir = test::scratch_dir("deterministic");
+  for (const char* run : {"a", "b"}) {
+    Simulation simulation(default_scene());
+    const RunResult result = simulation.run(20, dir / run, "default", 5);
+    ASSERT_FALSE(result.diverged);
+  }
+  std::size_t compared = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir / "a")) {
+    const auto twin = dir / "b" / entry.path().filename();
+    ASSERT_TRUE(std::filesystem::exists(twin)) << twin;
+    EXPECT_EQ(slurp(entry.path()), slurp(twin)) << entry.path().filename();
+    ++compared;
+  }
+  EXPECT_EQ(compared, 6u);  // the .pvd and frames 0, 5, 10, 15, 20
+}
+
+TEST(Simulation, DivergenceStopsAndKeepsWrittenFrames) {
+  // Symplectic Euler at 20 times its stability limit.
+  SceneDescription scene = parse_scene(R"({
+    "mesh": {"box": {"cells": [2, 2, 2], "size": [0.01, 0.01, 0.01]}},
+    "integrator": {"type": "symplectic-euler", "dt": 0.002},
+    "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}], "gravity": [0, 0, -9.81], "frames": 200})",
+                                       "diverging.json");
+  Simulation simulation(scene);
+  ASSERT_FALSE(simulation.warnings().empty());
+  EXPECT_NE(simulation.warnings().front().find("stability limit"), std::string::npos);
+  const auto dir = test::scratch_dir("diverging");
+  const RunResult result = simulation.run(200, dir, "diverging", 1);
+  ASSERT_TRUE(result.diverged);
+  EXPECT_NE(result.divergence.find("diverged in frame"), std::string::npos) << result.divergence;
+  EXPECT_LT(result.frames.size(), 200u);
+  // Every frame listed in the series exists and holds only finite numbers (read back).
+  const std::string pvd = slurp(result.pvd);
+  for (const FrameRecord& record : result.frames) {
+    EXPECT_TRUE(std::isfinite(record.kinetic_energy));
+  }
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() == ".vtu") {
+      EXPECT_NE(pvd.find(entry.path().filename().string()), std::string::npos);
+      const TetMesh frame = read_tet_mesh(entry.path()).mesh;
+      for (const Vec3& p : frame.rest_positions()) {
+        ASSERT_TRUE(p.allFinite()) << entry.path();
+      }
+    }
+  }
+}
+
+TEST(Simulation, MassIsConservedAndTheBlockSettles) {
+  Simulation simulation(default_scene());
+  const double mass = simulation.total_mass();
+  EXPECT_NEAR(mass, 1060.0 * 0.04 * 0.06 * 0.04, 1e-12);  // kg: liver density times volume
+  const RunResult result = simulation.run(150, test::scratch_dir("settle"), "default", 50);
+  ASSERT_FALSE(result.diverged);
+  const FrameRecord& last = result.frames.back();
+  EXPECT_LT(last.kinetic_energy, 1e-12);
+  EXPECT_GT(last.max_displacement, 1e-3);  // the press shows
+  EXPECT_LT(last.max_displacement, 1e-2);  // and stays small against the 4 cm block
+}
+
+}  // namespace
+}  // namespace incise
