@@ -20,5 +20,6 @@ Runner add_convert_command(CLI::App& app);
 Runner add_generate_command(CLI::App& app);
 Runner add_mesh_command(CLI::App& app);
 Runner add_run_command(CLI::App& app);
+Runner add_cut_command(CLI::App& app);
 
 }  // namespace incise::app

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   add(incise::app::add_generate_command);
   add(incise::app::add_mesh_command);
   add(incise::app::add_run_command);
+  add(incise::app::add_cut_command);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

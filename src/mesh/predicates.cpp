@@ -2,6 +2,9 @@
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/intersections.h>
+#include <CGAL/squared_distance_3.h>
+
+#include <limits>
 
 namespace incise {
 namespace {
@@ -51,6 +54,42 @@ bool triangles_intersect(const Vec3& a0, const Vec3& b0, const Vec3& c0, const V
     return false;
   }
   return CGAL::do_intersect(first, second);
+}
+
+bool triangle_intersects_tet(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& p0,
+                             const Vec3& p1, const Vec3& p2, const Vec3& p3) {
+  const Kernel::Tetrahedron_3 tet(to_cgal(p0), to_cgal(p1), to_cgal(p2), to_cgal(p3));
+  const Kernel::Triangle_3 triangle(to_cgal(a), to_cgal(b), to_cgal(c));
+  if (tet.is_degenerate() || triangle.is_degenerate()) {
+    return false;
+  }
+  return CGAL::do_intersect(triangle, tet);
+}
+
+bool segment_intersects_tet(const Vec3& p, const Vec3& q, const Vec3& p0, const Vec3& p1,
+                            const Vec3& p2, const Vec3& p3) {
+  const Kernel::Tetrahedron_3 tet(to_cgal(p0), to_cgal(p1), to_cgal(p2), to_cgal(p3));
+  if (tet.is_degenerate()) {
+    return false;
+  }
+  if (p == q) {
+    return !tet.has_on_unbounded_side(to_cgal(p));
+  }
+  return CGAL::do_intersect(Kernel::Segment_3(to_cgal(p), to_cgal(q)), tet);
+}
+
+double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Kernel::Triangle_3 triangle(to_cgal(a), to_cgal(b), to_cgal(c));
+  if (triangle.is_degenerate()) {
+    // Fall back to the closest of the three segments.
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& [u, w] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) {
+      best = std::min(best, CGAL::to_double(CGAL::squared_distance(
+                                to_cgal(p), Kernel::Segment_3(to_cgal(u), to_cgal(w)))));
+    }
+    return best;
+  }
+  return CGAL::to_double(CGAL::squared_distance(to_cgal(p), triangle));
 }
 
 TetLocation locate_in_tet(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,

@@ -21,6 +21,19 @@ enum class Sign : int { kNegative = -1, kZero = 0, kPositive = 1 };
 [[nodiscard]] bool triangles_intersect(const Vec3& a0, const Vec3& b0, const Vec3& c0,
                                        const Vec3& a1, const Vec3& b1, const Vec3& c1);
 
+/// Exact test: does the closed triangle (a, b, c) meet the closed tetrahedron (p0..p3)?
+[[nodiscard]] bool triangle_intersects_tet(const Vec3& a, const Vec3& b, const Vec3& c,
+                                           const Vec3& p0, const Vec3& p1, const Vec3& p2,
+                                           const Vec3& p3);
+
+/// Exact test: does the closed segment [p, q] meet the closed tetrahedron (p0..p3)?
+[[nodiscard]] bool segment_intersects_tet(const Vec3& p, const Vec3& q, const Vec3& p0,
+                                          const Vec3& p1, const Vec3& p2, const Vec3& p3);
+
+/// Squared distance (m^2) from a point to a closed triangle (floating point).
+[[nodiscard]] double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
+                                                  const Vec3& c);
+
 /// Where a point lies with respect to a positively oriented tetrahedron.
 enum class TetLocation { kOutside, kBoundary, kInside };
 

@@ -1,0 +1,122 @@
+// incise cut MESH --blade PATH.csv [--method subdivision] -o OUT [--report R.json]
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "incise/core/error.hpp"
+#include "incise/cut/subdivision_cutter.hpp"
+#include "incise/io/mesh_io.hpp"
+#include "incise/mesh/boundary.hpp"
+#include "incise/mesh/validate.hpp"
+
+namespace incise::app {
+
+Runner add_cut_command(CLI::App& app) {
+  auto* command = app.add_subcommand("cut", "Cut a mesh along a blade path, without physics");
+  auto mesh_path = std::make_shared<std::string>();
+  auto blade_path = std::make_shared<std::string>();
+  auto method = std::make_shared<std::string>("subdivision");
+  auto output = std::make_shared<std::string>();
+  auto report_path = std::make_shared<std::string>();
+  auto snap = std::make_shared<double>(CutterOptions{}.snap_fraction);
+  command->add_option("mesh", *mesh_path, "Tetrahedral mesh")->required()->check(CLI::ExistingFile);
+  command
+      ->add_option("--blade", *blade_path,
+                   "Blade path CSV: t,tip_x,tip_y,tip_z,base_x,base_y,base_z (s, m)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  command->add_option("--method", *method, "Cutting method")
+      ->check(CLI::IsMember({"subdivision"}))
+      ->capture_default_str();
+  command->add_option("-o,--output", *output, "Cut mesh (.vtu, .msh, .mesh, .obj, .node)")
+      ->required();
+  command->add_option("--report", *report_path, "JSON report");
+  command
+      ->add_option("--snap", *snap, "Snap crossings within this fraction of an edge to its vertex")
+      ->check(CLI::Range(0.001, 0.49))
+      ->capture_default_str();
+  return [=]() {
+    TetMesh mesh = read_tet_mesh(*mesh_path).mesh;
+    const ValidationReport input_report = validate(mesh);
+    if (!input_report.ok()) {
+      throw InputError(*mesh_path, 0, "the mesh is not valid:\n" + input_report.describe());
+    }
+    const std::vector<BladePose> path = read_blade_path(*blade_path);
+    const std::size_t tets_in = mesh.tet_count();
+    const std::size_t vertices_in = mesh.vertex_count();
+    const double volume_in = total_volume(mesh);
+    SubdivisionCutter cutter(mesh, CutterOptions{*snap});
+    std::size_t invalid_frames = 0;
+    std::string first_problem;
+    cutter.start(path.front());
+    for (std::size_t i = 1; i < path.size(); ++i) {
+      cutter.move_to(path[i]);
+      const ValidationReport frame = validate(mesh);
+      if (!frame.ok() || !check_boundary(mesh).watertight()) {
+        if (invalid_frames++ == 0) {
+          first_problem =
+              fmt::format("after pose {}: {}", i,
+                          frame.ok() ? "the boundary is not watertight" : frame.describe());
+        }
+      }
+    }
+    const ValidationReport report = validate(mesh);
+    const bool watertight = check_boundary(mesh).watertight();
+    int components = 0;
+    (void)tet_components(mesh, &components);
+    const CutStats& stats = cutter.stats();
+    write_tet_mesh(*output, mesh);
+    std::cerr << fmt::format(
+        "cut {} with {} poses: {} -> {} tets, {} -> {} vertices, {} components, cut area {:.4g} "
+        "m^2, "
+        "cd {:.3f} ms, gc {:.3f} ms in total\n",
+        *mesh_path, path.size(), tets_in, mesh.tet_count(), vertices_in, mesh.vertex_count(),
+        components, stats.cut_area, 1e3 * stats.total_cd_seconds, 1e3 * stats.total_gc_seconds);
+    if (!report_path->empty()) {
+      nlohmann::ordered_json json;
+      json["mesh"] = *mesh_path;
+      json["blade"] = *blade_path;
+      json["method"] = *method;
+      json["poses"] = path.size();
+      json["tets_in"] = tets_in;
+      json["tets_out"] = mesh.tet_count();
+      json["vertices_in"] = vertices_in;
+      json["vertices_out"] = mesh.vertex_count();
+      json["volume_in"] = volume_in;
+      json["volume_out"] = total_volume(mesh);
+      json["components"] = components;
+      json["watertight"] = watertight;
+      json["inverted_tets"] = report.inverted_tets.size();
+      json["valid"] = report.ok();
+      json["invalid_frames"] = invalid_frames;
+      json["min_volume_ratio"] = stats.min_volume_ratio;
+      json["cut_area"] = stats.cut_area;
+      json["swept_area"] = stats.swept_area;
+      json["edges_split"] = stats.edges_split;
+      json["vertices_duplicated"] = stats.vertices_duplicated;
+      json["cut_faces"] = stats.cut_faces;
+      json["cd"] = 1e3 * stats.total_cd_seconds;
+      json["gc"] = 1e3 * stats.total_gc_seconds;
+      json["point_tet_hits"] = {{"same", stats.point_same},
+                                {"neighbor", stats.point_neighbor},
+                                {"global", stats.point_global},
+                                {"outside", stats.point_outside}};
+      std::ofstream stream(*report_path);
+      if (!stream) {
+        throw InputError(*report_path, 0, "cannot write the report");
+      }
+      stream << json.dump(2) << "\n";
+    }
+    if (invalid_frames > 0) {
+      std::cerr << "error: the cut left an invalid mesh " << first_problem << "\n";
+      return kExitError;
+    }
+    return 0;
+  };
+}
+
+}  // namespace incise::app

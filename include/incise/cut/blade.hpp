@@ -1,0 +1,29 @@
+#pragma once
+// The virtual scalpel: a blade segment from its tip to its base (the seed's thin line), posed
+// over time. Two consecutive poses sweep a surface (two triangles).
+
+#include <array>
+#include <filesystem>
+#include <vector>
+
+#include "incise/core/types.hpp"
+
+namespace incise {
+
+struct BladePose {
+  double time = 0.0;  ///< s
+  Vec3 tip;           ///< m
+  Vec3 base;          ///< m
+};
+
+/// The triangles swept by the blade between two poses: (tip0, base0, base1) and
+/// (tip0, base1, tip1). Degenerate ones (a blade that did not move) are dropped.
+[[nodiscard]] std::vector<std::array<Vec3, 3>> swept_triangles(const BladePose& from,
+                                                               const BladePose& to);
+
+/// Reads a tool path: a CSV file with the header t,tip_x,tip_y,tip_z,base_x,base_y,base_z
+/// (s, m) and times that never decrease. Errors name the file and line.
+[[nodiscard]] std::vector<BladePose> read_blade_path(const std::filesystem::path& path);
+void write_blade_path(const std::filesystem::path& path, const std::vector<BladePose>& poses);
+
+}  // namespace incise

@@ -1,0 +1,98 @@
+#pragma once
+// Progressive cutting by subdivision (after Bielser et al., seed 000, sections 3-4), without
+// the seed's cracks: every mesh edge the blade's swept surface crosses is split where it
+// crosses, conformingly (every tetrahedron around the edge is split, so no hanging node is
+// left); faces that then lie on the swept surface are cut faces; and every vertex on the cut is
+// duplicated once for each group of tetrahedra that cut faces separate around it. Vertices on
+// the crack front keep their tetrahedra together, so a partial cut opens as a slit that follows
+// the blade frame by frame. Intersections use exact predicates; crossings closer to an edge end
+// than a fraction of the edge snap to the vertex, which bounds how thin a child can get.
+//
+// The cutter only edits the mesh: physics attached through attribute containers follows.
+
+#include <vector>
+
+#include "incise/cut/blade.hpp"
+#include "incise/cut/tet_grid.hpp"
+#include "incise/mesh/attributes.hpp"
+
+namespace incise {
+
+struct CutterOptions {
+  /// A crossing within this fraction of an edge's length from an end snaps to that vertex
+  /// instead of splitting the edge; a split child keeps at least this fraction of its
+  /// parent's volume.
+  double snap_fraction = 0.1;
+};
+
+struct CutStats {
+  // Last move.
+  double cd_seconds = 0.0;         ///< collision detection: finding tets and crossing edges (s)
+  double gc_seconds = 0.0;         ///< topology and geometry changes: splits and separation (s)
+  std::size_t candidate_tets = 0;  ///< tets the swept surface touched in the last move
+  // Totals.
+  std::size_t moves = 0;
+  std::size_t edges_split = 0;
+  std::size_t vertices_snapped = 0;
+  std::size_t vertices_duplicated = 0;
+  std::size_t cut_faces = 0;      ///< faces opened (each counted once)
+  double cut_area = 0.0;          ///< area of the opened faces, one side (m^2)
+  double swept_area = 0.0;        ///< area swept by the blade (m^2)
+  double min_volume_ratio = 1.0;  ///< smallest child / parent volume ratio of any split
+  // The active point tetrahedron (the one holding the blade tip), as the seed tracks it.
+  std::size_t point_same = 0;      ///< tip still in the previous tetrahedron
+  std::size_t point_neighbor = 0;  ///< found among its face neighbours
+  std::size_t point_global = 0;    ///< found through the spatial grid
+  std::size_t point_outside = 0;   ///< tip outside the mesh
+  double total_cd_seconds = 0.0;
+  double total_gc_seconds = 0.0;
+};
+
+class SubdivisionCutter {
+ public:
+  explicit SubdivisionCutter(TetMesh& mesh, const CutterOptions& options = {});
+
+  /// Puts the blade at a pose without cutting.
+  void start(const BladePose& pose);
+  /// Moves the blade from its current pose to `pose` and cuts what it swept.
+  void move_to(const BladePose& pose);
+  /// Runs a whole path: start at the first pose, then move through the others.
+  void cut_along(const std::vector<BladePose>& path);
+
+  [[nodiscard]] const CutStats& stats() const { return stats_; }
+  /// The tetrahedron holding the blade tip, or kInvalidId when the tip is outside.
+  [[nodiscard]] TetId active_point_tet() const { return point_tet_; }
+  /// Tetrahedra the blade segment intersects now (the seed's active tetrahedra).
+  [[nodiscard]] const std::vector<TetId>& active_tets() const { return active_; }
+  /// Whether a vertex lies on the cut surface.
+  [[nodiscard]] bool on_cut(VertexId vertex) const { return on_cut_[vertex] != 0; }
+  [[nodiscard]] const std::vector<std::array<Vec3, 3>>& swept_surface() const { return surface_; }
+  [[nodiscard]] bool started() const { return started_; }
+  [[nodiscard]] const BladePose& pose() const { return pose_; }
+
+ private:
+  struct Crossing {
+    VertexId a;
+    VertexId b;
+    double t;  ///< from a (0) to b (1)
+  };
+  void track_point_tet();
+  void update_active_tets();
+  [[nodiscard]] bool is_cut_face(VertexId a, VertexId b, VertexId c) const;
+  std::size_t separate(VertexId vertex);
+  void resolve_pinched_edges(std::vector<VertexId> vertices);
+
+  TetMesh& mesh_;
+  CutterOptions options_;
+  TetGrid grid_;
+  VertexData<char> on_cut_;
+  std::vector<std::array<Vec3, 3>> surface_;
+  BladePose pose_;
+  bool started_ = false;
+  TetId point_tet_ = kInvalidId;
+  std::vector<TetId> active_;
+  CutStats stats_;
+  std::vector<TetId> scratch_;
+};
+
+}  // namespace incise

@@ -1,0 +1,48 @@
+#pragma once
+// A uniform grid of tetrahedron bounding boxes (rest positions) that follows every mesh edit,
+// so finding the tetrahedra near the blade costs the same on any mesh size.
+
+#include <vector>
+
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+class TetGrid final : public MeshObserver {
+ public:
+  /// Cell size defaults to twice the mean edge length.
+  explicit TetGrid(TetMesh& mesh, double cell_size = 0.0);
+  ~TetGrid() override;
+  TetGrid(const TetGrid&) = delete;
+  TetGrid& operator=(const TetGrid&) = delete;
+
+  /// Tetrahedra whose bounding box overlaps [low, high] (each once, unsorted).
+  void query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) const;
+  [[nodiscard]] double cell_size() const { return cell_; }
+
+  void on_tet_added(const TetMesh& mesh, TetId tet) override;
+  void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
+                       const Tet& parent_vertices) override;
+  void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
+                      const Tet& removed_vertices) override;
+  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+
+ private:
+  void cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>& first,
+                  std::array<long, 3>& last) const;
+  void bounds(const Tet& tet, Vec3& low, Vec3& high) const;
+  void insert(TetId tet, const Tet& vertices);
+  void erase(TetId tet, const Tet& vertices);
+  void rename(TetId from, TetId to, const Tet& vertices);
+  std::size_t cell_index(long i, long j, long k) const;
+
+  TetMesh* mesh_;
+  Vec3 origin_;
+  double cell_ = 1.0;
+  std::array<long, 3> dims_{1, 1, 1};
+  std::vector<std::vector<TetId>> cells_;
+  mutable std::vector<std::uint32_t> seen_;
+  mutable std::uint32_t stamp_ = 0;
+};
+
+}  // namespace incise

@@ -1,0 +1,174 @@
+#include "incise/cut/tet_grid.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+
+TetGrid::TetGrid(TetMesh& mesh, double cell_size) : mesh_(&mesh) {
+  Vec3 low = Vec3::Zero();
+  Vec3 high = Vec3::Zero();
+  if (mesh.vertex_count() > 0) {
+    low = high = mesh.rest_position(0);
+    for (const Vec3& p : mesh.rest_positions()) {
+      low = low.cwiseMin(p);
+      high = high.cwiseMax(p);
+    }
+  }
+  if (cell_size <= 0.0) {
+    double sum = 0.0;
+    for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+      const auto& ends = mesh.edge(static_cast<EdgeId>(e));
+      sum += (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
+    }
+    cell_size = mesh.edge_count() > 0 ? 2.0 * sum / static_cast<double>(mesh.edge_count()) : 1.0;
+  }
+  // At most about 4 cells per tetrahedron, so memory stays proportional to the mesh.
+  const Vec3 extent = (high - low).cwiseMax(Vec3::Constant(1e-12));
+  const double budget = 4.0 * static_cast<double>(std::max<std::size_t>(mesh.tet_count(), 1));
+  while (extent.x() / cell_size * extent.y() / cell_size * extent.z() / cell_size > budget) {
+    cell_size *= 1.26;
+  }
+  cell_ = cell_size;
+  origin_ = low;
+  for (int k = 0; k < 3; ++k) {
+    dims_[k] = std::max(1L, static_cast<long>(std::ceil(extent[k] / cell_)));
+  }
+  cells_.assign(static_cast<std::size_t>(dims_[0] * dims_[1] * dims_[2]), {});
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    insert(static_cast<TetId>(t), mesh.tet(static_cast<TetId>(t)));
+  }
+  mesh.add_observer(this);
+}
+
+TetGrid::~TetGrid() {
+  if (mesh_ != nullptr) {
+    mesh_->remove_observer(this);
+  }
+}
+
+std::size_t TetGrid::cell_index(long i, long j, long k) const {
+  return static_cast<std::size_t>((k * dims_[1] + j) * dims_[0] + i);
+}
+
+void TetGrid::cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>& first,
+                         std::array<long, 3>& last) const {
+  for (int k = 0; k < 3; ++k) {
+    // Points outside the grid fall into its border cells (edits never move rest positions far).
+    first[k] =
+        std::clamp(static_cast<long>(std::floor((low[k] - origin_[k]) / cell_)), 0L, dims_[k] - 1);
+    last[k] =
+        std::clamp(static_cast<long>(std::floor((high[k] - origin_[k]) / cell_)), 0L, dims_[k] - 1);
+  }
+}
+
+void TetGrid::bounds(const Tet& tet, Vec3& low, Vec3& high) const {
+  low = high = mesh_->rest_position(tet[0]);
+  for (int i = 1; i < 4; ++i) {
+    low = low.cwiseMin(mesh_->rest_position(tet[i]));
+    high = high.cwiseMax(mesh_->rest_position(tet[i]));
+  }
+}
+
+void TetGrid::insert(TetId tet, const Tet& vertices) {
+  Vec3 low;
+  Vec3 high;
+  bounds(vertices, low, high);
+  std::array<long, 3> first;
+  std::array<long, 3> last;
+  cell_range(low, high, first, last);
+  for (long k = first[2]; k <= last[2]; ++k) {
+    for (long j = first[1]; j <= last[1]; ++j) {
+      for (long i = first[0]; i <= last[0]; ++i) {
+        cells_[cell_index(i, j, k)].push_back(tet);
+      }
+    }
+  }
+}
+
+void TetGrid::erase(TetId tet, const Tet& vertices) {
+  Vec3 low;
+  Vec3 high;
+  bounds(vertices, low, high);
+  std::array<long, 3> first;
+  std::array<long, 3> last;
+  cell_range(low, high, first, last);
+  for (long k = first[2]; k <= last[2]; ++k) {
+    for (long j = first[1]; j <= last[1]; ++j) {
+      for (long i = first[0]; i <= last[0]; ++i) {
+        auto& cell = cells_[cell_index(i, j, k)];
+        const auto it = std::find(cell.begin(), cell.end(), tet);
+        INCISE_ASSERT(it != cell.end(), "tet grid misses an entry");
+        *it = cell.back();
+        cell.pop_back();
+      }
+    }
+  }
+}
+
+void TetGrid::rename(TetId from, TetId to, const Tet& vertices) {
+  Vec3 low;
+  Vec3 high;
+  bounds(vertices, low, high);
+  std::array<long, 3> first;
+  std::array<long, 3> last;
+  cell_range(low, high, first, last);
+  for (long k = first[2]; k <= last[2]; ++k) {
+    for (long j = first[1]; j <= last[1]; ++j) {
+      for (long i = first[0]; i <= last[0]; ++i) {
+        auto& cell = cells_[cell_index(i, j, k)];
+        std::replace(cell.begin(), cell.end(), from, to);
+      }
+    }
+  }
+}
+
+void TetGrid::on_tet_added(const TetMesh& mesh, TetId tet) {
+  insert(tet, mesh.tet(tet));
+}
+
+void TetGrid::on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
+                              const Tet& parent_vertices) {
+  erase(parent, parent_vertices);
+  for (TetId child : children) {
+    insert(child, mesh.tet(child));
+  }
+}
+
+void TetGrid::on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
+                             const Tet& removed_vertices) {
+  erase(removed, removed_vertices);
+  if (removed != moved_from) {
+    rename(moved_from, removed, mesh.tet(removed));
+  }
+}
+
+void TetGrid::query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) const {
+  out.clear();
+  if (seen_.size() < mesh_->tet_count()) {
+    seen_.resize(mesh_->tet_count() + mesh_->tet_count() / 2 + 16, 0);
+  }
+  if (++stamp_ == 0) {
+    std::fill(seen_.begin(), seen_.end(), 0);
+    stamp_ = 1;
+  }
+  std::array<long, 3> first;
+  std::array<long, 3> last;
+  cell_range(low, high, first, last);
+  for (long k = first[2]; k <= last[2]; ++k) {
+    for (long j = first[1]; j <= last[1]; ++j) {
+      for (long i = first[0]; i <= last[0]; ++i) {
+        for (TetId t : cells_[cell_index(i, j, k)]) {
+          if (seen_[static_cast<std::size_t>(t)] != stamp_) {
+            seen_[static_cast<std::size_t>(t)] = stamp_;
+            out.push_back(t);
+          }
+        }
+      }
+    }
+  }
+}
+
+}  // namespace incise
