@@ -3,6 +3,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include <filesystem>
+
 #include "incise/mesh/generators.hpp"
 #include "incise/physics/mass_spring.hpp"
 #include "incise/physics/mechanical_system.hpp"
@@ -13,9 +15,10 @@ namespace {
 
 using namespace incise;
 
-/// One frame of the default scene: the seed's 576-tet block, hierarchical RK4.
+/// One frame of scenes/block_press.json: the seed's 576-tet block pressed, hierarchical RK4.
 void BM_DefaultSceneFrame(benchmark::State& state) {
-  const SceneDescription scene = default_scene();
+  const SceneDescription scene =
+      load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "block_press.json");
   TetMesh mesh = make_box_grid(scene.box);
   MassSpringModel model(mesh, scene.material, scene.mass_spring);
   BoundaryConditions conditions(mesh);

@@ -277,7 +277,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   const ObjectReader top(
       context, root, "",
       {"description", "mesh", "material", "model", "damping", "integrator", "fixed",
-       "displacements", "forces", "gravity", "frames", "frame_dt", "output"});
+       "displacements", "forces", "gravity", "frames", "frame_dt", "output", "tool", "cutter"});
   SceneDescription scene;
   scene.file = file;
   scene.description = top.string("description", "");
@@ -445,6 +445,53 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     context.fail("frame_dt", "must be a whole multiple of integrator.dt");
   }
 
+  if (top.has("tool")) {
+    const ObjectReader tool(context, top.at("tool"), "tool", {"blade_path", "poses"});
+    if (tool.has("blade_path") == tool.has("poses")) {
+      context.fail("tool", "give exactly one of \"blade_path\": CSV and \"poses\": [[t, tip_x, tip_y, tip_z, base_x, base_y, base_z], ...]");
+    }
+    if (tool.has("blade_path")) {
+      scene.tool.poses = read_blade_path(resolve(context, tool.string("blade_path", "")));
+    } else {
+      const Json& poses = tool.at("poses");
+      if (!poses.is_array() || poses.empty()) {
+        context.fail("tool.poses", "must be a non-empty list of [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+      }
+      for (std::size_t i = 0; i < poses.size(); ++i) {
+        const Json& row = poses[i];
+        const std::string where = "tool.poses[" + std::to_string(i) + "]";
+        if (!row.is_array() || row.size() != 7 ||
+            !std::all_of(row.begin(), row.end(), [](const Json& v) { return v.is_number(); })) {
+          context.fail(where, "must be 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+        }
+        const BladePose pose{row[0].get<double>(), Vec3(row[1].get<double>(), row[2].get<double>(), row[3].get<double>()),
+                             Vec3(row[4].get<double>(), row[5].get<double>(), row[6].get<double>())};
+        if (!scene.tool.poses.empty() && pose.time < scene.tool.poses.back().time) {
+          context.fail(where, "time goes backwards");
+        }
+        if (pose.tip == pose.base) {
+          context.fail(where, "the blade has zero length");
+        }
+        scene.tool.poses.push_back(pose);
+      }
+    }
+    scene.tool.cutter = "subdivision";
+  }
+  if (top.has("cutter")) {
+    const ObjectReader cutter(context, top.at("cutter"), "cutter", {"type", "snap_fraction"});
+    scene.tool.cutter = cutter.string("type", "subdivision");
+    if (scene.tool.cutter != "subdivision" && scene.tool.cutter != "none") {
+      context.fail("cutter.type", "unknown cutter '" + scene.tool.cutter + "' (known: subdivision, none)");
+    }
+    scene.tool.snap_fraction = cutter.positive("snap_fraction", 0.1);
+    if (scene.tool.snap_fraction >= 0.5) {
+      context.fail("cutter.snap_fraction", "must be below 0.5");
+    }
+  }
+  if (scene.tool.cutter != "none" && scene.tool.poses.empty()) {
+    context.fail("cutter", "a cutter needs a tool: add \"tool\": {\"blade_path\": CSV}");
+  }
+
   if (top.has("output")) {
     const ObjectReader output(context, top.at("output"), "output", {"dir", "vtu_every"});
     scene.output_dir = resolve(context, output.string("dir", "out"));
@@ -453,6 +500,20 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     scene.output_dir = resolve(context, "out");
   }
   return scene;
+}
+
+BladePose pose_at(const std::vector<BladePose>& poses, double t) {
+  if (t <= poses.front().time) {
+    return {t, poses.front().tip, poses.front().base};
+  }
+  for (std::size_t i = 1; i < poses.size(); ++i) {
+    if (t <= poses[i].time) {
+      const double span = poses[i].time - poses[i - 1].time;
+      const double w = span > 0.0 ? (t - poses[i - 1].time) / span : 1.0;
+      return {t, (1.0 - w) * poses[i - 1].tip + w * poses[i].tip, (1.0 - w) * poses[i - 1].base + w * poses[i].base};
+    }
+  }
+  return {t, poses.back().tip, poses.back().base};
 }
 
 SceneDescription load_scene(const std::filesystem::path& file) {

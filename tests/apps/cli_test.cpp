@@ -208,7 +208,7 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
   const auto dir = test::scratch_dir("cli-run-default");
   const std::string report = (dir / "report.json").string();
   const CommandResult run =
-      incise("run --frames 20 --out " + (dir / "out").string() + " --report " + report);
+      incise("run --frames 40 --out " + (dir / "out").string() + " --report " + report);
   ASSERT_EQ(run.code, 0) << run.err;
   for (const char* stage : {"cd", "gc", "rx", "rd"}) {
     EXPECT_NE(run.out.find(std::string("\n") + stage + " "), std::string::npos) << run.out;
@@ -222,11 +222,11 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
     EXPECT_TRUE(json["mean_ms"].contains(stage)) << stage;
     EXPECT_TRUE(json["per_frame_ms"][0].contains(stage)) << stage;
   }
-  EXPECT_EQ(json["tets"], 576);
+  EXPECT_GT(json["tets"].template get<int>(), 576);  // the blade has cut the block
   EXPECT_EQ(json["diverged"], false);
-  EXPECT_EQ(json["per_frame_ms"].size(), 20u);
+  EXPECT_EQ(json["per_frame_ms"].size(), 40u);
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default.pvd"));
-  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000020.vtu"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000040.vtu"));
 }
 
 TEST(Cli, RunReportsDivergenceWithExitCodeThree) {

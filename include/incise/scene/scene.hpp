@@ -9,6 +9,7 @@
 #include <variant>
 #include <vector>
 
+#include "incise/cut/blade.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/physics/mass_spring.hpp"
 #include "incise/physics/material.hpp"
@@ -44,6 +45,13 @@ struct IntegratorSpec {
   BackwardEulerOptions backward_euler;
 };
 
+/// The scalpel: a path of poses, followed frame by frame (interpolated at frame times).
+struct ToolSpec {
+  std::vector<BladePose> poses;  ///< empty: no tool
+  std::string cutter = "none";   ///< "subdivision" or "none"
+  double snap_fraction = 0.1;
+};
+
 struct SceneDescription {
   std::filesystem::path file;  ///< empty for the built-in default scene
   std::string description;
@@ -62,9 +70,13 @@ struct SceneDescription {
   Vec3 gravity = Vec3::Zero();  ///< m/s^2
   int frames = 100;
   double frame_dt = 0.0;  ///< s per frame; 0 means one integrator step per frame
+  ToolSpec tool;
   std::filesystem::path output_dir = "out";
   int vtu_every = 1;  ///< write every n-th frame (the first and last always)
 };
+
+/// The blade pose at time t (s): linear interpolation between path poses, clamped at the ends.
+[[nodiscard]] BladePose pose_at(const std::vector<BladePose>& poses, double t);
 
 /// Parses a scene from JSON text; `file` names it in errors and anchors relative paths.
 [[nodiscard]] SceneDescription parse_scene(const std::string& json_text,
