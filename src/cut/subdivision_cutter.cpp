@@ -281,6 +281,16 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     grid_.query(low, high, scratch_);
     for (TetId t : scratch_) {
       const Tet& v = mesh_.tet(t);
+      // Bounding boxes first: the exact test is the expensive part of collision detection.
+      Vec3 tet_low = mesh_.rest_position(v[0]);
+      Vec3 tet_high = tet_low;
+      for (int k = 1; k < 4; ++k) {
+        tet_low = tet_low.cwiseMin(mesh_.rest_position(v[k]));
+        tet_high = tet_high.cwiseMax(mesh_.rest_position(v[k]));
+      }
+      if ((tet_low.array() > high.array()).any() || (tet_high.array() < low.array()).any()) {
+        continue;
+      }
       if (triangle_intersects_tet(triangle[0], triangle[1], triangle[2], mesh_.rest_position(v[0]),
                                   mesh_.rest_position(v[1]), mesh_.rest_position(v[2]),
                                   mesh_.rest_position(v[3]))) {

@@ -1,0 +1,89 @@
+// Cutting: the seed's Table 1 setting (straight full cuts through 2x2x2, 2x4x3 and 4x6x4-cell
+// grids of 6 tets per cell) and the cost of collision detection (cd) and topology changes (gc)
+// per frame for the same blade path on meshes from 6k to 500k tetrahedra.
+// Run: build/release/bench/cut_bench   (results in BENCHMARKS.md)
+
+#include <chrono>
+#include <cstdio>
+
+#include "incise/cut/subdivision_cutter.hpp"
+#include "incise/mesh/boundary.hpp"
+#include "incise/mesh/generators.hpp"
+#include "incise/mesh/validate.hpp"
+
+using namespace incise;
+
+namespace {
+
+/// A vertical blade (tip below the block, base above) swept along y at x = 0.6 of the width (off
+/// the grid planes), in `poses` steps from outside to outside.
+std::vector<BladePose> straight_cut(const Vec3& size, int poses) {
+  std::vector<BladePose> path;
+  for (int i = 0; i <= poses; ++i) {
+    const double y = -0.1 * size.y() + 1.2 * size.y() * i / poses;
+    path.push_back({0.01 * i, Vec3(0.6 * size.x(), y, -0.2 * size.z()),
+                    Vec3(0.6 * size.x(), y, 1.2 * size.z())});
+  }
+  return path;
+}
+
+}  // namespace
+
+int main() {
+  std::printf("Seed Table 1 setting: straight full cuts, 6 tets per cell\n");
+  std::printf("%-10s %10s %12s %14s %10s %8s %10s %10s\n", "cells", "tets in", "tets out",
+              "seed (1:17)", "cut cm^2", "tets/cm", "cd ms/fr", "gc ms/fr");
+  const std::array<std::array<int, 3>, 3> grids = {{{2, 2, 2}, {2, 4, 3}, {4, 6, 4}}};
+  const int seed_counts[3] = {354, 960, 2446};
+  for (int g = 0; g < 3; ++g) {
+    BoxGridOptions options;
+    options.cells = grids[g];
+    options.size = Vec3(0.01 * grids[g][0], 0.01 * grids[g][1], 0.01 * grids[g][2]);  // 1 cm cells
+    TetMesh mesh = make_box_grid(options);
+    const std::size_t before = mesh.tet_count();
+    SubdivisionCutter cutter(mesh);
+    const auto path = straight_cut(options.size, 24);
+    cutter.cut_along(path);
+    const CutStats& stats = cutter.stats();
+    const double length_cm = 100.0 * options.size.y();
+    std::printf("%-10s %10zu %12zu %14d %10.2f %8.1f %10.3f %10.3f  valid=%d watertight=%d\n",
+                (std::to_string(grids[g][0]) + "x" + std::to_string(grids[g][1]) + "x" +
+                 std::to_string(grids[g][2]))
+                    .c_str(),
+                before, mesh.tet_count(), seed_counts[g], 1e4 * stats.cut_area,
+                static_cast<double>(mesh.tet_count() - before) / length_cm,
+                1e3 * stats.total_cd_seconds / 24, 1e3 * stats.total_gc_seconds / 24,
+                validate(mesh).ok() ? 1 : 0, check_boundary(mesh).watertight() ? 1 : 0);
+  }
+
+  std::printf(
+      "\nLocality: a 2 cm incision (2 cm deep) with 1 mm steps into a 10 cm cube of n^3 cells\n");
+  std::printf("%-6s %10s %12s %14s %14s %16s\n", "n", "tets", "cut tets/fr", "cd ms/frame",
+              "gc ms/frame", "(cd+gc) us/tet");
+  for (int n : {10, 20, 30, 46, 64}) {
+    BoxGridOptions options;
+    options.cells = {n, n, n};
+    options.size = Vec3(0.1, 0.1, 0.1);
+    const auto setup_start = std::chrono::steady_clock::now();
+    TetMesh mesh = make_box_grid(options);
+    SubdivisionCutter cutter(mesh);
+    const double setup =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
+    std::vector<BladePose> path;
+    for (int i = 0; i <= 20; ++i) {
+      const double y = 0.04 + 0.001 * i;
+      path.push_back({0.01 * i, Vec3(0.0537, y, 0.08), Vec3(0.0537, y, 0.12)});
+    }
+    const std::size_t before = mesh.tet_count();
+    cutter.cut_along(path);
+    const CutStats& stats = cutter.stats();
+    const double frames = 20.0;
+    const double cut_tets = static_cast<double>(mesh.tet_count() - before) / frames;
+    std::printf(
+        "%-6d %10zu %12.1f %14.3f %14.3f %16.2f   (setup %.0f ms)\n", n, before, cut_tets,
+        1e3 * stats.total_cd_seconds / frames, 1e3 * stats.total_gc_seconds / frames,
+        1e6 * (stats.total_cd_seconds + stats.total_gc_seconds) / frames / std::max(1.0, cut_tets),
+        1e3 * setup);
+  }
+  return 0;
+}
