@@ -47,7 +47,8 @@ bool have_data() {
 }
 
 TEST(Cli, HelpOnEveryCommand) {
-  for (const char* command : {"", "info", "convert", "generate", "generate box", "mesh", "run"}) {
+  for (const char* command :
+       {"", "info", "convert", "generate", "generate box", "mesh", "run", "cut"}) {
     const CommandResult run = incise(std::string(command) + " --help");
     EXPECT_EQ(run.code, 0) << command;
     EXPECT_NE(run.out.find("Usage"), std::string::npos) << command << ": " << run.out;
@@ -227,6 +228,39 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
   EXPECT_EQ(json["per_frame_ms"].size(), 40u);
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default.pvd"));
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000040.vtu"));
+}
+
+TEST(Cli, CutReportsWhatTheIssueAsks) {
+  const auto dir = test::scratch_dir("cli-cut");
+  const std::string mesh = (dir / "block.msh").string();
+  ASSERT_EQ(incise("generate box --cells 4 6 4 --size 0.04 0.06 0.04 -o " + mesh).code, 0);
+  std::ofstream path(dir / "blade.csv");
+  path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n";
+  for (int i = 0; i <= 10; ++i) {
+    const double y = -0.01 + 0.08 * i / 10.0;
+    path << 0.1 * i << ",0.0237," << y << ",-0.01,0.0237," << y << ",0.05\n";
+  }
+  path.close();
+  const std::string report = (dir / "cut.json").string();
+  const CommandResult run = incise("cut " + mesh + " --blade " + (dir / "blade.csv").string() +
+                                   " -o " + (dir / "cut.vtu").string() + " --report " + report);
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto json = nlohmann::json::parse(slurp(report));
+  for (const char* key :
+       {"tets_in", "tets_out", "vertices_in", "vertices_out", "volume_in", "volume_out",
+        "components", "watertight", "inverted_tets", "min_volume_ratio", "cut_area", "cd", "gc"}) {
+    EXPECT_TRUE(json.contains(key)) << key;
+  }
+  EXPECT_EQ(json["tets_in"], 576);
+  EXPECT_EQ(json["components"], 2);
+  EXPECT_EQ(json["watertight"], true);
+  EXPECT_EQ(json["inverted_tets"], 0);
+  EXPECT_NEAR(json["cut_area"].template get<double>(), 0.06 * 0.04, 1e-12);
+  EXPECT_NEAR(json["volume_out"].template get<double>(), json["volume_in"].template get<double>(),
+              1e-15);
+  const auto info = nlohmann::json::parse(incise("info --json " + (dir / "cut.vtu").string()).out);
+  EXPECT_EQ(info["components"], 2);
+  EXPECT_EQ(info["valid"], true);
 }
 
 TEST(Cli, RunReportsDivergenceWithExitCodeThree) {
