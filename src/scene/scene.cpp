@@ -448,14 +448,18 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   if (top.has("tool")) {
     const ObjectReader tool(context, top.at("tool"), "tool", {"blade_path", "poses"});
     if (tool.has("blade_path") == tool.has("poses")) {
-      context.fail("tool", "give exactly one of \"blade_path\": CSV and \"poses\": [[t, tip_x, tip_y, tip_z, base_x, base_y, base_z], ...]");
+      context.fail("tool",
+                   "give exactly one of \"blade_path\": CSV and \"poses\": [[t, tip_x, tip_y, "
+                   "tip_z, base_x, base_y, base_z], ...]");
     }
     if (tool.has("blade_path")) {
       scene.tool.poses = read_blade_path(resolve(context, tool.string("blade_path", "")));
     } else {
       const Json& poses = tool.at("poses");
       if (!poses.is_array() || poses.empty()) {
-        context.fail("tool.poses", "must be a non-empty list of [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+        context.fail(
+            "tool.poses",
+            "must be a non-empty list of [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
       }
       for (std::size_t i = 0; i < poses.size(); ++i) {
         const Json& row = poses[i];
@@ -464,8 +468,10 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
             !std::all_of(row.begin(), row.end(), [](const Json& v) { return v.is_number(); })) {
           context.fail(where, "must be 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
         }
-        const BladePose pose{row[0].get<double>(), Vec3(row[1].get<double>(), row[2].get<double>(), row[3].get<double>()),
-                             Vec3(row[4].get<double>(), row[5].get<double>(), row[6].get<double>())};
+        const BladePose pose{
+            row[0].get<double>(),
+            Vec3(row[1].get<double>(), row[2].get<double>(), row[3].get<double>()),
+            Vec3(row[4].get<double>(), row[5].get<double>(), row[6].get<double>())};
         if (!scene.tool.poses.empty() && pose.time < scene.tool.poses.back().time) {
           context.fail(where, "time goes backwards");
         }
@@ -481,7 +487,8 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     const ObjectReader cutter(context, top.at("cutter"), "cutter", {"type", "snap_fraction"});
     scene.tool.cutter = cutter.string("type", "subdivision");
     if (scene.tool.cutter != "subdivision" && scene.tool.cutter != "none") {
-      context.fail("cutter.type", "unknown cutter '" + scene.tool.cutter + "' (known: subdivision, none)");
+      context.fail("cutter.type",
+                   "unknown cutter '" + scene.tool.cutter + "' (known: subdivision, none)");
     }
     scene.tool.snap_fraction = cutter.positive("snap_fraction", 0.1);
     if (scene.tool.snap_fraction >= 0.5) {
@@ -510,7 +517,8 @@ BladePose pose_at(const std::vector<BladePose>& poses, double t) {
     if (t <= poses[i].time) {
       const double span = poses[i].time - poses[i - 1].time;
       const double w = span > 0.0 ? (t - poses[i - 1].time) / span : 1.0;
-      return {t, (1.0 - w) * poses[i - 1].tip + w * poses[i].tip, (1.0 - w) * poses[i - 1].base + w * poses[i].base};
+      return {t, (1.0 - w) * poses[i - 1].tip + w * poses[i].tip,
+              (1.0 - w) * poses[i - 1].base + w * poses[i].base};
     }
   }
   return {t, poses.back().tip, poses.back().base};

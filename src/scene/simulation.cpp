@@ -261,7 +261,8 @@ RunResult Simulation::run(int frames, const std::filesystem::path& output_dir,
         if (holder != kInvalidId) {
           VertexId nearest = p.mesh.tet(holder)[0];
           for (VertexId v : p.mesh.tet(holder)) {
-            if ((p.mesh.rest_position(v) - pose.tip).norm() < (p.mesh.rest_position(nearest) - pose.tip).norm()) {
+            if ((p.mesh.rest_position(v) - pose.tip).norm() <
+                (p.mesh.rest_position(nearest) - pose.tip).norm()) {
               nearest = v;
             }
           }
