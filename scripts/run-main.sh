@@ -12,7 +12,7 @@ mkdir -p "$out"
 incise="$root/build/release/apps/incise"
 data="$root/../shared/data"
 
-echo "== incise run: the default scene (the seed's 576-tet block, pressed, hierarchical RK4)"
+echo "== incise run: the default scene (the seed's Fig. 10: a scalpel cuts the 576-tet block, the wound opens)"
 "$incise" run --out "$out/default" --report "$out/default-report.json"
 echo "== incise generate box (the seed's 4 x 6 x 4-cell block, 576 tetrahedra)"
 "$incise" generate box --cells 4 6 4 --size 0.04 0.06 0.04 --tets-per-cell 6 -o "$out/block.vtu"

@@ -31,15 +31,7 @@ Runner add_info_command(CLI::App& app) {
     const auto faces = boundary_faces(mesh);
     int components = 0;
     (void)tet_components(mesh, &components);
-    Vec3 low = Vec3::Zero();
-    Vec3 high = Vec3::Zero();
-    if (mesh.vertex_count() > 0) {
-      low = high = mesh.rest_position(0);
-      for (const Vec3& p : mesh.rest_positions()) {
-        low = low.cwiseMin(p);
-        high = high.cwiseMax(p);
-      }
-    }
+    const auto [low, high] = bounding_box(mesh);
     double smallest = 0.0;
     double largest = 0.0;
     for (std::size_t t = 0; t < mesh.tet_count(); ++t) {

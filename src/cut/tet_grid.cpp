@@ -8,15 +8,7 @@
 namespace incise {
 
 TetGrid::TetGrid(TetMesh& mesh, double cell_size) : mesh_(&mesh) {
-  Vec3 low = Vec3::Zero();
-  Vec3 high = Vec3::Zero();
-  if (mesh.vertex_count() > 0) {
-    low = high = mesh.rest_position(0);
-    for (const Vec3& p : mesh.rest_positions()) {
-      low = low.cwiseMin(p);
-      high = high.cwiseMax(p);
-    }
-  }
+  const auto [low, high] = bounding_box(mesh);
   if (cell_size <= 0.0) {
     double sum = 0.0;
     for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
@@ -72,7 +64,8 @@ void TetGrid::bounds(const Tet& tet, Vec3& low, Vec3& high) const {
   }
 }
 
-void TetGrid::insert(TetId tet, const Tet& vertices) {
+template <typename Visit>
+void TetGrid::for_each_cell(const Tet& vertices, Visit visit) {
   Vec3 low;
   Vec3 high;
   bounds(vertices, low, high);
@@ -82,47 +75,29 @@ void TetGrid::insert(TetId tet, const Tet& vertices) {
   for (long k = first[2]; k <= last[2]; ++k) {
     for (long j = first[1]; j <= last[1]; ++j) {
       for (long i = first[0]; i <= last[0]; ++i) {
-        cells_[cell_index(i, j, k)].push_back(tet);
+        visit(cells_[cell_index(i, j, k)]);
       }
     }
   }
+}
+
+void TetGrid::insert(TetId tet, const Tet& vertices) {
+  for_each_cell(vertices, [tet](std::vector<TetId>& cell) { cell.push_back(tet); });
 }
 
 void TetGrid::erase(TetId tet, const Tet& vertices) {
-  Vec3 low;
-  Vec3 high;
-  bounds(vertices, low, high);
-  std::array<long, 3> first;
-  std::array<long, 3> last;
-  cell_range(low, high, first, last);
-  for (long k = first[2]; k <= last[2]; ++k) {
-    for (long j = first[1]; j <= last[1]; ++j) {
-      for (long i = first[0]; i <= last[0]; ++i) {
-        auto& cell = cells_[cell_index(i, j, k)];
-        const auto it = std::find(cell.begin(), cell.end(), tet);
-        INCISE_ASSERT(it != cell.end(), "tet grid misses an entry");
-        *it = cell.back();
-        cell.pop_back();
-      }
-    }
-  }
+  for_each_cell(vertices, [tet](std::vector<TetId>& cell) {
+    const auto it = std::find(cell.begin(), cell.end(), tet);
+    INCISE_ASSERT(it != cell.end(), "tet grid misses an entry");
+    *it = cell.back();
+    cell.pop_back();
+  });
 }
 
 void TetGrid::rename(TetId from, TetId to, const Tet& vertices) {
-  Vec3 low;
-  Vec3 high;
-  bounds(vertices, low, high);
-  std::array<long, 3> first;
-  std::array<long, 3> last;
-  cell_range(low, high, first, last);
-  for (long k = first[2]; k <= last[2]; ++k) {
-    for (long j = first[1]; j <= last[1]; ++j) {
-      for (long i = first[0]; i <= last[0]; ++i) {
-        auto& cell = cells_[cell_index(i, j, k)];
-        std::replace(cell.begin(), cell.end(), from, to);
-      }
-    }
-  }
+  for_each_cell(vertices, [from, to](std::vector<TetId>& cell) {
+    std::replace(cell.begin(), cell.end(), from, to);
+  });
 }
 
 void TetGrid::on_tet_added(const TetMesh& mesh, TetId tet) {

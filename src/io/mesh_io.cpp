@@ -507,15 +507,7 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
   check_finite_positions(path, mesh.rest_positions());
   const std::size_t n = mesh.vertex_count();
   const std::size_t m = mesh.tet_count();
-  Vec3 low = Vec3::Zero();
-  Vec3 high = Vec3::Zero();
-  if (n > 0) {
-    low = high = mesh.rest_position(0);
-    for (const Vec3& p : mesh.rest_positions()) {
-      low = low.cwiseMin(p);
-      high = high.cwiseMax(p);
-    }
-  }
+  const auto [low, high] = bounding_box(mesh);
   std::string out = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 1\n";
   out += fmt::format("1 {} {} {} {} {} {} 0 0\n$EndEntities\n", low.x(), low.y(), low.z(), high.x(),
                      high.y(), high.z());

@@ -714,3 +714,20 @@ double total_volume(const TetMesh& mesh) {
 }
 
 }  // namespace incise
+
+namespace incise {
+
+std::pair<Vec3, Vec3> bounding_box(const TetMesh& mesh) {
+  if (mesh.vertex_count() == 0) {
+    return {Vec3::Zero(), Vec3::Zero()};
+  }
+  Vec3 low = mesh.rest_position(0);
+  Vec3 high = low;
+  for (const Vec3& p : mesh.rest_positions()) {
+    low = low.cwiseMin(p);
+    high = high.cwiseMax(p);
+  }
+  return {low, high};
+}
+
+}  // namespace incise

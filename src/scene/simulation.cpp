@@ -185,12 +185,7 @@ RunResult Simulation::run(int frames, const std::filesystem::path& output_dir,
   PvdSeries series(result.pvd);
   const double dt = p.description.integrator.dt;
   const int steps = static_cast<int>(std::lround(p.description.frame_dt / dt));
-  Vec3 low = p.mesh.rest_position(0);
-  Vec3 high = low;
-  for (const Vec3& x : p.mesh.rest_positions()) {
-    low = low.cwiseMin(x);
-    high = high.cwiseMax(x);
-  }
+  const auto [low, high] = bounding_box(p.mesh);
   const double size = (high - low).norm();
 
   auto measure = [&](FrameRecord& record) {

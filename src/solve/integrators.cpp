@@ -44,40 +44,43 @@ double explicit_stability_limit(const DynamicSystem& system, const std::string& 
 
 // ---- Euler ----------------------------------------------------------------------------------
 
-void ExplicitEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
-                         double dt) {
+namespace {
+
+/// One first-order step: explicit Euler moves x with the old velocity, symplectic Euler with
+/// the new one; everything else is the same.
+void euler_step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t, double dt,
+                bool symplectic, std::vector<Vec3>& force, IntegratorStats& stats) {
   check_step(dt);
   system.refresh();
-  force_.assign(x.size(), Vec3::Zero());
-  system.forces(t, x, v, force_);
-  divide_by_mass(system, force_, force_);
+  force.assign(x.size(), Vec3::Zero());
+  system.forces(t, x, v, force);
+  divide_by_mass(system, force, force);
   for (std::size_t i = 0; i < x.size(); ++i) {
-    x[i] += dt * v[i];
-    v[i] += dt * force_[i];
+    if (symplectic) {
+      v[i] += dt * force[i];
+      x[i] += dt * v[i];
+    } else {
+      x[i] += dt * v[i];
+      v[i] += dt * force[i];
+    }
   }
   constrain(system, t + dt, x, v);
   system.end_step(dt, v);
-  ++stats_.force_evaluations;
-  stats_.vertex_updates += x.size();
-  stats_.touched_last_step = x.size();
+  ++stats.force_evaluations;
+  stats.vertex_updates += x.size();
+  stats.touched_last_step = x.size();
+}
+
+}  // namespace
+
+void ExplicitEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+                         double dt) {
+  euler_step(system, x, v, t, dt, false, force_, stats_);
 }
 
 void SymplecticEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
                            double dt) {
-  check_step(dt);
-  system.refresh();
-  force_.assign(x.size(), Vec3::Zero());
-  system.forces(t, x, v, force_);
-  divide_by_mass(system, force_, force_);
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    v[i] += dt * force_[i];
-    x[i] += dt * v[i];
-  }
-  constrain(system, t + dt, x, v);
-  system.end_step(dt, v);
-  ++stats_.force_evaluations;
-  stats_.vertex_updates += x.size();
-  stats_.touched_last_step = x.size();
+  euler_step(system, x, v, t, dt, true, force_, stats_);
 }
 
 // ---- RK4 ------------------------------------------------------------------------------------

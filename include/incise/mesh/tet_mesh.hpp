@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <span>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "incise/core/types.hpp"
@@ -210,5 +211,8 @@ class TetMesh {
 [[nodiscard]] double signed_volume(const TetMesh& mesh, TetId tet);
 /// Sum of signed tetrahedron volumes (m^3).
 [[nodiscard]] double total_volume(const TetMesh& mesh);
+
+/// Axis-aligned bounds of the rest positions, {low, high} (m); both zero for an empty mesh.
+[[nodiscard]] std::pair<Vec3, Vec3> bounding_box(const TetMesh& mesh);
 
 }  // namespace incise
