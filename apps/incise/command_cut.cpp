@@ -101,6 +101,12 @@ Runner add_cut_command(CLI::App& app) {
       json["cut_faces"] = stats.cut_faces;
       json["cd"] = 1e3 * stats.total_cd_seconds;
       json["gc"] = 1e3 * stats.total_gc_seconds;
+      nlohmann::ordered_json cases;
+      for (CutCase kind :
+           {CutCase::kA, CutCase::kB, CutCase::kC, CutCase::kD, CutCase::kE, CutCase::kInvalid}) {
+        cases[cut_case_name(kind)] = stats.case_counts[static_cast<std::size_t>(kind)];
+      }
+      json["cut_cases"] = cases;
       json["point_tet_hits"] = {{"same", stats.point_same},
                                 {"neighbor", stats.point_neighbor},
                                 {"global", stats.point_global},

@@ -342,6 +342,33 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
       break;
     }
   }
+  // The seed's cut-edge code of every tetrahedron this move crossed, and its case.
+  {
+    std::vector<std::pair<VertexId, VertexId>> crossed;
+    for (const Crossing& crossing : crossings) {
+      crossed.emplace_back(std::min(crossing.a, crossing.b), std::max(crossing.a, crossing.b));
+    }
+    std::sort(crossed.begin(), crossed.end());
+    for (TetId t : touched) {
+      const Tet& v = mesh_.tet(t);
+      std::uint8_t code = 0;
+      for (int k = 0; k < 6; ++k) {
+        const auto& e = tet_local::kEdges[k];
+        if (std::binary_search(crossed.begin(), crossed.end(),
+                               std::pair{std::min(v[e[0]], v[e[1]]), std::max(v[e[0]], v[e[1]])})) {
+          code = static_cast<std::uint8_t>(code | 1U << k);
+        }
+      }
+      if (code == 0) {
+        continue;
+      }
+      const bool partial = segment_intersects_tet(
+          pose.tip, pose.base, mesh_.rest_position(v[0]), mesh_.rest_position(v[1]),
+          mesh_.rest_position(v[2]), mesh_.rest_position(v[3]));
+      ++stats_.case_counts[static_cast<std::size_t>(
+          cut_case_table()[cut_state_key(code, partial)].kind)];
+    }
+  }
   stats_.cd_seconds = seconds_since(start);
 
   // ---- topology and geometry changes ---------------------------------------------------------

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "incise/cut/blade.hpp"
+#include "incise/cut/cut_cases.hpp"
 #include "incise/cut/tet_grid.hpp"
 #include "incise/mesh/attributes.hpp"
 
@@ -46,6 +47,9 @@ struct CutStats {
   std::size_t point_outside = 0;   ///< tip outside the mesh
   double total_cd_seconds = 0.0;
   double total_gc_seconds = 0.0;
+  /// Tetrahedra cut per move, by the seed's case (index: CutCase): the cut-edge code of the
+  /// edges the move crossed, partial while the blade is still inside the tetrahedron.
+  std::array<std::size_t, 7> case_counts{};
 };
 
 class SubdivisionCutter {
