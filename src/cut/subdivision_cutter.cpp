@@ -115,13 +115,53 @@ bool SubdivisionCutter::is_cut_face(VertexId a, VertexId b, VertexId c) const {
   // between them belongs to the cut when its centroid does too.
   const double tolerance = options_.snap_fraction * size * 1.01;
   const Vec3 centroid = (pa + pb + pc) / 3.0;
-  for (const auto& triangle : surface_) {
+  const double cell = grid_.cell_size();
+  const Eigen::Array<long, 3, 1> low = ((centroid.array() - tolerance) / cell).floor().cast<long>();
+  const Eigen::Array<long, 3, 1> high =
+      ((centroid.array() + tolerance) / cell).floor().cast<long>();
+  nearby_.clear();
+  for (long k = low[2]; k <= high[2]; ++k) {
+    for (long j = low[1]; j <= high[1]; ++j) {
+      for (long i = low[0]; i <= high[0]; ++i) {
+        const auto it = surface_cells_.find(cell_key(i, j, k));
+        if (it != surface_cells_.end()) {
+          nearby_.insert(nearby_.end(), it->second.begin(), it->second.end());
+        }
+      }
+    }
+  }
+  for (std::uint32_t index : nearby_) {
+    const auto& triangle = surface_[index];
     if (squared_distance_to_triangle(centroid, triangle[0], triangle[1], triangle[2]) <=
         tolerance * tolerance) {
       return true;
     }
   }
   return false;
+}
+
+std::uint64_t SubdivisionCutter::cell_key(long i, long j, long k) const {
+  // 21 bits per axis, offset so negative cells hash too.
+  const auto part = [](long value) {
+    return static_cast<std::uint64_t>(value + (1L << 20)) & 0x1fffffU;
+  };
+  return part(i) << 42U | part(j) << 21U | part(k);
+}
+
+void SubdivisionCutter::index_triangle(std::size_t triangle) {
+  const auto& t = surface_[triangle];
+  const double cell = grid_.cell_size();
+  const Eigen::Array<long, 3, 1> low =
+      (t[0].cwiseMin(t[1]).cwiseMin(t[2]).array() / cell).floor().cast<long>();
+  const Eigen::Array<long, 3, 1> high =
+      (t[0].cwiseMax(t[1]).cwiseMax(t[2]).array() / cell).floor().cast<long>();
+  for (long k = low[2]; k <= high[2]; ++k) {
+    for (long j = low[1]; j <= high[1]; ++j) {
+      for (long i = low[0]; i <= high[0]; ++i) {
+        surface_cells_[cell_key(i, j, k)].push_back(static_cast<std::uint32_t>(triangle));
+      }
+    }
+  }
 }
 
 std::size_t SubdivisionCutter::separate(VertexId vertex) {
@@ -391,7 +431,10 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     ++stats_.edges_split;
     stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
   }
-  surface_.insert(surface_.end(), triangles.begin(), triangles.end());
+  for (const auto& triangle : triangles) {
+    surface_.push_back(triangle);
+    index_triangle(surface_.size() - 1);
+  }
 
   // Open the cut: vertices on it near this move's surface, separated where cut faces part
   // their tetrahedra. Faces counted once, before separation.

@@ -10,6 +10,7 @@
 //
 // The cutter only edits the mesh: physics attached through attribute containers follows.
 
+#include <unordered_map>
 #include <vector>
 
 #include "incise/cut/blade.hpp"
@@ -86,9 +87,16 @@ class SubdivisionCutter {
   std::size_t separate(VertexId vertex);
   void resolve_pinched_edges(std::vector<VertexId> vertices);
 
+  /// Indices of swept triangles by spatial-hash cell of their bounding boxes, so the cut-face
+  /// test looks only at nearby ones however long the path gets.
+  void index_triangle(std::size_t triangle);
+  [[nodiscard]] std::uint64_t cell_key(long i, long j, long k) const;
+
   TetMesh& mesh_;
   CutterOptions options_;
   TetGrid grid_;
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> surface_cells_;
+  mutable std::vector<std::uint32_t> nearby_;
   VertexData<char> on_cut_;
   std::vector<std::array<Vec3, 3>> surface_;
   BladePose pose_;
