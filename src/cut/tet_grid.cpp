@@ -65,20 +65,25 @@ void TetGrid::bounds(const Tet& tet, Vec3& low, Vec3& high) const {
 }
 
 template <typename Visit>
-void TetGrid::for_each_cell(const Tet& vertices, Visit visit) {
-  Vec3 low;
-  Vec3 high;
-  bounds(vertices, low, high);
+void TetGrid::for_each_cell_in_box(const Vec3& low, const Vec3& high, Visit visit) const {
   std::array<long, 3> first;
   std::array<long, 3> last;
   cell_range(low, high, first, last);
   for (long k = first[2]; k <= last[2]; ++k) {
     for (long j = first[1]; j <= last[1]; ++j) {
       for (long i = first[0]; i <= last[0]; ++i) {
-        visit(cells_[cell_index(i, j, k)]);
+        visit(cell_index(i, j, k));
       }
     }
   }
+}
+
+template <typename Visit>
+void TetGrid::for_each_cell(const Tet& vertices, Visit visit) {
+  Vec3 low;
+  Vec3 high;
+  bounds(vertices, low, high);
+  for_each_cell_in_box(low, high, [&](std::size_t cell) { visit(cells_[cell]); });
 }
 
 void TetGrid::insert(TetId tet, const Tet& vertices) {
@@ -129,21 +134,14 @@ void TetGrid::query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) 
     std::fill(seen_.begin(), seen_.end(), 0);
     stamp_ = 1;
   }
-  std::array<long, 3> first;
-  std::array<long, 3> last;
-  cell_range(low, high, first, last);
-  for (long k = first[2]; k <= last[2]; ++k) {
-    for (long j = first[1]; j <= last[1]; ++j) {
-      for (long i = first[0]; i <= last[0]; ++i) {
-        for (TetId t : cells_[cell_index(i, j, k)]) {
-          if (seen_[static_cast<std::size_t>(t)] != stamp_) {
-            seen_[static_cast<std::size_t>(t)] = stamp_;
-            out.push_back(t);
-          }
-        }
+  for_each_cell_in_box(low, high, [&](std::size_t cell) {
+    for (TetId t : cells_[cell]) {
+      if (seen_[static_cast<std::size_t>(t)] != stamp_) {
+        seen_[static_cast<std::size_t>(t)] = stamp_;
+        out.push_back(t);
       }
     }
-  }
+  });
 }
 
 }  // namespace incise

@@ -80,7 +80,6 @@ struct Simulation::Parts {
   SimulationState state;
   std::unique_ptr<Integrator> integrator;
   std::unique_ptr<SubdivisionCutter> cutter;
-  std::vector<Vec3> rest;  // rest positions at the start, for displacements
   std::vector<std::string> warnings;
   double limit = 0.0;
 };
@@ -144,7 +143,6 @@ Simulation::Simulation(const SceneDescription& scene) : parts_(std::make_unique<
   if (p.conditions.constrained_count() == 0 && scene.gravity.norm() > 0.0) {
     p.warnings.push_back("nothing is fixed: the body falls freely under gravity");
   }
-  p.rest.assign(p.mesh.rest_positions().begin(), p.mesh.rest_positions().end());
   if (scene.tool.cutter == "subdivision") {
     p.cutter = std::make_unique<SubdivisionCutter>(p.mesh, CutterOptions{scene.tool.snap_fraction});
   }

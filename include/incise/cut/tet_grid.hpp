@@ -31,6 +31,9 @@ class TetGrid final : public MeshObserver {
   void cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>& first,
                   std::array<long, 3>& last) const;
   void bounds(const Tet& tet, Vec3& low, Vec3& high) const;
+  /// Calls visit(cell index) for every cell overlapping [low, high].
+  template <typename Visit>
+  void for_each_cell_in_box(const Vec3& low, const Vec3& high, Visit visit) const;
   /// Calls visit(cell) for every cell the tetrahedron's bounding box overlaps.
   template <typename Visit>
   void for_each_cell(const Tet& vertices, Visit visit);
