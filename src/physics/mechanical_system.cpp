@@ -81,6 +81,28 @@ void MechanicalSystem::add_linearized_diagonal(double a, double b, std::span<Mat
   }
 }
 
+bool MechanicalSystem::assemble_linearization(double a, double b, BlockSparseMatrix& matrix) const {
+  if (!model_.assemble_linearization(a, b, matrix)) {
+    return false;
+  }
+  if (damping_.viscous > 0.0 && b != 0.0) {
+    const auto masses = model_.masses();
+    auto values = matrix.values();
+    for (std::size_t i = 0; i < matrix.rows(); ++i) {
+      values[matrix.diagonal(static_cast<VertexId>(i))] +=
+          b * damping_.viscous * masses[i] * Mat3::Identity();
+    }
+  }
+  return true;
+}
+
+void MechanicalSystem::external_forces(double, std::span<Vec3> f) const {
+  const auto masses = model_.masses();
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    f[i] += masses[i] * conditions_.gravity() + conditions_.point_force(static_cast<VertexId>(i));
+  }
+}
+
 double MechanicalSystem::potential_energy(double, std::span<const Vec3> x) const {
   double energy = model_.elastic_energy(x);
   const auto masses = model_.masses();

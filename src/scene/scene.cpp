@@ -164,6 +164,16 @@ class ObjectReader {
     }
     return static_cast<int>(result);
   }
+  bool boolean(const std::string& key, bool fallback) const {
+    if (!has(key)) {
+      return fallback;
+    }
+    const Json& value = at(key);
+    if (!value.is_boolean()) {
+      context_.fail(child(key), "must be true or false, not " + type_name(value));
+    }
+    return value.get<bool>();
+  }
   std::string string(const std::string& key, const std::string& fallback) const {
     if (!has(key)) {
       return fallback;
@@ -346,18 +356,57 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   }
 
   // model
+  bool fem_tangent_given = false;
   if (top.has("model")) {
-    const ObjectReader model(context, top.at("model"), "model",
-                             {"type", "spring_damping_ratio", "prestrain"});
+    const ObjectReader model(
+        context, top.at("model"), "model",
+        {"type", "spring_damping_ratio", "prestrain", "rayleigh", "tangent", "assemble"});
     scene.model_type = model.string("type", "mass-spring");
-    if (scene.model_type != "mass-spring") {
-      context.fail("model.type", "unknown model '" + scene.model_type + "' (known: mass-spring)");
-    }
-    scene.mass_spring.spring_damping_ratio =
-        model.non_negative("spring_damping_ratio", scene.mass_spring.spring_damping_ratio);
-    scene.mass_spring.prestrain = model.non_negative("prestrain", scene.mass_spring.prestrain);
-    if (scene.mass_spring.prestrain >= 1.0) {
-      context.fail("model.prestrain", "must be below 1");
+    if (scene.model_type == "mass-spring") {
+      for (const char* key : {"rayleigh", "tangent", "assemble"}) {
+        if (model.has(key)) {
+          context.fail(std::string("model.") + key, "applies to corotational-fem only");
+        }
+      }
+      scene.mass_spring.spring_damping_ratio =
+          model.non_negative("spring_damping_ratio", scene.mass_spring.spring_damping_ratio);
+      scene.mass_spring.prestrain = model.non_negative("prestrain", scene.mass_spring.prestrain);
+      if (scene.mass_spring.prestrain >= 1.0) {
+        context.fail("model.prestrain", "must be below 1");
+      }
+    } else if (scene.model_type == "corotational-fem") {
+      for (const char* key : {"spring_damping_ratio", "prestrain"}) {
+        if (model.has(key)) {
+          context.fail(std::string("model.") + key, "applies to mass-spring only");
+        }
+      }
+      if (model.has("rayleigh")) {
+        const Json& rayleigh = model.at("rayleigh");
+        if (!rayleigh.is_array() || rayleigh.size() != 2 || !rayleigh[0].is_number() ||
+            !rayleigh[1].is_number() || !(rayleigh[0].get<double>() >= 0.0) ||
+            !(rayleigh[1].get<double>() >= 0.0)) {
+          context.fail("model.rayleigh",
+                       "expected [alpha, beta]: two non-negative numbers (1/s and s)");
+        }
+        scene.fem.rayleigh_mass = rayleigh[0].get<double>();
+        scene.fem.rayleigh_stiffness = rayleigh[1].get<double>();
+      }
+      if (model.has("tangent")) {
+        const std::string tangent = model.string("tangent", "warped");
+        if (tangent == "warped") {
+          scene.fem.tangent = TangentKind::kWarped;
+        } else if (tangent == "projected") {
+          scene.fem.tangent = TangentKind::kProjected;
+        } else {
+          context.fail("model.tangent",
+                       "unknown tangent '" + tangent + "' (known: warped, projected)");
+        }
+        fem_tangent_given = true;
+      }
+      scene.fem.assemble = model.boolean("assemble", scene.fem.assemble);
+    } else {
+      context.fail("model.type", "unknown model '" + scene.model_type +
+                                     "' (known: mass-spring, corotational-fem)");
     }
   }
 
@@ -370,18 +419,19 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
 
   // integrator
   if (top.has("integrator")) {
-    const ObjectReader integrator(
-        context, top.at("integrator"), "integrator",
-        {"type", "dt", "iterations", "max_depth", "focus", "newton_steps", "solver"});
+    const ObjectReader integrator(context, top.at("integrator"), "integrator",
+                                  {"type", "dt", "iterations", "max_depth", "focus", "newton_steps",
+                                   "solver", "max_iterations", "tolerance"});
     IntegratorSpec& spec = scene.integrator;
     spec.type = integrator.string("type", spec.type);
-    const std::vector<std::string> known{"explicit-euler", "symplectic-euler", "rk4",
-                                         "rk4-hierarchical", "backward-euler"};
+    const std::vector<std::string> known{"explicit-euler",   "symplectic-euler", "rk4",
+                                         "rk4-hierarchical", "backward-euler",   "static"};
     if (std::find(known.begin(), known.end(), spec.type) == known.end()) {
       context.fail(
           "integrator.type",
           "unknown integrator '" + spec.type +
-              "' (known: explicit-euler, symplectic-euler, rk4, rk4-hierarchical, backward-euler)");
+              "' (known: explicit-euler, symplectic-euler, rk4, rk4-hierarchical, backward-euler, "
+              "static)");
     }
     spec.dt = integrator.positive("dt", spec.dt);
     spec.hierarchical.iterations =
@@ -397,21 +447,37 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
       }
     }
     spec.backward_euler.newton_steps = integrator.integer("newton_steps", 1, 1, 100);
+    spec.static_solve.max_iterations =
+        integrator.integer("max_iterations", spec.static_solve.max_iterations, 1, 100000);
+    spec.static_solve.tolerance = integrator.positive("tolerance", spec.static_solve.tolerance);
     if (integrator.has("solver")) {
-      const ObjectReader solver(context, integrator.at("solver"), "integrator.solver",
-                                {"type", "preconditioner", "tolerance", "max_iterations"});
-      const std::string type = solver.string("type", "cg");
-      if (type != "cg") {
-        context.fail("integrator.solver.type", "unknown solver '" + type + "' (known: cg)");
+      const ObjectReader solver(
+          context, integrator.at("solver"), "integrator.solver",
+          {"type", "preconditioner", "tolerance", "max_iterations", "warm_start"});
+      LinearSolverOptions options;
+      try {
+        options.type = parse_linear_solver_type(solver.string("type", "cg"));
+      } catch (const InputError& error) {
+        context.fail("integrator.solver.type", error.what());
       }
-      const std::string preconditioner = solver.string("preconditioner", "block-jacobi");
-      if (preconditioner != "block-jacobi") {
-        context.fail("integrator.solver.preconditioner",
-                     "unknown preconditioner '" + preconditioner + "' (known: block-jacobi)");
+      try {
+        options.preconditioner =
+            parse_preconditioner(solver.string("preconditioner", "block-jacobi"));
+      } catch (const InputError& error) {
+        context.fail("integrator.solver.preconditioner", error.what());
       }
-      spec.backward_euler.solver.tolerance = solver.positive("tolerance", 1e-8);
-      spec.backward_euler.solver.max_iterations = solver.integer("max_iterations", 500, 1, 1000000);
+      options.tolerance = solver.positive("tolerance", options.tolerance);
+      options.max_iterations = solver.integer("max_iterations", options.max_iterations, 1, 1000000);
+      options.warm_start = solver.boolean("warm_start", options.warm_start);
+      spec.backward_euler.solver = options;
+      spec.static_solve.solver = options;
     }
+  }
+  // Newton's static solve converges quadratically with the projected tangent; dynamics use
+  // the cheaper warped one unless the scene says otherwise.
+  if (scene.model_type == "corotational-fem" && !fem_tangent_given &&
+      scene.integrator.type == "static") {
+    scene.fem.tangent = TangentKind::kProjected;
   }
 
   // boundary conditions

@@ -61,20 +61,27 @@ TetMesh build_mesh(const SceneDescription& scene) {
   return mesh;
 }
 
+std::unique_ptr<ForceModel> make_model(TetMesh& mesh, const SceneDescription& scene) {
+  if (scene.model_type == "corotational-fem") {
+    return std::make_unique<CorotationalFemModel>(mesh, scene.material, scene.fem);
+  }
+  return std::make_unique<MassSpringModel>(mesh, scene.material, scene.mass_spring);
+}
+
 }  // namespace
 
 struct Simulation::Parts {
   explicit Parts(const SceneDescription& scene)
       : description(scene),
         mesh(build_mesh(scene)),
-        model(mesh, scene.material, scene.mass_spring),
+        model(make_model(mesh, scene)),
         conditions(mesh),
-        system(mesh, model, conditions, scene.damping),
+        system(mesh, *model, conditions, scene.damping),
         state(mesh) {}
 
   SceneDescription description;
   TetMesh mesh;
-  MassSpringModel model;
+  std::unique_ptr<ForceModel> model;
   BoundaryConditions conditions;
   MechanicalSystem system;
   SimulationState state;
@@ -109,6 +116,8 @@ Simulation::Simulation(const SceneDescription& scene) : parts_(std::make_unique<
     p.integrator = std::make_unique<RungeKutta4>();
   } else if (spec.type == "backward-euler") {
     p.integrator = std::make_unique<BackwardEuler>(spec.backward_euler);
+  } else if (spec.type == "static") {
+    p.integrator = std::make_unique<StaticEquilibrium>(spec.static_solve);
   } else {
     auto hierarchical = std::make_unique<HierarchicalRungeKutta4>(spec.hierarchical);
     if (const auto* vertex = std::get_if<VertexId>(&spec.focus)) {
@@ -134,7 +143,8 @@ Simulation::Simulation(const SceneDescription& scene) : parts_(std::make_unique<
     p.integrator = std::move(hierarchical);
   }
   p.limit = explicit_stability_limit(p.system, spec.type);
-  if (spec.type != "backward-euler" && spec.type != "rk4-hierarchical" && spec.dt > p.limit) {
+  const bool implicit = spec.type == "backward-euler" || spec.type == "static";
+  if (!implicit && spec.type != "rk4-hierarchical" && spec.dt > p.limit) {
     p.warnings.push_back(fmt::format(
         "integrator.dt = {:.3g} s exceeds the estimated stability limit {:.3g} s of {}; expect "
         "divergence (use a smaller dt or backward-euler)",
@@ -160,7 +170,7 @@ const Integrator& Simulation::integrator() const {
   return *parts_->integrator;
 }
 double Simulation::total_mass() const {
-  return parts_->model.total_mass();
+  return parts_->model->total_mass();
 }
 double Simulation::stability_limit() const {
   return parts_->limit;

@@ -1,6 +1,7 @@
 #include "incise/solve/integrators.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include "incise/core/error.hpp"
@@ -275,18 +276,17 @@ void HierarchicalRungeKutta4::sweep(DynamicSystem& system, std::span<Vec3> x, st
 
 // ---- backward Euler -------------------------------------------------------------------------
 
-BackwardEuler::BackwardEuler(const BackwardEulerOptions& options) : options_(options) {
+BackwardEuler::BackwardEuler(const BackwardEulerOptions& options)
+    : options_(options), solver_(options.solver) {
   if (options_.newton_steps < 1) {
     throw InputError("backward Euler needs at least one Newton step");
-  }
-  if (!(options_.solver.tolerance > 0.0) || options_.solver.max_iterations < 1) {
-    throw InputError("linear solver tolerance must be positive and iterations at least 1");
   }
 }
 
 void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
                          double dt) {
   check_step(dt);
+  const auto step_start = std::chrono::steady_clock::now();
   system.refresh();
   const std::size_t n = x.size();
   const auto masses = system.masses();
@@ -308,35 +308,29 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   force_.resize(n);
   rhs_.resize(n);
   delta_.resize(n);
-  residual_.resize(n);
-  direction_.resize(n);
   product_.resize(n);
-  preconditioned_.resize(n);
-  diagonal_.resize(n);
+  if (last_delta_.size() != n) {
+    last_delta_.assign(n, Vec3::Zero());  // the mesh changed: no warm start
+  }
   stats_.solver_iterations_last_step = 0;
-
-  auto apply_jacobian = [&](std::span<const Vec3> p, std::span<Vec3> y) {
-    for (std::size_t i = 0; i < n; ++i) {
-      y[i] = masses[i] * p[i];
-    }
-    system.add_linearized_product(dt * dt, dt, p, y);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (constrained_[i] != 0) {
-        y[i].setZero();
-      }
-    }
-  };
+  stats_.seconds_linearization = 0.0;
+  stats_.seconds_preconditioner = 0.0;
+  stats_.seconds_products = 0.0;
 
   for (int newton = 0; newton < options_.newton_steps; ++newton) {
     for (std::size_t i = 0; i < n; ++i) {
       x_trial_[i] = x[i] + dt * v_trial_[i];
     }
+    const auto linearization_start = std::chrono::steady_clock::now();
     if (newton == 0) {
       // Linearise at the start state, as Baraff and Witkin do.
       system.prepare_linearization(t, x, v);
     } else {
       system.prepare_linearization(end, x_trial_, v_trial_);
     }
+    stats_.seconds_linearization +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - linearization_start)
+            .count();
     std::fill(force_.begin(), force_.end(), Vec3::Zero());
     if (newton == 0) {
       // f(x0 + dt v1, v1) ~ f0 - K dt v1 - D (v1 - v0): right-hand side for Delta v = v1 - v0
@@ -358,79 +352,29 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
       for (std::size_t i = 0; i < n; ++i) {
         rhs_[i] -= product_[i];
       }
+      // Warm start: the last step's velocity change.
+      std::copy(last_delta_.begin(), last_delta_.end(), delta_.begin());
     } else {
       system.forces(end, x_trial_, v_trial_, force_);
       for (std::size_t i = 0; i < n; ++i) {
         rhs_[i] = dt * force_[i] - masses[i] * (v_trial_[i] - v[i]);
       }
+      std::fill(delta_.begin(), delta_.end(), Vec3::Zero());
     }
     ++stats_.force_evaluations;
-    // Block-Jacobi preconditioned conjugate gradients on the free vertices.
-    for (std::size_t i = 0; i < n; ++i) {
-      diagonal_[i] = masses[i] * Mat3::Identity();
-    }
-    system.add_linearized_diagonal(dt * dt, dt, diagonal_);
-    for (std::size_t i = 0; i < n; ++i) {
-      diagonal_[i] = constrained_[i] != 0 ? Mat3::Identity() : Mat3(diagonal_[i].inverse());
-    }
-    double rhs_norm = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (constrained_[i] != 0) {
-        rhs_[i].setZero();
-      }
-      residual_[i] = rhs_[i];
-      delta_[i].setZero();
-      rhs_norm += rhs_[i].squaredNorm();
-    }
-    rhs_norm = std::sqrt(rhs_norm);
-    int iteration = 0;
-    double relative = 0.0;
-    if (rhs_norm > 0.0) {
-      double rz = 0.0;
-      for (std::size_t i = 0; i < n; ++i) {
-        preconditioned_[i] = diagonal_[i] * residual_[i];
-        direction_[i] = preconditioned_[i];
-        rz += residual_[i].dot(preconditioned_[i]);
-      }
-      for (; iteration < options_.solver.max_iterations; ++iteration) {
-        apply_jacobian(direction_, product_);
-        double curvature = 0.0;
-        for (std::size_t i = 0; i < n; ++i) {
-          curvature += direction_[i].dot(product_[i]);
-        }
-        if (!(curvature > 0.0)) {
-          break;  // numerically converged or not positive definite: keep the iterate
-        }
-        const double alpha = rz / curvature;
-        double residual_norm = 0.0;
-        for (std::size_t i = 0; i < n; ++i) {
-          delta_[i] += alpha * direction_[i];
-          residual_[i] -= alpha * product_[i];
-          residual_norm += residual_[i].squaredNorm();
-        }
-        relative = std::sqrt(residual_norm) / rhs_norm;
-        if (relative <= options_.solver.tolerance) {
-          ++iteration;
-          break;
-        }
-        double rz_next = 0.0;
-        for (std::size_t i = 0; i < n; ++i) {
-          preconditioned_[i] = diagonal_[i] * residual_[i];
-          rz_next += residual_[i].dot(preconditioned_[i]);
-        }
-        const double beta = rz_next / rz;
-        rz = rz_next;
-        for (std::size_t i = 0; i < n; ++i) {
-          direction_[i] = preconditioned_[i] + beta * direction_[i];
-        }
-      }
-    }
-    stats_.solver_iterations_last_step += static_cast<std::size_t>(iteration);
-    stats_.solver_residual_last_step = relative;
+    const LinearSolveStats solve =
+        solver_.solve(system, 1.0, dt * dt, dt, constrained_, rhs_, delta_);
+    stats_.solver_iterations_last_step += static_cast<std::size_t>(solve.iterations);
+    stats_.solver_residual_last_step = solve.relative_residual;
+    stats_.seconds_preconditioner += solve.seconds_preconditioner;
+    stats_.seconds_products += solve.seconds_products;
     for (std::size_t i = 0; i < n; ++i) {
       if (constrained_[i] == 0) {
         v_trial_[i] += delta_[i];
       }
+    }
+    if (newton == 0) {
+      std::copy(delta_.begin(), delta_.end(), last_delta_.begin());
     }
   }
   for (std::size_t i = 0; i < n; ++i) {
@@ -444,6 +388,8 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   system.end_step(dt, v);
   stats_.vertex_updates += n;
   stats_.touched_last_step = n;
+  stats_.seconds_step =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start).count();
 }
 
 }  // namespace incise

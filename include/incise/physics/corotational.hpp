@@ -44,7 +44,7 @@ struct LameParameters {
 /// Rest data of one linear tetrahedron.
 struct TetRestShape {
   /// Gradients of the four shape functions in the rest configuration (1/m); they sum to 0.
-  std::array<Vec3, 4> gradients{};
+  std::array<Vec3, 4> gradients{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
   double volume = 0.0;  ///< m^3
 };
 
@@ -84,7 +84,7 @@ enum class TangentKind { kExact, kProjected, kWarped };
 /// (r = vec R, t_k = vec twist_modes[k], unit Frobenius norm, c_k = twist eigenvalue - 2 mu).
 struct CorotatedLinearization {
   Mat3 rotation = Mat3::Identity();
-  std::array<Mat3, 3> twist_modes{};
+  std::array<Mat3, 3> twist_modes{Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
   std::array<double, 3> twist_weights{};
 };
 

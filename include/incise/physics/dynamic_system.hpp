@@ -6,6 +6,7 @@
 #include <span>
 
 #include "incise/core/types.hpp"
+#include "incise/physics/block_sparse.hpp"
 
 namespace incise {
 
@@ -46,7 +47,15 @@ class DynamicSystem {
                                       std::span<Vec3> y) const = 0;
   /// Adds the diagonal 3x3 blocks of a K + b D (for preconditioning).
   virtual void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const = 0;
+  /// Writes a K + b D into `matrix` (pattern over the mesh's edges); false when the system
+  /// offers products only (then direct solvers and incomplete factorisations are unavailable).
+  virtual bool assemble_linearization(double /*a*/, double /*b*/,
+                                      BlockSparseMatrix& /*matrix*/) const {
+    return false;
+  }
 
+  /// Adds the external loads (gravity, point forces; N) to f: the scale of a static residual.
+  virtual void external_forces(double /*t*/, std::span<Vec3> /*f*/) const {}
   /// Potential energy (J): elastic plus that of conservative external loads.
   [[nodiscard]] virtual double potential_energy(double t, std::span<const Vec3> x) const = 0;
   /// Upper estimate of the highest natural angular frequency (rad/s), for step-size limits.

@@ -6,6 +6,7 @@
 #include <span>
 #include <string>
 
+#include "incise/physics/block_sparse.hpp"
 #include "incise/physics/dynamic_system.hpp"
 
 namespace incise {
@@ -20,6 +21,8 @@ class ForceModel {
   [[nodiscard]] virtual std::string name() const = 0;
   /// Processes mesh edits since the last call; cheap when there were none.
   virtual void refresh() = 0;
+  /// Total mass (kg), exact across edits (summed over elements).
+  [[nodiscard]] virtual double total_mass() const = 0;
   /// Lumped masses (kg) per vertex.
   [[nodiscard]] virtual std::span<const double> masses() const = 0;
   /// Adds internal (elastic and internal damping) forces.
@@ -33,6 +36,12 @@ class ForceModel {
   virtual void add_linearized_product(double a, double b, std::span<const Vec3> p,
                                       std::span<Vec3> y) const = 0;
   virtual void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const = 0;
+  /// Writes a K + b D of the last linearisation into `matrix` (its pattern rebuilt when the
+  /// mesh changed); false when the model offers products only.
+  virtual bool assemble_linearization(double /*a*/, double /*b*/,
+                                      BlockSparseMatrix& /*matrix*/) const {
+    return false;
+  }
   [[nodiscard]] virtual double elastic_energy(std::span<const Vec3> x) const = 0;
   /// Upper bound on the highest natural angular frequency at rest (rad/s), for step limits.
   [[nodiscard]] virtual double max_vertex_frequency() const = 0;

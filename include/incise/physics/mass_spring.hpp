@@ -47,7 +47,7 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
   [[nodiscard]] double max_vertex_frequency() const override;
 
   [[nodiscard]] const Spring& spring(EdgeId edge) const { return springs_[edge]; }
-  [[nodiscard]] double total_mass() const;
+  [[nodiscard]] double total_mass() const override;
   [[nodiscard]] const Material& material() const { return material_; }
 
   // MeshObserver: collects the vertices whose mass or springs an edit changed.

@@ -50,7 +50,9 @@ class MechanicalSystem final : public DynamicSystem {
   void add_linearized_product(double a, double b, std::span<const Vec3> p,
                               std::span<Vec3> y) const override;
   void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const override;
+  bool assemble_linearization(double a, double b, BlockSparseMatrix& matrix) const override;
   [[nodiscard]] double potential_energy(double t, std::span<const Vec3> x) const override;
+  void external_forces(double t, std::span<Vec3> f) const override;
   [[nodiscard]] double max_frequency() const override;
   void end_step(double dt, std::span<Vec3> v) override;
   void end_step(double dt, VertexId vertex, Vec3& v) override;

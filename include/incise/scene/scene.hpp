@@ -11,6 +11,7 @@
 
 #include "incise/cut/blade.hpp"
 #include "incise/mesh/generators.hpp"
+#include "incise/physics/corotational_fem.hpp"
 #include "incise/physics/mass_spring.hpp"
 #include "incise/physics/material.hpp"
 #include "incise/physics/mechanical_system.hpp"
@@ -43,6 +44,7 @@ struct IntegratorSpec {
   /// Focus of the hierarchical traversal: a vertex id or the vertex nearest a point (m).
   std::variant<std::monostate, VertexId, Vec3> focus;
   BackwardEulerOptions backward_euler;
+  StaticOptions static_solve;
 };
 
 /// The scalpel: a path of poses, followed frame by frame (interpolated at frame times).
@@ -62,6 +64,7 @@ struct SceneDescription {
   Material material;
   std::string model_type = "mass-spring";
   MassSpringParameters mass_spring;
+  CorotationalFemParameters fem;
   DampingParameters damping;
   IntegratorSpec integrator;
   std::vector<RegionSpec> fixed;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "incise/physics/dynamic_system.hpp"
+#include "incise/solve/linear_solvers.hpp"
 
 namespace incise {
 
@@ -17,6 +18,12 @@ struct IntegratorStats {
   std::size_t touched_last_step = 0;            ///< vertices advanced by the last step
   std::size_t solver_iterations_last_step = 0;  ///< CG iterations (implicit schemes)
   double solver_residual_last_step = 0.0;       ///< relative residual reached
+  /// Where the last step's time went (s): linearisation (rotations, assembly), building the
+  /// preconditioner or factorisation, matrix-vector products, and the whole step.
+  double seconds_linearization = 0.0;
+  double seconds_preconditioner = 0.0;
+  double seconds_products = 0.0;
+  double seconds_step = 0.0;
 };
 
 class Integrator {
@@ -113,11 +120,6 @@ class HierarchicalRungeKutta4 final : public Integrator {
   std::vector<VertexId> order_;
 };
 
-struct LinearSolverOptions {
-  double tolerance = 1e-8;  ///< relative residual |r| / |b|
-  int max_iterations = 500;
-};
-
 struct BackwardEulerOptions {
   /// Newton steps per time step; 1 is the linearised step of Baraff and Witkin (1998).
   int newton_steps = 1;
@@ -125,8 +127,9 @@ struct BackwardEulerOptions {
 };
 
 /// Backward (implicit) Euler: M (v1 - v0) = dt f(x0 + dt v1, v1), solved by Newton's method on
-/// the linearised force with block-Jacobi preconditioned conjugate gradients. Stable at any
-/// step size; damps high frequencies.
+/// the linearised force (the first step is Baraff and Witkin's linearised step), each linear
+/// system by preconditioned conjugate gradients warm-started from the last step's solution, or
+/// by a direct factorisation. Stable at any step size; damps high frequencies.
 class BackwardEuler final : public Integrator {
  public:
   explicit BackwardEuler(const BackwardEulerOptions& options = {});
@@ -136,10 +139,41 @@ class BackwardEuler final : public Integrator {
 
  private:
   BackwardEulerOptions options_;
-  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, residual_, direction_, product_,
-      preconditioned_, velocity_change_;
-  std::vector<Mat3> diagonal_;
+  LinearizedSystemSolver solver_;
+  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, product_, last_delta_;
   std::vector<char> constrained_;
+};
+
+struct StaticOptions {
+  int max_iterations = 50;  ///< Newton iterations per solve
+  /// Converged when the free vertices' force residual falls below this fraction of the load
+  /// (gravity plus point forces, or the first residual when only displacements load the body).
+  double tolerance = 1e-8;
+  LinearSolverOptions solver;
+};
+
+/// Static equilibrium f(x) = 0 by Newton's method with a backtracking line search on the
+/// potential energy. As an integrator, a step solves for equilibrium at the step's end time
+/// (prescribed displacements then) and sets velocities to zero: frames are a quasi-static
+/// sequence.
+class StaticEquilibrium final : public Integrator {
+ public:
+  explicit StaticEquilibrium(const StaticOptions& options = {});
+  [[nodiscard]] std::string name() const override { return "static"; }
+  void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
+            double dt) override;
+  /// Solves at time t; returns whether the tolerance was met.
+  bool solve(DynamicSystem& system, std::span<Vec3> x, double t);
+  [[nodiscard]] int last_iterations() const { return last_iterations_; }
+  [[nodiscard]] double last_residual() const { return last_residual_; }
+
+ private:
+  StaticOptions options_;
+  LinearizedSystemSolver solver_;
+  std::vector<Vec3> force_, step_, trial_, zero_;
+  std::vector<char> constrained_;
+  int last_iterations_ = 0;
+  double last_residual_ = 0.0;
 };
 
 /// Largest stable step (s) of an explicit scheme for the system's highest frequency: about

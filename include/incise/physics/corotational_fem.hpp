@@ -1,0 +1,117 @@
+#pragma once
+// Corotational linear FEM on a TetMesh (seed 003, section 3.1 and appendix B; Mueller and
+// Gross 2004): linear tetrahedra whose rotation is taken out by polar decomposition, lumped
+// masses, Rayleigh damping. Rest data, material fractions, masses and rotation warm starts live
+// in the mesh's attribute containers, so the model follows cuts without knowing about them.
+//
+// Element loops run in parallel over a greedy colouring of the tetrahedra (no two of one
+// colour share a vertex), so results are summed in a fixed order: the output does not depend
+// on the number of threads.
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "incise/mesh/attributes.hpp"
+#include "incise/physics/block_sparse.hpp"
+#include "incise/physics/corotational.hpp"
+#include "incise/physics/force_model.hpp"
+#include "incise/physics/material.hpp"
+
+namespace incise {
+
+struct CorotationalFemParameters {
+  /// Rayleigh damping D = alpha M + beta K: alpha (1/s) and beta (s).
+  double rayleigh_mass = 0.0;
+  double rayleigh_stiffness = 0.0;
+  /// Tangent used by implicit solvers (see corotational.hpp): warped is cheapest, projected
+  /// converges quadratically in Newton's method.
+  TangentKind tangent = TangentKind::kWarped;
+  /// Assemble the stiffness matrix once per linearisation (products are then one sparse
+  /// pass) rather than multiplying element by element; see BENCHMARKS.md for the comparison.
+  bool assemble = true;
+};
+
+/// Per-element rest data kept in a TetData container.
+struct FemElement {
+  TetRestShape shape;
+  bool valid = false;  ///< false until computed, or when the rest shape is degenerate
+};
+
+class CorotationalFemModel final : public ForceModel, public MeshObserver {
+ public:
+  /// Throws InputError naming the element if a tetrahedron is inverted or degenerate at rest.
+  CorotationalFemModel(TetMesh& mesh, const Material& material,
+                       const CorotationalFemParameters& parameters = {});
+  ~CorotationalFemModel() override;
+
+  [[nodiscard]] std::string name() const override { return "corotational-fem"; }
+  void refresh() override;
+  [[nodiscard]] std::span<const double> masses() const override { return masses_.values(); }
+  void add_forces(std::span<const Vec3> x, std::span<const Vec3> v,
+                  std::span<Vec3> f) const override;
+  [[nodiscard]] Vec3 vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
+                                  const NeighborState& neighbor) const override;
+  [[nodiscard]] std::span<const VertexId> neighbors(VertexId vertex) const override;
+  void prepare_linearization(std::span<const Vec3> x, std::span<const Vec3> v) override;
+  void add_linearized_product(double a, double b, std::span<const Vec3> p,
+                              std::span<Vec3> y) const override;
+  void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const override;
+  bool assemble_linearization(double a, double b, BlockSparseMatrix& matrix) const override;
+  [[nodiscard]] double elastic_energy(std::span<const Vec3> x) const override;
+  [[nodiscard]] double max_vertex_frequency() const override;
+
+  /// Weight in [0, 1] of an element's stiffness and mass (1 by default; children inherit it).
+  void set_material_fraction(TetId tet, double fraction);
+  [[nodiscard]] double material_fraction(TetId tet) const { return fraction_[tet]; }
+  [[nodiscard]] double total_mass() const override;
+  [[nodiscard]] const Material& material() const { return material_; }
+  [[nodiscard]] const LameParameters& lame() const { return lame_; }
+  [[nodiscard]] const CorotationalFemParameters& parameters() const { return parameters_; }
+  void set_tangent(TangentKind kind) { parameters_.tangent = kind; }
+  void set_assemble(bool assemble) { parameters_.assemble = assemble; }
+  /// Number of colours of the element colouring (parallel passes per element loop).
+  [[nodiscard]] std::size_t colour_count() const { return colour_start_.size() - 1; }
+  /// Time (s) spent in the last prepare_linearization on rotations and on assembly.
+  [[nodiscard]] double last_rotation_seconds() const { return rotation_seconds_; }
+  [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
+
+  void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
+                       const Tet& parent_vertices) override;
+  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+
+ private:
+  void rebuild_topology();
+  void update_rest_data();
+  [[nodiscard]] Corners corners(TetId tet, std::span<const Vec3> x) const;
+  /// Runs body(tet) for every element, colour by colour, each colour in parallel.
+  template <typename Body>
+  void for_each_element(const Body& body) const;
+
+  TetMesh* mesh_;
+  Material material_;
+  LameParameters lame_;
+  CorotationalFemParameters parameters_;
+  TetData<FemElement> elements_;
+  TetData<double> fraction_;
+  TetData<double> tet_mass_;  ///< kg, before the material fraction; split by volume on cuts
+  /// Rotation of each element at the last force evaluation: the warm start of the next.
+  mutable TetData<Eigen::Quaterniond> rotations_;
+  VertexData<double> masses_;
+
+  std::uint64_t topology_revision_ = ~std::uint64_t{0};
+  bool masses_stale_ = true;
+  std::vector<std::size_t> row_start_;  ///< vertex -> neighbours (compressed rows)
+  std::vector<VertexId> neighbor_vertex_;
+  std::vector<std::size_t> colour_start_;
+  std::vector<TetId> coloured_tets_;
+  double max_frequency_ = 0.0;
+
+  std::vector<CorotatedLinearization> linearization_;
+  BlockSparseMatrix stiffness_;
+  std::vector<std::array<std::uint32_t, 16>> slots_;  ///< per tet: block (a, b) in stiffness_
+  bool assembled_ = false;
+  double rotation_seconds_ = 0.0;
+  double assembly_seconds_ = 0.0;
+};
+
+}  // namespace incise

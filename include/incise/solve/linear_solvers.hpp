@@ -1,0 +1,92 @@
+#pragma once
+// Solvers for the linearised systems of implicit steps and static equilibrium:
+//   (mass_scale M + a K + b D) x = rhs   on the vertices that are not constrained,
+// by preconditioned conjugate gradients (products from the system, matrix-free or assembled)
+// or by a sparse LDL^T factorisation (Eigen's SimplicialLDLT) of the assembled matrix. Every
+// reduction is summed in fixed chunks, so results do not depend on the thread count.
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "incise/physics/block_sparse.hpp"
+#include "incise/physics/dynamic_system.hpp"
+
+namespace incise {
+
+enum class LinearSolverType { kConjugateGradient, kDirect };
+enum class Preconditioner { kNone, kJacobi, kBlockJacobi, kIncompleteCholesky };
+
+struct LinearSolverOptions {
+  LinearSolverType type = LinearSolverType::kConjugateGradient;
+  Preconditioner preconditioner = Preconditioner::kBlockJacobi;
+  double tolerance = 1e-8;  ///< relative residual |r| / |rhs|
+  int max_iterations = 500;
+  /// Start CG from the caller's x (the last solution) instead of zero.
+  bool warm_start = true;
+};
+
+/// Parses "cg" / "direct" and "none" / "jacobi" / "block-jacobi" / "incomplete-cholesky";
+/// throws InputError listing the valid names.
+[[nodiscard]] LinearSolverType parse_linear_solver_type(const std::string& name);
+[[nodiscard]] Preconditioner parse_preconditioner(const std::string& name);
+[[nodiscard]] std::string to_string(Preconditioner preconditioner);
+
+struct LinearSolveStats {
+  int iterations = 0;
+  double relative_residual = 0.0;
+  double seconds_preconditioner = 0.0;  ///< building it (factorisation for direct solves)
+  double seconds_products = 0.0;        ///< matrix-vector products
+  double seconds_total = 0.0;
+};
+
+class LinearizedSystemSolver {
+ public:
+  explicit LinearizedSystemSolver(const LinearSolverOptions& options = {});
+  ~LinearizedSystemSolver();
+  LinearizedSystemSolver(const LinearizedSystemSolver&) = delete;
+  LinearizedSystemSolver& operator=(const LinearizedSystemSolver&) = delete;
+
+  /// Solves for x after system.prepare_linearization(). Rows of constrained vertices (nonzero
+  /// in `constrained`) are identity with x = 0 there. x holds the warm start on entry.
+  /// Throws InputError if a direct solve or incomplete Cholesky is asked of a system that
+  /// cannot assemble its matrix, or if the factorisation fails.
+  LinearSolveStats solve(const DynamicSystem& system, double mass_scale, double a, double b,
+                         std::span<const char> constrained, std::span<const Vec3> rhs,
+                         std::span<Vec3> x);
+  [[nodiscard]] const LinearSolverOptions& options() const { return options_; }
+
+ private:
+  using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+  void apply(const DynamicSystem& system, double mass_scale, double a, double b,
+             std::span<const Vec3> p, std::span<Vec3> y);
+  bool assemble(const DynamicSystem& system, double mass_scale, double a, double b);
+  void build_scalar_pattern();
+  void fill_scalar_values();
+
+  LinearSolverOptions options_;
+  std::span<const double> masses_;
+  std::span<const char> constrained_;
+  std::vector<Vec3> residual_, direction_, product_, preconditioned_;
+  std::vector<Mat3> diagonal_;
+  BlockSparseMatrix assembled_;
+  // Scalar copy of the free rows and columns for LDL^T and incomplete Cholesky.
+  std::uint64_t scalar_pattern_revision_ = ~std::uint64_t{0};
+  std::vector<char> scalar_constrained_;
+  std::vector<int> free_index_;             ///< vertex -> first scalar unknown, or -1
+  std::vector<std::size_t> scalar_source_;  ///< scalar nonzero -> offset in the block values
+  SparseMatrix scalar_;
+  std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower>> direct_;
+  bool direct_analyzed_ = false;
+  struct IncompleteCholesky;
+  std::unique_ptr<IncompleteCholesky> incomplete_;
+  Eigen::VectorXd scalar_rhs_, scalar_solution_;
+};
+
+/// Deterministic parallel dot product of two vertex fields (fixed chunks, summed in order).
+[[nodiscard]] double parallel_dot(std::span<const Vec3> a, std::span<const Vec3> b);
+
+}  // namespace incise

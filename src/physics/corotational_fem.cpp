@@ -1,0 +1,521 @@
+#include "incise/physics/corotational_fem.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cmath>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+
+namespace {
+
+/// Colours 0..63 come from a 64-bit mask per vertex; the rare element that finds all of them
+/// taken around its corners goes to colour 64, which is processed serially.
+constexpr std::size_t kParallelColours = 64;
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const Material& material,
+                                           const CorotationalFemParameters& parameters)
+    : mesh_(&mesh),
+      material_(material),
+      parameters_(parameters),
+      elements_(mesh, FemElement{}, TetRule::kDefault),
+      fraction_(mesh, 1.0, TetRule::kCopy),
+      tet_mass_(mesh, 0.0, TetRule::kDefault),
+      rotations_(mesh, Eigen::Quaterniond::Identity(), TetRule::kCopy),
+      masses_(mesh, 0.0, VertexRule::kDefault) {
+  material_.check();
+  lame_ = lame_parameters(material_.young_modulus, material_.poisson_ratio);
+  if (!(parameters_.rayleigh_mass >= 0.0) || !(parameters_.rayleigh_stiffness >= 0.0) ||
+      !std::isfinite(parameters_.rayleigh_mass) || !std::isfinite(parameters_.rayleigh_stiffness)) {
+    throw InputError("Rayleigh damping coefficients must be non-negative (alpha 1/s, beta s)");
+  }
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto tet = static_cast<TetId>(t);
+    Corners rest;
+    for (int a = 0; a < 4; ++a) {
+      rest[a] = mesh.rest_position(mesh.tet(tet)[a]);
+    }
+    elements_[tet].shape = tet_rest_shape(rest, static_cast<std::int64_t>(t));
+    elements_[tet].valid = true;
+    tet_mass_[tet] = material_.density * elements_[tet].shape.volume;
+  }
+  // Children share their parent's mass in proportion to their rest volumes, so a cut
+  // conserves the total exactly.
+  tet_mass_.set_hook([this](TetData<double>& mass, TetId, std::span<const TetId> children,
+                            const double& parent_mass) {
+    double volume_sum = 0.0;
+    for (TetId child : children) {
+      volume_sum += std::abs(signed_volume(*mesh_, child));
+    }
+    for (TetId child : children) {
+      mass[child] = volume_sum > 0.0
+                        ? parent_mass * std::abs(signed_volume(*mesh_, child)) / volume_sum
+                        : parent_mass / static_cast<double>(children.size());
+    }
+  });
+  mesh.add_observer(this);
+  refresh();
+}
+
+CorotationalFemModel::~CorotationalFemModel() {
+  if (mesh_ != nullptr) {
+    mesh_->remove_observer(this);
+  }
+}
+
+void CorotationalFemModel::on_tet_replaced(const TetMesh&, TetId, std::span<const TetId>,
+                                           const Tet&) {
+  masses_stale_ = true;
+}
+
+void CorotationalFemModel::set_material_fraction(TetId tet, double fraction) {
+  if (!(fraction >= 0.0 && fraction <= 1.0)) {
+    throw InputError("material fraction of tetrahedron " + std::to_string(tet) +
+                     " must lie in [0, 1]");
+  }
+  fraction_[tet] = fraction;
+  masses_stale_ = true;
+}
+
+double CorotationalFemModel::total_mass() const {
+  double total = 0.0;
+  for (std::size_t t = 0; t < tet_mass_.size(); ++t) {
+    total += tet_mass_[static_cast<TetId>(t)] * fraction_[static_cast<TetId>(t)];
+  }
+  return total;
+}
+
+// ---- following edits ------------------------------------------------------------------------
+
+void CorotationalFemModel::update_rest_data() {
+  const TetMesh& mesh = *mesh_;
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto tet = static_cast<TetId>(t);
+    FemElement& element = elements_[tet];
+    if (element.valid) {
+      continue;
+    }
+    Corners rest;
+    for (int a = 0; a < 4; ++a) {
+      rest[a] = mesh.rest_position(mesh.tet(tet)[a]);
+    }
+    try {
+      element.shape = tet_rest_shape(rest, static_cast<std::int64_t>(t));
+      element.valid = true;
+    } catch (const InputError&) {
+      // A sliver a cutter left behind: it carries mass but no stiffness, and validate()
+      // reports it.
+      element.shape = TetRestShape{};
+    }
+    if (tet_mass_[tet] == 0.0) {
+      tet_mass_[tet] = material_.density * element.shape.volume;  // a tet added afresh
+    }
+  }
+}
+
+void CorotationalFemModel::rebuild_topology() {
+  const TetMesh& mesh = *mesh_;
+  const std::size_t n = mesh.vertex_count();
+  const std::size_t tets = mesh.tet_count();
+  // Neighbours from the edges.
+  row_start_.assign(n + 1, 0);
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
+    ++row_start_[ends[0] + 1];
+    ++row_start_[ends[1] + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    row_start_[v + 1] += row_start_[v];
+  }
+  neighbor_vertex_.resize(row_start_[n]);
+  std::vector<std::size_t> fill(row_start_.begin(), row_start_.end() - 1);
+  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
+    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
+    neighbor_vertex_[fill[ends[0]]++] = ends[1];
+    neighbor_vertex_[fill[ends[1]]++] = ends[0];
+  }
+  // Greedy colouring in tet order: deterministic.
+  std::vector<std::uint64_t> used(n, 0);
+  std::vector<std::uint8_t> colour(tets);
+  std::vector<std::size_t> count(kParallelColours + 1, 0);
+  for (std::size_t t = 0; t < tets; ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    const std::uint64_t taken = used[tet[0]] | used[tet[1]] | used[tet[2]] | used[tet[3]];
+    std::size_t c = kParallelColours;
+    if (taken != ~std::uint64_t{0}) {
+      c = static_cast<std::size_t>(std::countr_one(taken));
+      for (VertexId v : tet) {
+        used[v] |= std::uint64_t{1} << c;
+      }
+    }
+    colour[t] = static_cast<std::uint8_t>(c);
+    ++count[c];
+  }
+  std::size_t last = 0;
+  for (std::size_t c = 0; c <= kParallelColours; ++c) {
+    if (count[c] > 0) {
+      last = c + 1;
+    }
+  }
+  colour_start_.assign(last + 1, 0);
+  for (std::size_t c = 0; c < last; ++c) {
+    colour_start_[c + 1] = colour_start_[c] + count[c];
+  }
+  coloured_tets_.resize(tets);
+  std::vector<std::size_t> cursor(colour_start_.begin(), colour_start_.end() - 1);
+  for (std::size_t t = 0; t < tets; ++t) {
+    coloured_tets_[cursor[colour[t]]++] = static_cast<TetId>(t);
+  }
+  // Matrix pattern and each element's slots in it.
+  stiffness_.build_pattern(mesh);
+  slots_.resize(tets);
+  for (std::size_t t = 0; t < tets; ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    for (int a = 0; a < 4; ++a) {
+      for (int b = 0; b < 4; ++b) {
+        slots_[t][4 * a + b] = static_cast<std::uint32_t>(stiffness_.find(tet[a], tet[b]));
+      }
+    }
+  }
+  assembled_ = false;
+}
+
+void CorotationalFemModel::refresh() {
+  const TetMesh& mesh = *mesh_;
+  const bool topology_changed = topology_revision_ != mesh.revision();
+  if (!topology_changed && !masses_stale_) {
+    return;
+  }
+  if (topology_changed) {
+    update_rest_data();
+    rebuild_topology();
+    topology_revision_ = mesh.revision();
+  }
+  // Lumped masses: a quarter of each adjacent element's mass, summed afresh.
+  masses_.fill(0.0);
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto tet = static_cast<TetId>(t);
+    const double quarter = 0.25 * tet_mass_[tet] * fraction_[tet];
+    for (VertexId v : mesh.tet(tet)) {
+      masses_[v] += quarter;
+    }
+  }
+  masses_stale_ = false;
+  // Gershgorin bound on M^-1/2 K M^-1/2 with the rest stiffness.
+  std::vector<double> row(mesh.vertex_count(), 0.0);
+  const CorotatedLinearization rest_linearization =
+      corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame_, TangentKind::kWarped);
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto tet = static_cast<TetId>(t);
+    const FemElement& element = elements_[tet];
+    if (!element.valid) {
+      continue;
+    }
+    const Tet& corners = mesh.tet(tet);
+    for (int a = 0; a < 4; ++a) {
+      const double ma = masses_[corners[a]];
+      if (ma <= 0.0) {
+        continue;
+      }
+      for (int b = 0; b < 4; ++b) {
+        const double mb = masses_[corners[b]];
+        if (mb <= 0.0) {
+          continue;
+        }
+        const Mat3 block =
+            stiffness_block(rest_linearization, lame_, element.shape, fraction_[tet], a, b);
+        row[corners[a]] += block.cwiseAbs().rowwise().sum().maxCoeff() / std::sqrt(ma * mb);
+      }
+    }
+  }
+  max_frequency_ = row.empty() ? 0.0 : std::sqrt(*std::max_element(row.begin(), row.end()));
+}
+
+// ---- element loops --------------------------------------------------------------------------
+
+template <typename Body>
+void CorotationalFemModel::for_each_element(const Body& body) const {
+  for (std::size_t c = 0; c + 1 < colour_start_.size(); ++c) {
+    const std::size_t begin = colour_start_[c];
+    const std::size_t end = colour_start_[c + 1];
+    if (c >= kParallelColours) {
+      for (std::size_t k = begin; k < end; ++k) {
+        body(coloured_tets_[k]);
+      }
+      continue;
+    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(begin, end, 64),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                          body(coloured_tets_[k]);
+                        }
+                      });
+  }
+}
+
+Corners CorotationalFemModel::corners(TetId tet, std::span<const Vec3> x) const {
+  const Tet& vertices = mesh_->tet(tet);
+  return {x[vertices[0]], x[vertices[1]], x[vertices[2]], x[vertices[3]]};
+}
+
+void CorotationalFemModel::add_forces(std::span<const Vec3> x, std::span<const Vec3> v,
+                                      std::span<Vec3> f) const {
+  INCISE_ASSERT(topology_revision_ == mesh_->revision(), "FEM model used before refresh()");
+  const double beta = parameters_.rayleigh_stiffness;
+  for_each_element([&](TetId tet) {
+    const FemElement& element = elements_[tet];
+    const double weight = fraction_[tet];
+    if (!element.valid || weight == 0.0) {
+      return;
+    }
+    const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
+    const Mat3 R = polar_rotation(F, rotations_[tet]);
+    Mat3 P = corotated_stress(F, R, lame_);
+    if (beta > 0.0) {
+      // Stiffness-proportional damping with the element's current rotation.
+      P += beta * warped_stress_differential(R, lame_,
+                                             deformation_gradient(corners(tet, v), element.shape));
+    }
+    const Mat3 scaled = (-weight * element.shape.volume) * P;
+    const Tet& vertices = mesh_->tet(tet);
+    for (int a = 0; a < 4; ++a) {
+      f[vertices[a]] += scaled * element.shape.gradients[a];
+    }
+  });
+  if (parameters_.rayleigh_mass > 0.0) {
+    for (std::size_t i = 0; i < f.size(); ++i) {
+      f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
+    }
+  }
+}
+
+Vec3 CorotationalFemModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
+                                        const NeighborState& neighbor) const {
+  const TetMesh& mesh = *mesh_;
+  Vec3 force = -parameters_.rayleigh_mass * masses_[vertex] * v;
+  for (TetId tet : mesh.vertex_tets(vertex)) {
+    const FemElement& element = elements_[tet];
+    const double weight = fraction_[tet];
+    if (!element.valid || weight == 0.0) {
+      continue;
+    }
+    Corners positions;
+    Corners velocities;
+    int local = 0;
+    for (int a = 0; a < 4; ++a) {
+      const VertexId corner = mesh.tet(tet)[a];
+      if (corner == vertex) {
+        positions[a] = x;
+        velocities[a] = v;
+        local = a;
+      } else {
+        neighbor(corner, positions[a], velocities[a]);
+      }
+    }
+    const Mat3 F = deformation_gradient(positions, element.shape);
+    Eigen::Quaterniond start = rotations_[tet];
+    const Mat3 R = polar_rotation(F, start);
+    Mat3 P = corotated_stress(F, R, lame_);
+    if (parameters_.rayleigh_stiffness > 0.0) {
+      P += parameters_.rayleigh_stiffness *
+           warped_stress_differential(R, lame_, deformation_gradient(velocities, element.shape));
+    }
+    force -= weight * element.shape.volume * P * element.shape.gradients[local];
+  }
+  return force;
+}
+
+std::span<const VertexId> CorotationalFemModel::neighbors(VertexId vertex) const {
+  return std::span<const VertexId>(neighbor_vertex_)
+      .subspan(row_start_[vertex], row_start_[vertex + 1] - row_start_[vertex]);
+}
+
+// ---- linearisation --------------------------------------------------------------------------
+
+void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
+  refresh();
+  const TetMesh& mesh = *mesh_;
+  const auto start = std::chrono::steady_clock::now();
+  linearization_.resize(mesh.tet_count());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.tet_count(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                        const auto tet = static_cast<TetId>(t);
+                        const FemElement& element = elements_[tet];
+                        if (!element.valid) {
+                          continue;
+                        }
+                        const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
+                        const Mat3 R = polar_rotation(F, rotations_[tet]);
+                        linearization_[t] =
+                            corotated_linearization(F, R, lame_, parameters_.tangent);
+                      }
+                    });
+  rotation_seconds_ = seconds_since(start);
+  const auto assembly_start = std::chrono::steady_clock::now();
+  assembled_ = false;
+  if (parameters_.assemble) {
+    stiffness_.set_zero();
+    auto values = stiffness_.values();
+    for_each_element([&](TetId tet) {
+      const FemElement& element = elements_[tet];
+      const double weight = fraction_[tet];
+      if (!element.valid || weight == 0.0) {
+        return;
+      }
+      const auto& slot = slots_[static_cast<std::size_t>(tet)];
+      for (int a = 0; a < 4; ++a) {
+        for (int b = a; b < 4; ++b) {
+          const Mat3 block =
+              stiffness_block(linearization_[tet], lame_, element.shape, weight, a, b);
+          values[slot[4 * a + b]] += block;
+          if (b != a) {
+            values[slot[4 * b + a]] += block.transpose();
+          }
+        }
+      }
+    });
+    assembled_ = true;
+  }
+  assembly_seconds_ = seconds_since(assembly_start);
+}
+
+void CorotationalFemModel::add_linearized_product(double a, double b, std::span<const Vec3> p,
+                                                  std::span<Vec3> y) const {
+  const double stiffness_scale = a + b * parameters_.rayleigh_stiffness;
+  if (assembled_) {
+    stiffness_.multiply_add(stiffness_scale, p, y);
+  } else {
+    for_each_element([&](TetId tet) {
+      const FemElement& element = elements_[tet];
+      const double weight = fraction_[tet];
+      if (!element.valid || weight == 0.0) {
+        return;
+      }
+      const Mat3 dF = deformation_gradient(corners(tet, p), element.shape);
+      const Mat3 dP = (stiffness_scale * weight * element.shape.volume) *
+                      stress_differential(linearization_[tet], lame_, dF);
+      const Tet& vertices = mesh_->tet(tet);
+      for (int c = 0; c < 4; ++c) {
+        y[vertices[c]] += dP * element.shape.gradients[c];
+      }
+    });
+  }
+  const double mass_scale = b * parameters_.rayleigh_mass;
+  if (mass_scale != 0.0) {
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      y[i] += mass_scale * masses_[static_cast<VertexId>(i)] * p[i];
+    }
+  }
+}
+
+void CorotationalFemModel::add_linearized_diagonal(double a, double b,
+                                                   std::span<Mat3> diagonal) const {
+  const double stiffness_scale = a + b * parameters_.rayleigh_stiffness;
+  if (assembled_) {
+    const auto values = stiffness_.values();
+    for (std::size_t i = 0; i < diagonal.size(); ++i) {
+      diagonal[i] += stiffness_scale * values[stiffness_.diagonal(static_cast<VertexId>(i))];
+    }
+  } else {
+    for_each_element([&](TetId tet) {
+      const FemElement& element = elements_[tet];
+      const double weight = fraction_[tet];
+      if (!element.valid || weight == 0.0) {
+        return;
+      }
+      const Tet& vertices = mesh_->tet(tet);
+      for (int c = 0; c < 4; ++c) {
+        diagonal[vertices[c]] += stiffness_scale * stiffness_block(linearization_[tet], lame_,
+                                                                   element.shape, weight, c, c);
+      }
+    });
+  }
+  const double mass_scale = b * parameters_.rayleigh_mass;
+  if (mass_scale != 0.0) {
+    for (std::size_t i = 0; i < diagonal.size(); ++i) {
+      diagonal[i] += mass_scale * masses_[static_cast<VertexId>(i)] * Mat3::Identity();
+    }
+  }
+}
+
+bool CorotationalFemModel::assemble_linearization(double a, double b,
+                                                  BlockSparseMatrix& matrix) const {
+  const double stiffness_scale = a + b * parameters_.rayleigh_stiffness;
+  matrix.match_pattern(stiffness_);
+  auto out = matrix.values();
+  if (assembled_) {
+    const auto values = stiffness_.values();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values.size(), 4096),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                          out[k] = stiffness_scale * values[k];
+                        }
+                      });
+  } else {
+    matrix.set_zero();
+    for_each_element([&](TetId tet) {
+      const FemElement& element = elements_[tet];
+      const double weight = fraction_[tet];
+      if (!element.valid || weight == 0.0) {
+        return;
+      }
+      const auto& slot = slots_[static_cast<std::size_t>(tet)];
+      for (int r = 0; r < 4; ++r) {
+        for (int c = 0; c < 4; ++c) {
+          out[slot[4 * r + c]] += stiffness_scale * stiffness_block(linearization_[tet], lame_,
+                                                                    element.shape, weight, r, c);
+        }
+      }
+    });
+  }
+  const double mass_scale = b * parameters_.rayleigh_mass;
+  if (mass_scale != 0.0) {
+    for (std::size_t i = 0; i < matrix.rows(); ++i) {
+      out[matrix.diagonal(static_cast<VertexId>(i))] +=
+          mass_scale * masses_[static_cast<VertexId>(i)] * Mat3::Identity();
+    }
+  }
+  return true;
+}
+
+double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {
+  const TetMesh& mesh = *mesh_;
+  std::vector<double> energy(mesh.tet_count(), 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.tet_count(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                        const auto tet = static_cast<TetId>(t);
+                        const FemElement& element = elements_[tet];
+                        if (!element.valid) {
+                          continue;
+                        }
+                        const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
+                        Eigen::Quaterniond start = rotations_[tet];
+                        energy[t] = fraction_[tet] * element.shape.volume *
+                                    corotated_energy_density(F, polar_rotation(F, start), lame_);
+                      }
+                    });
+  double total = 0.0;
+  for (double e : energy) {
+    total += e;  // serial: the same sum whatever the thread count
+  }
+  return total;
+}
+
+double CorotationalFemModel::max_vertex_frequency() const {
+  return max_frequency_;
+}
+
+}  // namespace incise

@@ -1,0 +1,393 @@
+#include "incise/solve/linear_solvers.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/IterativeLinearSolvers>
+#include <array>
+#include <chrono>
+#include <cmath>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+
+namespace {
+
+/// Reductions are summed over chunks of this many vertices, then the chunks in order.
+constexpr std::size_t kChunk = 2048;
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+template <typename Body>
+void parallel_vertices(std::size_t n, const Body& body) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kChunk),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                        body(i);
+                      }
+                    });
+}
+
+/// sum_i term(i), deterministic: each fixed chunk summed by one thread, chunks summed in order.
+template <typename Term>
+double parallel_sum(std::size_t n, const Term& term) {
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<double> partial(chunks, 0.0);
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    double sum = 0.0;
+    const std::size_t end = std::min(n, (c + 1) * kChunk);
+    for (std::size_t i = c * kChunk; i < end; ++i) {
+      sum += term(i);
+    }
+    partial[c] = sum;
+  });
+  double total = 0.0;
+  for (double p : partial) {
+    total += p;
+  }
+  return total;
+}
+
+}  // namespace
+
+double parallel_dot(std::span<const Vec3> a, std::span<const Vec3> b) {
+  return parallel_sum(a.size(), [&](std::size_t i) { return a[i].dot(b[i]); });
+}
+
+LinearSolverType parse_linear_solver_type(const std::string& name) {
+  if (name == "cg") {
+    return LinearSolverType::kConjugateGradient;
+  }
+  if (name == "direct") {
+    return LinearSolverType::kDirect;
+  }
+  throw InputError("unknown linear solver '" + name + "' (known: cg, direct)");
+}
+
+Preconditioner parse_preconditioner(const std::string& name) {
+  if (name == "none") {
+    return Preconditioner::kNone;
+  }
+  if (name == "jacobi") {
+    return Preconditioner::kJacobi;
+  }
+  if (name == "block-jacobi") {
+    return Preconditioner::kBlockJacobi;
+  }
+  if (name == "incomplete-cholesky") {
+    return Preconditioner::kIncompleteCholesky;
+  }
+  throw InputError("unknown preconditioner '" + name +
+                   "' (known: none, jacobi, block-jacobi, incomplete-cholesky)");
+}
+
+std::string to_string(Preconditioner preconditioner) {
+  switch (preconditioner) {
+    case Preconditioner::kNone:
+      return "none";
+    case Preconditioner::kJacobi:
+      return "jacobi";
+    case Preconditioner::kBlockJacobi:
+      return "block-jacobi";
+    case Preconditioner::kIncompleteCholesky:
+      return "incomplete-cholesky";
+  }
+  return "?";
+}
+
+struct LinearizedSystemSolver::IncompleteCholesky {
+  Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<int>> factor;
+};
+
+LinearizedSystemSolver::LinearizedSystemSolver(const LinearSolverOptions& options)
+    : options_(options) {
+  if (!(options_.tolerance > 0.0) || options_.max_iterations < 1) {
+    throw InputError("linear solver tolerance must be positive and iterations at least 1");
+  }
+}
+
+LinearizedSystemSolver::~LinearizedSystemSolver() = default;
+
+void LinearizedSystemSolver::apply(const DynamicSystem& system, double mass_scale, double a,
+                                   double b, std::span<const Vec3> p, std::span<Vec3> y) {
+  parallel_vertices(p.size(), [&](std::size_t i) { y[i] = mass_scale * masses_[i] * p[i]; });
+  system.add_linearized_product(a, b, p, y);
+  parallel_vertices(p.size(), [&](std::size_t i) {
+    if (constrained_[i] != 0) {
+      y[i] = p[i];  // identity rows keep the operator positive definite
+    }
+  });
+}
+
+bool LinearizedSystemSolver::assemble(const DynamicSystem& system, double mass_scale, double a,
+                                      double b) {
+  if (!system.assemble_linearization(a, b, assembled_)) {
+    return false;
+  }
+  auto values = assembled_.values();
+  for (std::size_t i = 0; i < assembled_.rows(); ++i) {
+    values[assembled_.diagonal(static_cast<VertexId>(i))] +=
+        mass_scale * masses_[i] * Mat3::Identity();
+  }
+  return true;
+}
+
+void LinearizedSystemSolver::build_scalar_pattern() {
+  const std::size_t n = assembled_.rows();
+  free_index_.assign(n, -1);
+  int unknowns = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (constrained_[i] == 0) {
+      free_index_[i] = unknowns;
+      unknowns += 3;
+    }
+  }
+  // Columns of the scalar matrix are the block rows' entries (the matrix is symmetric), so
+  // column-major storage is filled row by row of blocks.
+  const auto row_start = assembled_.row_start();
+  const auto columns = assembled_.columns();
+  std::vector<int> outer(static_cast<std::size_t>(unknowns) + 1, 0);
+  std::vector<int> inner;
+  scalar_source_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (free_index_[i] < 0) {
+      continue;
+    }
+    for (int component = 0; component < 3; ++component) {
+      const int column = free_index_[i] + component;
+      for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
+        const int other = free_index_[columns[k]];
+        if (other < 0) {
+          continue;
+        }
+        for (int r = 0; r < 3; ++r) {
+          inner.push_back(other + r);
+          // Block (i, j) stored column-major: entry (component, r) of block (j, i) is
+          // entry (r, component) of block (i, j)'s transpose; both hold the same value.
+          scalar_source_.push_back(9 * k + static_cast<std::size_t>(3 * r + component));
+        }
+      }
+      outer[static_cast<std::size_t>(column) + 1] = static_cast<int>(inner.size());
+    }
+  }
+  scalar_.resize(unknowns, unknowns);
+  scalar_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
+  scalar_pattern_revision_ = assembled_.pattern_revision();
+  scalar_constrained_.assign(constrained_.begin(), constrained_.end());
+  direct_analyzed_ = false;
+}
+
+void LinearizedSystemSolver::fill_scalar_values() {
+  if (scalar_pattern_revision_ != assembled_.pattern_revision() ||
+      scalar_constrained_.size() != constrained_.size() ||
+      !std::equal(constrained_.begin(), constrained_.end(), scalar_constrained_.begin())) {
+    build_scalar_pattern();
+  }
+  const double* source = assembled_.values().data()->data();
+  double* target = scalar_.valuePtr();
+  // Block (i, j) column-major: value (r, c) at offset 3 c + r. Column `component` of the
+  // scalar matrix inside block row i holds A(i_r, i_component)... symmetric, so read (r, c)
+  // of block (i, j) as (c, r) of block (j, i): offsets were stored to match.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scalar_source_.size(), 1 << 14),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t s = range.begin(); s != range.end(); ++s) {
+                        target[s] = source[scalar_source_[s]];
+                      }
+                    });
+}
+
+LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, double mass_scale,
+                                               double a, double b,
+                                               std::span<const char> constrained,
+                                               std::span<const Vec3> rhs, std::span<Vec3> x) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t n = rhs.size();
+  masses_ = system.masses();
+  constrained_ = constrained;
+  LinearSolveStats stats;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (constrained_[i] != 0) {
+      x[i].setZero();
+    }
+  }
+  const double rhs_norm = std::sqrt(parallel_sum(
+      n, [&](std::size_t i) { return constrained_[i] != 0 ? 0.0 : rhs[i].squaredNorm(); }));
+  if (!(rhs_norm > 0.0)) {
+    std::fill(x.begin(), x.end(), Vec3::Zero());
+    stats.seconds_total = seconds_since(start);
+    return stats;
+  }
+  const bool needs_matrix = options_.type == LinearSolverType::kDirect ||
+                            options_.preconditioner == Preconditioner::kIncompleteCholesky;
+  if (needs_matrix) {
+    const auto build_start = std::chrono::steady_clock::now();
+    if (!assemble(system, mass_scale, a, b)) {
+      throw InputError(
+          "this model offers matrix-free products only: use the cg solver with the jacobi or "
+          "block-jacobi preconditioner");
+    }
+    fill_scalar_values();
+    if (options_.type == LinearSolverType::kDirect) {
+      if (!direct_) {
+        direct_ = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower>>();
+      }
+      if (!direct_analyzed_) {
+        direct_->analyzePattern(scalar_);
+        direct_analyzed_ = true;
+      }
+      direct_->factorize(scalar_);
+      if (direct_->info() != Eigen::Success) {
+        throw InputError(
+            "the direct solver could not factorise the system matrix (is the body "
+            "held, or does it have a mass?)");
+      }
+    } else {
+      if (!incomplete_) {
+        incomplete_ = std::make_unique<IncompleteCholesky>();
+      }
+      incomplete_->factor.compute(scalar_);
+      if (incomplete_->factor.info() != Eigen::Success) {
+        throw InputError("incomplete Cholesky factorisation failed");
+      }
+    }
+    stats.seconds_preconditioner = seconds_since(build_start);
+  }
+  auto to_scalar = [&](std::span<const Vec3> field, Eigen::VectorXd& out) {
+    out.resize(scalar_.rows());
+    for (std::size_t i = 0; i < n; ++i) {
+      if (free_index_[i] >= 0) {
+        out.segment<3>(free_index_[i]) = field[i];
+      }
+    }
+  };
+  auto from_scalar = [&](const Eigen::VectorXd& in, std::span<Vec3> field) {
+    for (std::size_t i = 0; i < n; ++i) {
+      field[i] = free_index_[i] >= 0 ? Vec3(in.segment<3>(free_index_[i])) : Vec3::Zero();
+    }
+  };
+  if (options_.type == LinearSolverType::kDirect) {
+    to_scalar(rhs, scalar_rhs_);
+    scalar_solution_ = direct_->solve(scalar_rhs_);
+    from_scalar(scalar_solution_, x);
+    stats.iterations = 1;
+    residual_.resize(n);
+    apply(system, mass_scale, a, b, x, residual_);
+    stats.relative_residual =
+        std::sqrt(parallel_sum(n,
+                               [&](std::size_t i) {
+                                 return constrained_[i] != 0
+                                            ? 0.0
+                                            : (rhs[i] - residual_[i]).squaredNorm();
+                               })) /
+        rhs_norm;
+    stats.seconds_total = seconds_since(start);
+    return stats;
+  }
+
+  // Preconditioned conjugate gradients.
+  residual_.resize(n);
+  direction_.resize(n);
+  product_.resize(n);
+  preconditioned_.resize(n);
+  const auto build_start = std::chrono::steady_clock::now();
+  if (options_.preconditioner == Preconditioner::kJacobi ||
+      options_.preconditioner == Preconditioner::kBlockJacobi) {
+    diagonal_.resize(n);
+    parallel_vertices(
+        n, [&](std::size_t i) { diagonal_[i] = mass_scale * masses_[i] * Mat3::Identity(); });
+    system.add_linearized_diagonal(a, b, diagonal_);
+    const bool blocks = options_.preconditioner == Preconditioner::kBlockJacobi;
+    parallel_vertices(n, [&](std::size_t i) {
+      if (constrained_[i] != 0) {
+        diagonal_[i].setIdentity();
+      } else if (blocks) {
+        diagonal_[i] = diagonal_[i].inverse().eval();
+      } else {
+        diagonal_[i] = diagonal_[i].diagonal().cwiseInverse().asDiagonal();
+      }
+    });
+  }
+  stats.seconds_preconditioner += seconds_since(build_start);
+  auto precondition = [&](std::span<const Vec3> r, std::span<Vec3> z) {
+    switch (options_.preconditioner) {
+      case Preconditioner::kNone:
+        std::copy(r.begin(), r.end(), z.begin());
+        break;
+      case Preconditioner::kJacobi:
+      case Preconditioner::kBlockJacobi:
+        parallel_vertices(n, [&](std::size_t i) { z[i].noalias() = diagonal_[i] * r[i]; });
+        break;
+      case Preconditioner::kIncompleteCholesky: {
+        to_scalar(r, scalar_rhs_);
+        scalar_solution_ = incomplete_->factor.solve(scalar_rhs_);
+        from_scalar(scalar_solution_, z);
+        break;
+      }
+    }
+  };
+  auto timed_apply = [&](std::span<const Vec3> p, std::span<Vec3> y) {
+    const auto product_start = std::chrono::steady_clock::now();
+    apply(system, mass_scale, a, b, p, y);
+    stats.seconds_products += seconds_since(product_start);
+  };
+  bool nonzero_start = false;
+  if (options_.warm_start) {
+    for (std::size_t i = 0; i < n && !nonzero_start; ++i) {
+      nonzero_start = constrained_[i] == 0 && !x[i].isZero(0.0);
+    }
+  }
+  if (nonzero_start) {
+    timed_apply(x, product_);
+    parallel_vertices(n, [&](std::size_t i) {
+      residual_[i] = constrained_[i] != 0 ? Vec3::Zero() : Vec3(rhs[i] - product_[i]);
+    });
+  } else {
+    std::fill(x.begin(), x.end(), Vec3::Zero());
+    parallel_vertices(
+        n, [&](std::size_t i) { residual_[i] = constrained_[i] != 0 ? Vec3::Zero() : rhs[i]; });
+  }
+  double residual_norm = std::sqrt(parallel_dot(residual_, residual_));
+  stats.relative_residual = residual_norm / rhs_norm;
+  if (stats.relative_residual <= options_.tolerance) {
+    stats.seconds_total = seconds_since(start);
+    return stats;
+  }
+  precondition(residual_, preconditioned_);
+  std::copy(preconditioned_.begin(), preconditioned_.end(), direction_.begin());
+  double rz = parallel_dot(residual_, preconditioned_);
+  int iteration = 0;
+  while (iteration < options_.max_iterations) {
+    timed_apply(direction_, product_);
+    const double curvature = parallel_dot(direction_, product_);
+    if (!(curvature > 0.0)) {
+      break;  // converged to rounding, or the matrix is not positive definite: keep x
+    }
+    const double alpha = rz / curvature;
+    parallel_vertices(n, [&](std::size_t i) {
+      x[i] += alpha * direction_[i];
+      residual_[i] -= alpha * product_[i];
+    });
+    ++iteration;
+    residual_norm = std::sqrt(parallel_dot(residual_, residual_));
+    stats.relative_residual = residual_norm / rhs_norm;
+    if (stats.relative_residual <= options_.tolerance) {
+      break;
+    }
+    precondition(residual_, preconditioned_);
+    const double rz_next = parallel_dot(residual_, preconditioned_);
+    const double beta = rz_next / rz;
+    rz = rz_next;
+    parallel_vertices(
+        n, [&](std::size_t i) { direction_[i] = preconditioned_[i] + beta * direction_[i]; });
+  }
+  stats.iterations = iteration;
+  stats.seconds_total = seconds_since(start);
+  return stats;
+}
+
+}  // namespace incise
