@@ -308,7 +308,8 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
       } else if (blocks) {
         diagonal_[i] = diagonal_[i].inverse().eval();
       } else {
-        diagonal_[i] = diagonal_[i].diagonal().cwiseInverse().asDiagonal();
+        const Vec3 inverse = diagonal_[i].diagonal().cwiseInverse();
+        diagonal_[i] = inverse.asDiagonal();
       }
     });
   }
