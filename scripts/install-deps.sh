@@ -19,6 +19,8 @@ packages=(
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # the FEM peer in bench/ (Bullet's deformable solver)
+  libbullet-dev
 )
 
 missing=()

@@ -19,22 +19,6 @@ double contract(const Mat3& a, const Mat3& b) {
   return a.cwiseProduct(b).sum();
 }
 
-/// The unit skew generators whose axial vectors are e_x, e_y, e_z, scaled to unit norm.
-const std::array<Mat3, 3>& unit_skew_basis() {
-  static const std::array<Mat3, 3> basis = [] {
-    std::array<Mat3, 3> result;
-    for (int k = 0; k < 3; ++k) {
-      const int i = (k + 1) % 3;
-      const int j = (k + 2) % 3;
-      result[k].setZero();
-      result[k](j, i) = kInverseSqrt2;
-      result[k](i, j) = -kInverseSqrt2;
-    }
-    return result;
-  }();
-  return basis;
-}
-
 }  // namespace
 
 LameParameters lame_parameters(double young_modulus, double poisson_ratio) {
@@ -91,19 +75,42 @@ Mat3 polar_rotation(const Mat3& F, Eigen::Quaterniond& warm_start) {
     warm_start.setIdentity();
     return Mat3::Identity();
   }
-  // Each iteration turns R about sum_i r_i x f_i, the axis along which tr(R^T F) grows,
-  // by a damped Newton angle; the fixed point has R^T F symmetric.
+  // Newton's method on skew(R^T F) = 0: with S = sym(R^T F) and a = axial(skew(R^T F)), the
+  // body-frame turn w solves (tr(S) I - S) w = 2 a (quadratic convergence: two or three
+  // iterations from a warm start). Where tr(S) I - S is not safely positive definite (far
+  // from the answer, or a nearly flat element) a step of Mueller et al. 2016 is taken instead:
+  // a turn about sum_i r_i x f_i, which always increases tr(R^T F).
   constexpr int kMaxIterations = 60;
   const double scale = F.norm();
   for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
     const Mat3 R = warm_start.toRotationMatrix();
+    const Mat3 local = R.transpose() * F;
+    const Vec3 asymmetry(0.5 * (local(2, 1) - local(1, 2)), 0.5 * (local(0, 2) - local(2, 0)),
+                         0.5 * (local(1, 0) - local(0, 1)));
+    const Mat3 S = 0.5 * (local + local.transpose());
+    const Mat3 G = S.trace() * Mat3::Identity() - S;
+    const double determinant = G.determinant();
+    const double minor = G(0, 0) * G(1, 1) - G(0, 1) * G(1, 0);
+    if (G(0, 0) > 0.0 && minor > 0.0 && determinant > 1e-6 * scale * scale * scale) {
+      const Vec3 turn = 2.0 * (G.inverse() * asymmetry);
+      const double angle = turn.norm();
+      if (angle < 1e-14 * (1.0 + scale)) {
+        return R;
+      }
+      if (angle < 0.5) {
+        const Eigen::Quaterniond step(1.0, 0.5 * turn.x(), 0.5 * turn.y(), 0.5 * turn.z());
+        warm_start = warm_start * step;  // body frame: R <- R exp(W), first order, renormalised
+        warm_start.normalize();
+        continue;
+      }
+    }
     const Vec3 torque =
         R.col(0).cross(F.col(0)) + R.col(1).cross(F.col(1)) + R.col(2).cross(F.col(2));
     const double alignment =
         std::abs(R.col(0).dot(F.col(0)) + R.col(1).dot(F.col(1)) + R.col(2).dot(F.col(2)));
     const Vec3 omega = torque / (alignment + 1e-9 * scale + 1e-300);
     const double angle = omega.norm();
-    if (angle < 1e-15) {
+    if (angle < 1e-14) {
       return R;
     }
     warm_start = Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle)) * warm_start;
@@ -156,12 +163,8 @@ CorotatedLinearization corotated_linearization(const Mat3& F, const Mat3& R,
   CorotatedLinearization linearization;
   linearization.rotation = R;
   if (kind == TangentKind::kWarped) {
-    // The twist subspace is {dF : R^T dF skew}; any orthonormal basis of it will do.
-    const auto& basis = unit_skew_basis();
-    for (int k = 0; k < 3; ++k) {
-      linearization.twist_modes[k] = R * basis[k];
-      linearization.twist_weights[k] = -2.0 * lame.mu;
-    }
+    linearization.warped = true;
+    linearization.twist_weights = {-2.0 * lame.mu, -2.0 * lame.mu, -2.0 * lame.mu};
     return linearization;
   }
   Mat3 S = R.transpose() * F;
@@ -192,6 +195,9 @@ CorotatedLinearization corotated_linearization(const Mat3& F, const Mat3& R,
 
 Mat3 stress_differential(const CorotatedLinearization& linearization, const LameParameters& lame,
                          const Mat3& dF) {
+  if (linearization.warped) {
+    return warped_stress_differential(linearization.rotation, lame, dF);
+  }
   Mat3 dP = 2.0 * lame.mu * dF +
             (lame.lambda * contract(linearization.rotation, dF)) * linearization.rotation;
   for (int k = 0; k < 3; ++k) {
@@ -213,12 +219,65 @@ Mat3 stiffness_block(const CorotatedLinearization& linearization, const LamePara
   const Vec3& gb = rest.gradients[b];
   const Vec3 ra = linearization.rotation * ga;
   const Vec3 rb = linearization.rotation * gb;
+  if (linearization.warped) {
+    // R K0_ab R^T with K0_ab = mu (g_a . g_b) I + lambda g_a g_b^T + mu g_b g_a^T.
+    return (weight * rest.volume) *
+           (lame.mu * ga.dot(gb) * Mat3::Identity() + lame.lambda * ra * rb.transpose() +
+            lame.mu * rb * ra.transpose());
+  }
   Mat3 block = (2.0 * lame.mu * ga.dot(gb)) * Mat3::Identity() + lame.lambda * ra * rb.transpose();
   for (int k = 0; k < 3; ++k) {
     block += linearization.twist_weights[k] * (linearization.twist_modes[k] * ga) *
              (linearization.twist_modes[k] * gb).transpose();
   }
   return (weight * rest.volume) * block;
+}
+
+void add_stiffness_blocks(const CorotatedLinearization& linearization, const LameParameters& lame,
+                          const TetRestShape& rest, double scale,
+                          const std::array<Mat3*, 16>& blocks) {
+  // Rotated gradients once per element, then outer products per block:
+  // K_ab = V w [2 mu (g_a . g_b) I + lambda r_a r_b^T + sum_k c_k (M_k g_a)(M_k g_b)^T].
+  std::array<Vec3, 4> rotated;
+  for (int a = 0; a < 4; ++a) {
+    rotated[a] = linearization.rotation * rest.gradients[a];
+  }
+  const double factor = scale * rest.volume;
+  if (linearization.warped) {
+    // R K0 R^T: mu (g_a . g_b) I + lambda r_a r_b^T + mu r_b r_a^T.
+    for (int a = 0; a < 4; ++a) {
+      for (int b = a; b < 4; ++b) {
+        Mat3 block = (factor * lame.lambda) * rotated[a] * rotated[b].transpose();
+        block.noalias() += (factor * lame.mu) * rotated[b] * rotated[a].transpose();
+        block.diagonal().array() += factor * lame.mu * rest.gradients[a].dot(rest.gradients[b]);
+        *blocks[4 * a + b] += block;
+        if (b != a) {
+          *blocks[4 * b + a] += block.transpose();
+        }
+      }
+    }
+    return;
+  }
+  std::array<std::array<Vec3, 4>, 3> twisted;
+  for (int a = 0; a < 4; ++a) {
+    for (int k = 0; k < 3; ++k) {
+      twisted[k][a] = linearization.twist_modes[k] * rest.gradients[a];
+    }
+  }
+  for (int a = 0; a < 4; ++a) {
+    for (int b = a; b < 4; ++b) {
+      Mat3 block = (factor * lame.lambda) * rotated[a] * rotated[b].transpose();
+      for (int k = 0; k < 3; ++k) {
+        block.noalias() +=
+            (factor * linearization.twist_weights[k]) * twisted[k][a] * twisted[k][b].transpose();
+      }
+      block.diagonal().array() += factor * 2.0 * lame.mu * rest.gradients[a].dot(rest.gradients[b]);
+      *blocks[4 * a + b] += block;
+      if (b != a) {
+        *blocks[4 * b + a] += block.transpose();
+      }
+    }
+  }
 }
 
 ElementMatrix corotated_stiffness(const Corners& x, const TetRestShape& rest,

@@ -177,6 +177,24 @@ void CorotationalFemModel::rebuild_topology() {
   for (std::size_t t = 0; t < tets; ++t) {
     coloured_tets_[cursor[colour[t]]++] = static_cast<TetId>(t);
   }
+  // Vertex -> (element, corner) incidences, for assembly row by row.
+  incidence_start_.assign(n + 1, 0);
+  for (std::size_t t = 0; t < tets; ++t) {
+    for (VertexId v : mesh.tet(static_cast<TetId>(t))) {
+      ++incidence_start_[static_cast<std::size_t>(v) + 1];
+    }
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    incidence_start_[v + 1] += incidence_start_[v];
+  }
+  incidences_.resize(incidence_start_[n]);
+  std::vector<std::size_t> next(incidence_start_.begin(), incidence_start_.end() - 1);
+  for (std::size_t t = 0; t < tets; ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    for (int a = 0; a < 4; ++a) {
+      incidences_[next[tet[a]]++] = {static_cast<TetId>(t), a};
+    }
+  }
   // Matrix pattern and each element's slots in it.
   stiffness_.build_pattern(mesh);
   slots_.resize(tets);
@@ -366,26 +384,7 @@ void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::s
   const auto assembly_start = std::chrono::steady_clock::now();
   assembled_ = false;
   if (parameters_.assemble) {
-    stiffness_.set_zero();
-    auto values = stiffness_.values();
-    for_each_element([&](TetId tet) {
-      const FemElement& element = elements_[tet];
-      const double weight = fraction_[tet];
-      if (!element.valid || weight == 0.0) {
-        return;
-      }
-      const auto& slot = slots_[static_cast<std::size_t>(tet)];
-      for (int a = 0; a < 4; ++a) {
-        for (int b = a; b < 4; ++b) {
-          const Mat3 block =
-              stiffness_block(linearization_[tet], lame_, element.shape, weight, a, b);
-          values[slot[4 * a + b]] += block;
-          if (b != a) {
-            values[slot[4 * b + a]] += block.transpose();
-          }
-        }
-      }
-    });
+    assemble_rows(stiffness_.values(), 1.0);
     assembled_ = true;
   }
   assembly_seconds_ = seconds_since(assembly_start);
@@ -464,21 +463,7 @@ bool CorotationalFemModel::assemble_linearization(double a, double b,
                         }
                       });
   } else {
-    matrix.set_zero();
-    for_each_element([&](TetId tet) {
-      const FemElement& element = elements_[tet];
-      const double weight = fraction_[tet];
-      if (!element.valid || weight == 0.0) {
-        return;
-      }
-      const auto& slot = slots_[static_cast<std::size_t>(tet)];
-      for (int r = 0; r < 4; ++r) {
-        for (int c = 0; c < 4; ++c) {
-          out[slot[4 * r + c]] += stiffness_scale * stiffness_block(linearization_[tet], lame_,
-                                                                    element.shape, weight, r, c);
-        }
-      }
-    });
+    assemble_rows(out, stiffness_scale);
   }
   const double mass_scale = b * parameters_.rayleigh_mass;
   if (mass_scale != 0.0) {
@@ -488,6 +473,34 @@ bool CorotationalFemModel::assemble_linearization(double a, double b,
     }
   }
   return true;
+}
+
+void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) const {
+  // Row by row: each thread owns whole block rows, so nothing is shared and the sum order per
+  // block is fixed (deterministic); every element's blocks are computed once in all.
+  const auto row_start = stiffness_.row_start();
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, incidence_start_.size() - 1, 128),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t row = range.begin(); row != range.end(); ++row) {
+          for (std::size_t k = row_start[row]; k < row_start[row + 1]; ++k) {
+            out[k].setZero();
+          }
+          for (std::size_t k = incidence_start_[row]; k < incidence_start_[row + 1]; ++k) {
+            const auto [tet, a] = incidences_[k];
+            const FemElement& element = elements_[tet];
+            const double weight = fraction_[tet];
+            if (!element.valid || weight == 0.0) {
+              continue;
+            }
+            const auto& slot = slots_[static_cast<std::size_t>(tet)];
+            for (int b = 0; b < 4; ++b) {
+              out[slot[4 * a + b]] +=
+                  stiffness_block(linearization_[tet], lame_, element.shape, scale * weight, a, b);
+            }
+          }
+        }
+      });
 }
 
 double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {

@@ -296,7 +296,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
     constrained_[i] = system.is_constrained(static_cast<VertexId>(i)) || masses[i] <= 0.0 ? 1 : 0;
   }
   // Unknown: the end velocity v1. Newton on r(v1) = M (v1 - v0) - dt f(x0 + dt v1, v1) with
-  // Jacobian J = M + dt D + dt^2 K. The first iterate v1 = v0 gives Baraff-Witkin's step.
+  // Jacobian J = M + dt D + dt^2 K, from v1 = v0 (prescribed velocities for held vertices).
   v_trial_.assign(v.begin(), v.end());
   x_trial_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -311,6 +311,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   product_.resize(n);
   if (last_delta_.size() != n) {
     last_delta_.assign(n, Vec3::Zero());  // the mesh changed: no warm start
+    previous_delta_.assign(n, Vec3::Zero());
   }
   stats_.solver_iterations_last_step = 0;
   stats_.seconds_linearization = 0.0;
@@ -321,44 +322,27 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
     for (std::size_t i = 0; i < n; ++i) {
       x_trial_[i] = x[i] + dt * v_trial_[i];
     }
+    // Forces first, then the linearisation at the same state: models that cache per-element
+    // work (the FEM's rotations) then reuse it. Every iteration, the first included, is a
+    // Newton step at the current guess (x0 + dt v1, v1), starting from v1 = v0: linearising at
+    // x0 instead (Baraff and Witkin's one step) damps more, by 4 % of the peers' box sag at
+    // 48k tets after 1 s.
+    std::fill(force_.begin(), force_.end(), Vec3::Zero());
+    system.forces(end, x_trial_, v_trial_, force_);
     const auto linearization_start = std::chrono::steady_clock::now();
-    if (newton == 0) {
-      // Linearise at the start state, as Baraff and Witkin do.
-      system.prepare_linearization(t, x, v);
-    } else {
-      system.prepare_linearization(end, x_trial_, v_trial_);
-    }
+    system.prepare_linearization(end, x_trial_, v_trial_);
     stats_.seconds_linearization +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - linearization_start)
             .count();
-    std::fill(force_.begin(), force_.end(), Vec3::Zero());
+    for (std::size_t i = 0; i < n; ++i) {
+      rhs_[i] = dt * force_[i] - masses[i] * (v_trial_[i] - v[i]);
+    }
     if (newton == 0) {
-      // f(x0 + dt v1, v1) ~ f0 - K dt v1 - D (v1 - v0): right-hand side for Delta v = v1 - v0
-      // is dt (f0 - dt K v0).
-      system.forces(t, x, v, force_);
-      std::fill(product_.begin(), product_.end(), Vec3::Zero());
-      system.add_linearized_product(1.0, 0.0, v, product_);
+      // Warm start: the velocity change extrapolated from the last two steps.
       for (std::size_t i = 0; i < n; ++i) {
-        rhs_[i] = dt * (force_[i] - dt * product_[i]);
+        delta_[i] = 2.0 * last_delta_[i] - previous_delta_[i];
       }
-      // Constrained vertices: the known velocity change moves to the right-hand side.
-      for (std::size_t i = 0; i < n; ++i) {
-        delta_[i] = constrained_[i] != 0 ? Vec3(v_trial_[i] - v[i]) : Vec3::Zero();
-      }
-      for (std::size_t i = 0; i < n; ++i) {
-        product_[i] = masses[i] * delta_[i];
-      }
-      system.add_linearized_product(dt * dt, dt, delta_, product_);
-      for (std::size_t i = 0; i < n; ++i) {
-        rhs_[i] -= product_[i];
-      }
-      // Warm start: the last step's velocity change.
-      std::copy(last_delta_.begin(), last_delta_.end(), delta_.begin());
     } else {
-      system.forces(end, x_trial_, v_trial_, force_);
-      for (std::size_t i = 0; i < n; ++i) {
-        rhs_[i] = dt * force_[i] - masses[i] * (v_trial_[i] - v[i]);
-      }
       std::fill(delta_.begin(), delta_.end(), Vec3::Zero());
     }
     ++stats_.force_evaluations;
@@ -374,6 +358,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
       }
     }
     if (newton == 0) {
+      previous_delta_.swap(last_delta_);
       std::copy(delta_.begin(), delta_.end(), last_delta_.begin());
     }
   }

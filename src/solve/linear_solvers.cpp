@@ -16,6 +16,8 @@ namespace {
 
 /// Reductions are summed over chunks of this many vertices, then the chunks in order.
 constexpr std::size_t kChunk = 2048;
+/// Rows per chunk of the fused CG passes (reductions in the same fixed order).
+constexpr std::size_t kFusedChunk = 1024;
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -201,6 +203,115 @@ void LinearizedSystemSolver::fill_scalar_values() {
                     });
 }
 
+void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x,
+                                                       double rhs_norm, LinearSolveStats& stats) {
+  // Three passes over memory per iteration: q = J p with p.q; the x, r and z updates with
+  // r.r and r.z; the new direction. Held rows are identity with r = z = p = 0 there.
+  const std::size_t n = rhs.size();
+  const auto row_start = assembled_.row_start();
+  const auto columns = assembled_.columns();
+  const auto values = assembled_.values();
+  residual_.resize(n);
+  direction_.resize(n);
+  product_.resize(n);
+  preconditioned_.resize(n);
+  diagonal_.resize(n);
+  const bool blocks = options_.preconditioner == Preconditioner::kBlockJacobi;
+  const bool scaled = options_.preconditioner != Preconditioner::kNone;
+  const std::size_t chunks = (n + kFusedChunk - 1) / kFusedChunk;
+  std::vector<double> first(chunks), second(chunks);
+  auto chunked = [&](const auto& body) {
+    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+      double sum_first = 0.0;
+      double sum_second = 0.0;
+      const std::size_t end = std::min(n, (c + 1) * kFusedChunk);
+      for (std::size_t i = c * kFusedChunk; i < end; ++i) {
+        body(i, sum_first, sum_second);
+      }
+      first[c] = sum_first;
+      second[c] = sum_second;
+    });
+    double total_first = 0.0;
+    double total_second = 0.0;
+    for (std::size_t c = 0; c < chunks; ++c) {
+      total_first += first[c];
+      total_second += second[c];
+    }
+    return std::pair{total_first, total_second};
+  };
+  auto row_product = [&](std::size_t i, std::span<const Vec3> p) {
+    Vec3 sum = Vec3::Zero();
+    for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
+      sum.noalias() += values[k] * p[columns[k]];
+    }
+    return sum;
+  };
+  // Preconditioner and the initial residual (warm start from x).
+  bool warm = false;
+  if (options_.warm_start) {
+    for (std::size_t i = 0; i < n && !warm; ++i) {
+      warm = constrained_[i] == 0 && !x[i].isZero(0.0);
+    }
+  }
+  if (!warm) {
+    std::fill(x.begin(), x.end(), Vec3::Zero());
+  }
+  auto [rr, rz] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
+    if (constrained_[i] != 0) {
+      diagonal_[i].setZero();
+      residual_[i].setZero();
+      preconditioned_[i].setZero();
+      direction_[i].setZero();
+      return;
+    }
+    const Mat3& block = values[assembled_.diagonal(static_cast<VertexId>(i))];
+    if (blocks) {
+      diagonal_[i] = block.inverse();
+    } else if (scaled) {
+      diagonal_[i] = block.diagonal().cwiseInverse().asDiagonal();
+    } else {
+      diagonal_[i].setIdentity();
+    }
+    residual_[i] = warm ? Vec3(rhs[i] - row_product(i, x)) : rhs[i];
+    preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
+    direction_[i] = preconditioned_[i];
+    sum_rr += residual_[i].squaredNorm();
+    sum_rz += residual_[i].dot(preconditioned_[i]);
+  });
+  stats.relative_residual = std::sqrt(rr) / rhs_norm;
+  int iteration = 0;
+  while (stats.relative_residual > options_.tolerance && iteration < options_.max_iterations) {
+    const auto product_start = std::chrono::steady_clock::now();
+    const double curvature = chunked([&](std::size_t i, double& sum, double&) {
+                               product_[i] =
+                                   constrained_[i] != 0 ? Vec3::Zero() : row_product(i, direction_);
+                               sum += direction_[i].dot(product_[i]);
+                             }).first;
+    stats.seconds_products += seconds_since(product_start);
+    if (!(curvature > 0.0)) {
+      break;  // converged to rounding, or not positive definite: keep x
+    }
+    const double alpha = rz / curvature;
+    const auto [rr_next, rz_next] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
+      x[i] += alpha * direction_[i];
+      residual_[i] -= alpha * product_[i];
+      preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
+      sum_rr += residual_[i].squaredNorm();
+      sum_rz += residual_[i].dot(preconditioned_[i]);
+    });
+    ++iteration;
+    stats.relative_residual = std::sqrt(rr_next) / rhs_norm;
+    if (stats.relative_residual <= options_.tolerance) {
+      break;
+    }
+    const double beta = rz_next / rz;
+    rz = rz_next;
+    parallel_vertices(
+        n, [&](std::size_t i) { direction_[i] = preconditioned_[i] + beta * direction_[i]; });
+  }
+  stats.iterations = iteration;
+}
+
 LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, double mass_scale,
                                                double a, double b,
                                                std::span<const char> constrained,
@@ -289,7 +400,17 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     return stats;
   }
 
-  // Preconditioned conjugate gradients.
+  if (options_.preconditioner != Preconditioner::kIncompleteCholesky) {
+    const auto build_start = std::chrono::steady_clock::now();
+    if (assemble(system, mass_scale, a, b)) {
+      stats.seconds_preconditioner += seconds_since(build_start);
+      fused_conjugate_gradients(rhs, x, rhs_norm, stats);
+      stats.seconds_total = seconds_since(start);
+      return stats;
+    }
+  }
+
+  // Preconditioned conjugate gradients on the system's products (models that do not assemble).
   residual_.resize(n);
   direction_.resize(n);
   product_.resize(n);

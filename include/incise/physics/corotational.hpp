@@ -83,6 +83,9 @@ enum class TangentKind { kExact, kProjected, kWarped };
 /// The tangent dP/dF at one state, in the form 2 mu I + lambda r r^T + sum_k c_k t_k t_k^T
 /// (r = vec R, t_k = vec twist_modes[k], unit Frobenius norm, c_k = twist eigenvalue - 2 mu).
 struct CorotatedLinearization {
+  /// kWarped: the twist weights are all -2 mu and the modes span {dF : R^T dF skew}; the fast
+  /// paths use R K0 R^T directly and leave twist_modes unset.
+  bool warped = false;
   Mat3 rotation = Mat3::Identity();
   std::array<Mat3, 3> twist_modes{Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
   std::array<double, 3> twist_weights{};
@@ -102,6 +105,11 @@ struct CorotatedLinearization {
 [[nodiscard]] Mat3 stiffness_block(const CorotatedLinearization& linearization,
                                    const LameParameters& lame, const TetRestShape& rest,
                                    double weight, int a, int b);
+/// Adds scale * K_ab to *blocks[4 a + b] for all 16 blocks (several may alias only if the
+/// caller wants them summed); the fast path of assembly.
+void add_stiffness_blocks(const CorotatedLinearization& linearization, const LameParameters& lame,
+                          const TetRestShape& rest, double scale,
+                          const std::array<Mat3*, 16>& blocks);
 /// The whole 12x12 element stiffness (N/m), corners in order, x, y, z per corner.
 [[nodiscard]] ElementMatrix corotated_stiffness(const Corners& x, const TetRestShape& rest,
                                                 const LameParameters& lame, TangentKind kind,

@@ -83,6 +83,8 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   void rebuild_topology();
   void update_rest_data();
   [[nodiscard]] Corners corners(TetId tet, std::span<const Vec3> x) const;
+  /// out = scale K, assembled row by row from the last linearisation.
+  void assemble_rows(std::span<Mat3> out, double scale) const;
   /// Runs body(tet) for every element, colour by colour, each colour in parallel.
   template <typename Body>
   void for_each_element(const Body& body) const;
@@ -109,6 +111,12 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   std::vector<CorotatedLinearization> linearization_;
   BlockSparseMatrix stiffness_;
   std::vector<std::array<std::uint32_t, 16>> slots_;  ///< per tet: block (a, b) in stiffness_
+  struct Incidence {
+    TetId tet;
+    int corner;
+  };
+  std::vector<std::size_t> incidence_start_;  ///< vertex -> its incidences (compressed rows)
+  std::vector<Incidence> incidences_;
   bool assembled_ = false;
   double rotation_seconds_ = 0.0;
   double assembly_seconds_ = 0.0;

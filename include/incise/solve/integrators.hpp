@@ -140,7 +140,8 @@ class BackwardEuler final : public Integrator {
  private:
   BackwardEulerOptions options_;
   LinearizedSystemSolver solver_;
-  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, product_, last_delta_;
+  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, product_, last_delta_,
+      previous_delta_;
   std::vector<char> constrained_;
 };
 

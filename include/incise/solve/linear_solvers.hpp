@@ -64,6 +64,9 @@ class LinearizedSystemSolver {
   void apply(const DynamicSystem& system, double mass_scale, double a, double b,
              std::span<const Vec3> p, std::span<Vec3> y);
   bool assemble(const DynamicSystem& system, double mass_scale, double a, double b);
+  /// PCG over the assembled matrix with fused passes (Jacobi, block-Jacobi or none).
+  void fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
+                                 LinearSolveStats& stats);
   void build_scalar_pattern();
   void fill_scalar_values();
 
