@@ -1,12 +1,15 @@
-// incise run [SCENE] [--frames N] [--out DIR] [--report FILE]: runs a scene headless.
+// incise run [SCENE] [--frames N] [--out DIR] [--report FILE] [--threads N]: runs a scene
+// headless.
 
 #include <fmt/format.h>
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
@@ -65,7 +68,18 @@ Runner add_run_command(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   command->add_option("--out", *out, "Output folder (overrides the scene's output.dir)");
   command->add_option("--report", *report_path, "Write a JSON report of per-stage timings here");
+  auto threads = std::make_shared<int>(0);
+  command
+      ->add_option("--threads", *threads,
+                   "Worker threads for element loops and solvers (default: all cores); the "
+                   "output is the same for any count")
+      ->check(CLI::PositiveNumber);
   return [=]() {
+    std::unique_ptr<tbb::global_control> thread_limit;
+    if (*threads > 0) {
+      thread_limit = std::make_unique<tbb::global_control>(
+          tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(*threads));
+    }
     const SceneDescription scene = scene_path->empty() ? default_scene() : load_scene(*scene_path);
     const std::string name =
         scene_path->empty() ? "default" : std::filesystem::path(*scene_path).stem().string();

@@ -91,6 +91,57 @@ TEST(SceneParsing, WrongTypesAndValues) {
       std::string::npos);
 }
 
+TEST(SceneParsing, CorotationalFemKeys) {
+  const SceneDescription scene = parse_scene(
+      R"({"mesh": {"box": {"cells": [2, 2, 2]}},
+          "model": {"type": "corotational-fem", "rayleigh": [0.1, 0.002], "assemble": false},
+          "integrator": {"type": "backward-euler", "dt": 0.01, "newton_steps": 2,
+                         "solver": {"type": "direct"}}})",
+      "fem.json");
+  EXPECT_EQ(scene.model_type, "corotational-fem");
+  EXPECT_DOUBLE_EQ(scene.fem.rayleigh_mass, 0.1);
+  EXPECT_DOUBLE_EQ(scene.fem.rayleigh_stiffness, 0.002);
+  EXPECT_FALSE(scene.fem.assemble);
+  EXPECT_EQ(scene.fem.tangent, TangentKind::kWarped);
+  EXPECT_EQ(scene.integrator.backward_euler.newton_steps, 2);
+  EXPECT_EQ(scene.integrator.backward_euler.solver.type, LinearSolverType::kDirect);
+  // A static solve defaults to the projected tangent (Newton's quadratic convergence).
+  const SceneDescription statics = parse_scene(
+      R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "corotational-fem"},
+          "integrator": {"type": "static", "tolerance": 1e-9, "max_iterations": 7,
+                         "solver": {"preconditioner": "incomplete-cholesky"}}})",
+      "static.json");
+  EXPECT_EQ(statics.fem.tangent, TangentKind::kProjected);
+  EXPECT_EQ(statics.integrator.static_solve.max_iterations, 7);
+  EXPECT_EQ(statics.integrator.static_solve.solver.preconditioner,
+            Preconditioner::kIncompleteCholesky);
+  const std::string fem =
+      R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "corotational-fem", )";
+  EXPECT_NE(error_of(fem + R"("rayleigh": [0.1]}})").find("model.rayleigh"), std::string::npos);
+  EXPECT_NE(error_of(fem + R"("rayleigh": [-1, 0]}})").find("non-negative"), std::string::npos);
+  EXPECT_NE(error_of(fem + R"("tangent": "exactish"}})").find("known: warped, projected"),
+            std::string::npos);
+  EXPECT_NE(error_of(fem + R"("prestrain": 0.1}})").find("mass-spring only"), std::string::npos);
+  EXPECT_NE(
+      error_of(
+          R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "mass-spring", "rayleigh": [0, 0]}})")
+          .find("corotational-fem only"),
+      std::string::npos);
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "neo-hookean"}})")
+                .find("known: mass-spring, corotational-fem"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(
+          R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"solver": {"preconditioner": "ilu"}}})")
+          .find("known: none, jacobi, block-jacobi, incomplete-cholesky"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of(
+          R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"solver": {"type": "gmres"}}})")
+          .find("known: cg, direct"),
+      std::string::npos);
+}
+
 TEST(SceneParsing, MalformedJsonNamesTheLine) {
   const std::string message =
       error_of("{\n  \"mesh\": {\"box\": {\"cells\": [2, 2, 2]}},\n  \"frames\": 10,\n}\n");
