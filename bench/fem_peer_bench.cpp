@@ -116,6 +116,7 @@ InciseRun run_incise(int cells, int steps, const IncisePlan& plan) {
   options.solver.tolerance = 1e-6;
   options.solver.max_iterations = 1000;
   options.solver.preconditioner = plan.preconditioner;
+  options.solver.assembled = plan.assemble;
   BackwardEuler integrator(options);
   InciseRun run;
   const auto start = Clock::now();

@@ -400,7 +400,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     return stats;
   }
 
-  if (options_.preconditioner != Preconditioner::kIncompleteCholesky) {
+  if (options_.assembled && options_.preconditioner != Preconditioner::kIncompleteCholesky) {
     const auto build_start = std::chrono::steady_clock::now();
     if (assemble(system, mass_scale, a, b)) {
       stats.seconds_preconditioner += seconds_since(build_start);

@@ -27,6 +27,9 @@ struct LinearSolverOptions {
   int max_iterations = 500;
   /// Start CG from the caller's x (the last solution) instead of zero.
   bool warm_start = true;
+  /// Run CG on the assembled matrix when the system can assemble it (fused passes); false
+  /// multiplies through the system's matrix-free products (kept for comparison).
+  bool assembled = true;
 };
 
 /// Parses "cg" / "direct" and "none" / "jacobi" / "block-jacobi" / "incomplete-cholesky";
