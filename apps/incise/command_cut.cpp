@@ -93,7 +93,7 @@ Runner add_cut_command(CLI::App& app) {
       json["inverted_tets"] = report.inverted_tets.size();
       json["valid"] = report.ok();
       json["invalid_frames"] = invalid_frames;
-      json["min_volume_ratio"] = stats.min_volume_ratio;
+      json["min_volume_ratio"] = stats.min_volume_ratio;  // child / immediate parent
       json["cut_area"] = stats.cut_area;
       json["swept_area"] = stats.swept_area;
       json["edges_split"] = stats.edges_split;
@@ -107,6 +107,15 @@ Runner add_cut_command(CLI::App& app) {
         cases[cut_case_name(kind)] = stats.case_counts[static_cast<std::size_t>(kind)];
       }
       json["cut_cases"] = cases;
+      // Per original tetrahedron, its cut-edge code accumulated over the whole path.
+      const auto accumulated = cutter.accumulated_case_counts();
+      nlohmann::ordered_json accumulated_cases;
+      for (CutCase kind :
+           {CutCase::kA, CutCase::kB, CutCase::kC, CutCase::kD, CutCase::kE, CutCase::kInvalid}) {
+        accumulated_cases[cut_case_name(kind)] = accumulated[static_cast<std::size_t>(kind)];
+      }
+      json["accumulated_cut_cases"] = accumulated_cases;
+      json["min_volume_ratio_to_original"] = cutter.min_volume_ratio_to_original();
       json["point_tet_hits"] = {{"same", stats.point_same},
                                 {"neighbor", stats.point_neighbor},
                                 {"global", stats.point_global},

@@ -27,7 +27,11 @@ void triangle_bounds(const std::array<Vec3, 3>& triangle, Vec3& low, Vec3& high)
 }  // namespace
 
 SubdivisionCutter::SubdivisionCutter(TetMesh& mesh, const CutterOptions& options)
-    : mesh_(mesh), options_(options), grid_(mesh), on_cut_(mesh, 0, VertexRule::kDefault) {
+    : mesh_(mesh),
+      options_(options),
+      grid_(mesh),
+      on_cut_(mesh, 0, VertexRule::kDefault),
+      ancestry_(mesh, Ancestry{}, TetRule::kCopy) {
   if (!(options_.snap_fraction > 0.0 && options_.snap_fraction < 0.5)) {
     throw InputError("snap fraction must lie in (0, 0.5)");
   }
@@ -37,6 +41,56 @@ SubdivisionCutter::SubdivisionCutter(TetMesh& mesh, const CutterOptions& options
       data[vertex] = data[origin.parents[0]];
     }
   });
+  // Every tetrahedron there is now is an original; children copy their parent's ancestry.
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    (void)ancestry(static_cast<TetId>(t));
+  }
+}
+
+const Ancestry& SubdivisionCutter::ancestry(TetId tet) {
+  Ancestry& entry = ancestry_[tet];
+  if (entry.id < 0) {
+    entry.id = static_cast<std::int32_t>(ancestor_codes_.size());
+    ancestor_codes_.push_back(0);
+    for (int a = 0; a < 4; ++a) {
+      entry.corners[a] = mesh_.rest_position(mesh_.tet(tet)[a]);
+    }
+    entry.volume = std::abs(signed_volume(mesh_, tet));
+  }
+  return entry;
+}
+
+std::array<std::size_t, 7> SubdivisionCutter::accumulated_case_counts() const {
+  std::array<std::size_t, 7> counts{};
+  std::vector<char> seen(ancestor_codes_.size(), 0);
+  for (std::size_t t = 0; t < mesh_.tet_count(); ++t) {
+    const Ancestry& origin = ancestry_[static_cast<TetId>(t)];
+    if (origin.id < 0 || seen[static_cast<std::size_t>(origin.id)] != 0) {
+      continue;
+    }
+    seen[static_cast<std::size_t>(origin.id)] = 1;
+    const std::uint8_t code = ancestor_codes_[static_cast<std::size_t>(origin.id)];
+    if (code == 0) {
+      continue;
+    }
+    const bool partial =
+        started_ && segment_intersects_tet(pose_.tip, pose_.base, origin.corners[0],
+                                           origin.corners[1], origin.corners[2], origin.corners[3]);
+    ++counts[static_cast<std::size_t>(cut_case_table()[cut_state_key(code, partial)].kind)];
+  }
+  return counts;
+}
+
+double SubdivisionCutter::min_volume_ratio_to_original() const {
+  double ratio = 1.0;
+  for (std::size_t t = 0; t < mesh_.tet_count(); ++t) {
+    const Ancestry& origin = ancestry_[static_cast<TetId>(t)];
+    if (origin.id >= 0 && origin.volume > 0.0) {
+      ratio =
+          std::min(ratio, std::abs(signed_volume(mesh_, static_cast<TetId>(t))) / origin.volume);
+    }
+  }
+  return ratio;
 }
 
 void SubdivisionCutter::start(const BladePose& pose) {
@@ -389,6 +443,44 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
       crossed.emplace_back(std::min(crossing.a, crossing.b), std::max(crossing.a, crossing.b));
     }
     std::sort(crossed.begin(), crossed.end());
+    // Accumulate on each original tetrahedron the edges of its own that the crossings lie on
+    // (a crossing inside one of its faces or its interior is not an original edge).
+    for (TetId t : touched) {
+      const Ancestry& origin = ancestry(t);
+      for (const Crossing& crossing : crossings) {
+        if (mesh_.local_index(t, crossing.a) < 0 || mesh_.local_index(t, crossing.b) < 0) {
+          continue;
+        }
+        const Vec3 point = (1.0 - crossing.t) * mesh_.rest_position(crossing.a) +
+                           crossing.t * mesh_.rest_position(crossing.b);
+        Mat3 frame;
+        frame << origin.corners[1] - origin.corners[0], origin.corners[2] - origin.corners[0],
+            origin.corners[3] - origin.corners[0];
+        const Vec3 local = frame.inverse() * (point - origin.corners[0]);
+        const std::array<double, 4> weights{1.0 - local.sum(), local[0], local[1], local[2]};
+        int nonzero[2] = {-1, -1};
+        int count = 0;
+        for (int k = 0; k < 4; ++k) {
+          if (std::abs(weights[k]) > 1e-9) {
+            if (count < 2) {
+              nonzero[count] = k;
+            }
+            ++count;
+          }
+        }
+        if (count != 2) {
+          continue;
+        }
+        for (int k = 0; k < 6; ++k) {
+          const auto& e = tet_local::kEdges[k];
+          if ((e[0] == nonzero[0] && e[1] == nonzero[1]) ||
+              (e[0] == nonzero[1] && e[1] == nonzero[0])) {
+            ancestor_codes_[static_cast<std::size_t>(origin.id)] |=
+                static_cast<std::uint8_t>(1U << k);
+          }
+        }
+      }
+    }
     for (TetId t : touched) {
       const Tet& v = mesh_.tet(t);
       std::uint8_t code = 0;

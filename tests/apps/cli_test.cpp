@@ -248,10 +248,15 @@ TEST(Cli, CutReportsWhatTheIssueAsks) {
   const auto json = nlohmann::json::parse(slurp(report));
   for (const char* key :
        {"tets_in", "tets_out", "vertices_in", "vertices_out", "volume_in", "volume_out",
-        "components", "watertight", "inverted_tets", "min_volume_ratio", "cut_area", "cd", "gc"}) {
+        "components", "watertight", "inverted_tets", "min_volume_ratio", "cut_area", "cd", "gc",
+        "accumulated_cut_cases", "min_volume_ratio_to_original"}) {
     EXPECT_TRUE(json.contains(key)) << key;
   }
   EXPECT_EQ(json["tets_in"], 576);
+  EXPECT_GT(json["min_volume_ratio_to_original"].template get<double>(), 0.0);
+  EXPECT_GT(json["accumulated_cut_cases"]["A"].template get<int>() +
+                json["accumulated_cut_cases"]["B"].template get<int>(),
+            0);
   EXPECT_EQ(json["components"], 2);
   EXPECT_EQ(json["watertight"], true);
   EXPECT_EQ(json["inverted_tets"], 0);

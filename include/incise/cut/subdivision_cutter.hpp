@@ -53,6 +53,16 @@ struct CutStats {
   std::array<std::size_t, 7> case_counts{};
 };
 
+/// What a tetrahedron descends from: every child of a split inherits its original
+/// tetrahedron's id, rest corners and volume, so cut-edge codes accumulate on the original
+/// across moves (as the seed's per-tetrahedron state does) and child volumes can be compared
+/// with the original's, however often it was cut.
+struct Ancestry {
+  std::int32_t id = -1;  ///< the original tetrahedron (-1 until first seen)
+  double volume = 0.0;   ///< its rest volume (m^3)
+  std::array<Vec3, 4> corners{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+};
+
 class SubdivisionCutter {
  public:
   explicit SubdivisionCutter(TetMesh& mesh, const CutterOptions& options = {});
@@ -74,6 +84,16 @@ class SubdivisionCutter {
   [[nodiscard]] const std::vector<std::array<Vec3, 3>>& swept_surface() const { return surface_; }
   [[nodiscard]] bool started() const { return started_; }
   [[nodiscard]] const BladePose& pose() const { return pose_; }
+  /// Cut-edge code (bit k: the original's local edge k was crossed) accumulated over all
+  /// moves, per original tetrahedron id.
+  [[nodiscard]] const std::vector<std::uint8_t>& accumulated_codes() const {
+    return ancestor_codes_;
+  }
+  /// Original tetrahedra by the seed's case of their accumulated code (index: CutCase),
+  /// partial while the blade is still inside them.
+  [[nodiscard]] std::array<std::size_t, 7> accumulated_case_counts() const;
+  /// Smallest volume of a tetrahedron over the volume of the original it descends from.
+  [[nodiscard]] double min_volume_ratio_to_original() const;
 
  private:
   struct Crossing {
@@ -85,6 +105,8 @@ class SubdivisionCutter {
   void update_active_tets();
   [[nodiscard]] bool is_cut_face(VertexId a, VertexId b, VertexId c) const;
   std::size_t separate(VertexId vertex);
+  /// The ancestry of a tetrahedron, assigning a new original to one added afresh.
+  const Ancestry& ancestry(TetId tet);
   void resolve_pinched_edges(std::vector<VertexId> vertices);
 
   /// Indices of swept triangles by spatial-hash cell of their bounding boxes, so the cut-face
@@ -98,6 +120,8 @@ class SubdivisionCutter {
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> surface_cells_;
   mutable std::vector<std::uint32_t> nearby_;
   VertexData<char> on_cut_;
+  TetData<Ancestry> ancestry_;
+  std::vector<std::uint8_t> ancestor_codes_;
   std::vector<std::array<Vec3, 3>> surface_;
   BladePose pose_;
   bool started_ = false;
