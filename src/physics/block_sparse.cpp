@@ -6,33 +6,24 @@
 #include <algorithm>
 
 #include "incise/core/error.hpp"
-#include "incise/mesh/tet_mesh.hpp"
+#include "incise/mesh/vertex_graph.hpp"
 
 namespace incise {
 
 void BlockSparseMatrix::build_pattern(const TetMesh& mesh) {
   const std::size_t n = mesh.vertex_count();
-  row_start_.assign(n + 1, 0);
-  for (std::size_t v = 0; v < n; ++v) {
-    row_start_[v + 1] = 1;  // the diagonal
-  }
-  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
-    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-    ++row_start_[ends[0] + 1];
-    ++row_start_[ends[1] + 1];
-  }
-  for (std::size_t v = 0; v < n; ++v) {
-    row_start_[v + 1] += row_start_[v];
+  const VertexGraph graph = vertex_graph(mesh);
+  // Each row: the diagonal, then the neighbours.
+  row_start_.resize(n + 1);
+  for (std::size_t v = 0; v <= n; ++v) {
+    row_start_[v] = graph.row_start[v] + v;
   }
   columns_.resize(row_start_[n]);
-  std::vector<std::size_t> fill(row_start_.begin(), row_start_.end() - 1);
   for (std::size_t v = 0; v < n; ++v) {
-    columns_[fill[v]++] = static_cast<VertexId>(v);
-  }
-  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
-    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-    columns_[fill[ends[0]]++] = ends[1];
-    columns_[fill[ends[1]]++] = ends[0];
+    columns_[row_start_[v]] = static_cast<VertexId>(v);
+    const auto neighbours = graph.neighbors(static_cast<VertexId>(v));
+    std::copy(neighbours.begin(), neighbours.end(),
+              columns_.begin() + static_cast<std::ptrdiff_t>(row_start_[v] + 1));
   }
   diagonal_.resize(n);
   for (std::size_t v = 0; v < n; ++v) {
@@ -69,7 +60,8 @@ void BlockSparseMatrix::set_zero() {
   std::fill(values_.begin(), values_.end(), Mat3::Zero());
 }
 
-void BlockSparseMatrix::multiply(std::span<const Vec3> p, std::span<Vec3> y) const {
+template <typename Store>
+void BlockSparseMatrix::for_each_row_product(std::span<const Vec3> p, const Store& store) const {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows(), 512),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t i = range.begin(); i != range.end(); ++i) {
@@ -77,23 +69,18 @@ void BlockSparseMatrix::multiply(std::span<const Vec3> p, std::span<Vec3> y) con
                         for (std::size_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
                           sum.noalias() += values_[k] * p[columns_[k]];
                         }
-                        y[i] = sum;
+                        store(i, sum);
                       }
                     });
 }
 
+void BlockSparseMatrix::multiply(std::span<const Vec3> p, std::span<Vec3> y) const {
+  for_each_row_product(p, [&](std::size_t i, const Vec3& sum) { y[i] = sum; });
+}
+
 void BlockSparseMatrix::multiply_add(double scale, std::span<const Vec3> p,
                                      std::span<Vec3> y) const {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows(), 512),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                        Vec3 sum = Vec3::Zero();
-                        for (std::size_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
-                          sum.noalias() += values_[k] * p[columns_[k]];
-                        }
-                        y[i] += scale * sum;
-                      }
-                    });
+  for_each_row_product(p, [&](std::size_t i, const Vec3& sum) { y[i] += scale * sum; });
 }
 
 }  // namespace incise

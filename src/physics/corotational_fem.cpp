@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/physics/lumped_mass.hpp"
 
 namespace incise {
 
@@ -50,20 +51,7 @@ CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const Material& materi
     elements_[tet].valid = true;
     tet_mass_[tet] = material_.density * elements_[tet].shape.volume;
   }
-  // Children share their parent's mass in proportion to their rest volumes, so a cut
-  // conserves the total exactly.
-  tet_mass_.set_hook([this](TetData<double>& mass, TetId, std::span<const TetId> children,
-                            const double& parent_mass) {
-    double volume_sum = 0.0;
-    for (TetId child : children) {
-      volume_sum += std::abs(signed_volume(*mesh_, child));
-    }
-    for (TetId child : children) {
-      mass[child] = volume_sum > 0.0
-                        ? parent_mass * std::abs(signed_volume(*mesh_, child)) / volume_sum
-                        : parent_mass / static_cast<double>(children.size());
-    }
-  });
+  tet_mass_.set_hook(mass_split_by_volume(mesh_));
   mesh.add_observer(this);
   refresh();
 }
@@ -128,23 +116,7 @@ void CorotationalFemModel::rebuild_topology() {
   const TetMesh& mesh = *mesh_;
   const std::size_t n = mesh.vertex_count();
   const std::size_t tets = mesh.tet_count();
-  // Neighbours from the edges.
-  row_start_.assign(n + 1, 0);
-  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
-    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-    ++row_start_[ends[0] + 1];
-    ++row_start_[ends[1] + 1];
-  }
-  for (std::size_t v = 0; v < n; ++v) {
-    row_start_[v + 1] += row_start_[v];
-  }
-  neighbor_vertex_.resize(row_start_[n]);
-  std::vector<std::size_t> fill(row_start_.begin(), row_start_.end() - 1);
-  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
-    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-    neighbor_vertex_[fill[ends[0]]++] = ends[1];
-    neighbor_vertex_[fill[ends[1]]++] = ends[0];
-  }
+  graph_ = vertex_graph(mesh);
   // Greedy colouring in tet order: deterministic.
   std::vector<std::uint64_t> used(n, 0);
   std::vector<std::uint8_t> colour(tets);
@@ -267,16 +239,25 @@ void CorotationalFemModel::for_each_element(const Body& body) const {
   for (std::size_t c = 0; c + 1 < colour_start_.size(); ++c) {
     const std::size_t begin = colour_start_[c];
     const std::size_t end = colour_start_[c + 1];
+    // Elements with a degenerate rest shape or no material contribute nothing.
+    auto visit = [&](std::size_t k) {
+      const TetId tet = coloured_tets_[k];
+      const FemElement& element = elements_[tet];
+      const double weight = fraction_[tet];
+      if (element.valid && weight != 0.0) {
+        body(tet, element, weight);
+      }
+    };
     if (c >= kParallelColours) {
       for (std::size_t k = begin; k < end; ++k) {
-        body(coloured_tets_[k]);
+        visit(k);
       }
       continue;
     }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(begin, end, 64),
                       [&](const tbb::blocked_range<std::size_t>& range) {
                         for (std::size_t k = range.begin(); k != range.end(); ++k) {
-                          body(coloured_tets_[k]);
+                          visit(k);
                         }
                       });
   }
@@ -291,12 +272,7 @@ void CorotationalFemModel::add_forces(std::span<const Vec3> x, std::span<const V
                                       std::span<Vec3> f) const {
   INCISE_ASSERT(topology_revision_ == mesh_->revision(), "FEM model used before refresh()");
   const double beta = parameters_.rayleigh_stiffness;
-  for_each_element([&](TetId tet) {
-    const FemElement& element = elements_[tet];
-    const double weight = fraction_[tet];
-    if (!element.valid || weight == 0.0) {
-      return;
-    }
+  for_each_element([&](TetId tet, const FemElement& element, double weight) {
     const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
     const Mat3 R = polar_rotation(F, rotations_[tet]);
     Mat3 P = corotated_stress(F, R, lame_);
@@ -355,8 +331,7 @@ Vec3 CorotationalFemModel::vertex_force(VertexId vertex, const Vec3& x, const Ve
 }
 
 std::span<const VertexId> CorotationalFemModel::neighbors(VertexId vertex) const {
-  return std::span<const VertexId>(neighbor_vertex_)
-      .subspan(row_start_[vertex], row_start_[vertex + 1] - row_start_[vertex]);
+  return graph_.neighbors(vertex);
 }
 
 // ---- linearisation --------------------------------------------------------------------------
@@ -396,12 +371,7 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
   if (assembled_) {
     stiffness_.multiply_add(stiffness_scale, p, y);
   } else {
-    for_each_element([&](TetId tet) {
-      const FemElement& element = elements_[tet];
-      const double weight = fraction_[tet];
-      if (!element.valid || weight == 0.0) {
-        return;
-      }
+    for_each_element([&](TetId tet, const FemElement& element, double weight) {
       const Mat3 dF = deformation_gradient(corners(tet, p), element.shape);
       const Mat3 dP = (stiffness_scale * weight * element.shape.volume) *
                       stress_differential(linearization_[tet], lame_, dF);
@@ -428,12 +398,7 @@ void CorotationalFemModel::add_linearized_diagonal(double a, double b,
       diagonal[i] += stiffness_scale * values[stiffness_.diagonal(static_cast<VertexId>(i))];
     }
   } else {
-    for_each_element([&](TetId tet) {
-      const FemElement& element = elements_[tet];
-      const double weight = fraction_[tet];
-      if (!element.valid || weight == 0.0) {
-        return;
-      }
+    for_each_element([&](TetId tet, const FemElement& element, double weight) {
       const Tet& vertices = mesh_->tet(tet);
       for (int c = 0; c < 4; ++c) {
         diagonal[vertices[c]] += stiffness_scale * stiffness_block(linearization_[tet], lame_,

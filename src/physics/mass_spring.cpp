@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/physics/lumped_mass.hpp"
 
 namespace incise {
 
@@ -27,20 +28,7 @@ MassSpringModel::MassSpringModel(TetMesh& mesh, const Material& material,
     tet_mass_[static_cast<TetId>(t)] =
         material_.density * std::abs(signed_volume(mesh, static_cast<TetId>(t)));
   }
-  // Children share their parent's mass in proportion to their rest volumes: the total is
-  // conserved exactly, whatever rounding the new vertices' positions carry.
-  tet_mass_.set_hook([this](TetData<double>& mass, TetId, std::span<const TetId> children,
-                            const double& parent_mass) {
-    double volume_sum = 0.0;
-    for (TetId child : children) {
-      volume_sum += std::abs(signed_volume(*mesh_, child));
-    }
-    for (TetId child : children) {
-      mass[child] = volume_sum > 0.0
-                        ? parent_mass * std::abs(signed_volume(*mesh_, child)) / volume_sum
-                        : parent_mass / static_cast<double>(children.size());
-    }
-  });
+  tet_mass_.set_hook(mass_split_by_volume(mesh_));
   mesh.add_observer(this);
   is_dirty_.assign(mesh.vertex_count(), 0);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
@@ -100,28 +88,8 @@ void MassSpringModel::on_tet_reconnected(const TetMesh& mesh, TetId tet, const T
 }
 
 void MassSpringModel::rebuild_adjacency() {
-  const TetMesh& mesh = *mesh_;
-  const std::size_t n = mesh.vertex_count();
-  row_start_.assign(n + 1, 0);
-  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
-    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-    ++row_start_[ends[0] + 1];
-    ++row_start_[ends[1] + 1];
-  }
-  for (std::size_t v = 0; v < n; ++v) {
-    row_start_[v + 1] += row_start_[v];
-  }
-  neighbor_vertex_.resize(row_start_[n]);
-  neighbor_edge_.resize(row_start_[n]);
-  std::vector<std::size_t> fill(row_start_.begin(), row_start_.end() - 1);
-  for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
-    const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-    neighbor_vertex_[fill[ends[0]]] = ends[1];
-    neighbor_edge_[fill[ends[0]]++] = static_cast<EdgeId>(e);
-    neighbor_vertex_[fill[ends[1]]] = ends[0];
-    neighbor_edge_[fill[ends[1]]++] = static_cast<EdgeId>(e);
-  }
-  adjacency_revision_ = mesh.revision();
+  graph_ = vertex_graph(*mesh_);
+  adjacency_revision_ = mesh_->revision();
 }
 
 void MassSpringModel::refresh() {
@@ -144,8 +112,8 @@ void MassSpringModel::refresh() {
   // an edge is E times the summed rest volume of the tetrahedra around it over its squared
   // rest length; A. van Gelder, J. Graphics Tools 3(2), 1998).
   for (VertexId v : dirty_) {
-    for (std::size_t k = row_start_[v]; k < row_start_[v + 1]; ++k) {
-      const EdgeId e = neighbor_edge_[k];
+    for (std::size_t k = graph_.row_start[v]; k < graph_.row_start[v + 1]; ++k) {
+      const EdgeId e = graph_.edge[k];
       const auto& ends = mesh.edge(e);
       const double length = (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
       double volume = 0.0;
@@ -195,18 +163,17 @@ void MassSpringModel::add_forces(std::span<const Vec3> x, std::span<const Vec3> 
 Vec3 MassSpringModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
                                    const NeighborState& neighbor) const {
   Vec3 force = Vec3::Zero();
-  for (std::size_t k = row_start_[vertex]; k < row_start_[vertex + 1]; ++k) {
+  for (std::size_t k = graph_.row_start[vertex]; k < graph_.row_start[vertex + 1]; ++k) {
     Vec3 xb;
     Vec3 vb;
-    neighbor(neighbor_vertex_[k], xb, vb);
-    force += spring_force(springs_[neighbor_edge_[k]], x, v, xb, vb);
+    neighbor(graph_.vertex[k], xb, vb);
+    force += spring_force(springs_[graph_.edge[k]], x, v, xb, vb);
   }
   return force;
 }
 
 std::span<const VertexId> MassSpringModel::neighbors(VertexId vertex) const {
-  return std::span<const VertexId>(neighbor_vertex_)
-      .subspan(row_start_[vertex], row_start_[vertex + 1] - row_start_[vertex]);
+  return graph_.neighbors(vertex);
 }
 
 void MassSpringModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
@@ -272,15 +239,15 @@ double MassSpringModel::max_vertex_frequency() const {
   // Gershgorin bound on the eigenvalues of M^-1/2 K M^-1/2 at rest: row i holds
   // sum_j k_ij / m_i on the diagonal and k_ij / sqrt(m_i m_j) off it.
   double highest = 0.0;
-  for (std::size_t v = 0; v + 1 < row_start_.size(); ++v) {
+  for (std::size_t v = 0; v + 1 < graph_.row_start.size(); ++v) {
     const double mv = masses_[static_cast<VertexId>(v)];
     if (mv <= 0.0) {
       continue;
     }
     double row = 0.0;
-    for (std::size_t k = row_start_[v]; k < row_start_[v + 1]; ++k) {
-      const double stiffness = springs_[neighbor_edge_[k]].stiffness;
-      const double mw = masses_[neighbor_vertex_[k]];
+    for (std::size_t k = graph_.row_start[v]; k < graph_.row_start[v + 1]; ++k) {
+      const double stiffness = springs_[graph_.edge[k]].stiffness;
+      const double mw = masses_[graph_.vertex[k]];
       row += stiffness / mv + (mw > 0.0 ? stiffness / std::sqrt(mv * mw) : 0.0);
     }
     highest = std::max(highest, row);

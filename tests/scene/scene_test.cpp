@@ -232,6 +232,26 @@ TEST(Simulation, DivergenceStopsAndKeepsWrittenFrames) {
   }
 }
 
+/// How far apart (m) the copies a cut made have moved from their originals: the wound's opening.
+double widest_opening(const Simulation& simulation, std::size_t* copies = nullptr) {
+  const TetMesh& mesh = simulation.mesh();
+  double widest = 0.0;
+  std::size_t count = 0;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const VertexOrigin& origin = mesh.vertex_origin(static_cast<VertexId>(v));
+    if (origin.kind == VertexOrigin::Kind::kDuplicate) {
+      ++count;
+      widest = std::max(widest, (simulation.state().x.values()[v] -
+                                 simulation.state().x.values()[origin.parents[0]])
+                                    .norm());
+    }
+  }
+  if (copies != nullptr) {
+    *copies = count;
+  }
+  return widest;
+}
+
 TEST(Simulation, CorotationalFemFollowsTheCutAndTheWoundOpens) {
   Simulation simulation(
       load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "fem_cut_pull.json"));
@@ -243,15 +263,7 @@ TEST(Simulation, CorotationalFemFollowsTheCutAndTheWoundOpens) {
   EXPECT_TRUE(validate(mesh).ok()) << validate(mesh).describe();
   EXPECT_TRUE(check_boundary(mesh).watertight());
   EXPECT_NEAR(simulation.total_mass(), mass, 1e-9 * mass);
-  double widest = 0.0;
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    const VertexOrigin& origin = mesh.vertex_origin(static_cast<VertexId>(v));
-    if (origin.kind == VertexOrigin::Kind::kDuplicate) {
-      widest = std::max(widest, (simulation.state().x.values()[v] -
-                                 simulation.state().x.values()[origin.parents[0]])
-                                    .norm());
-    }
-  }
+  const double widest = widest_opening(simulation);
   std::printf("FEM block under a 4 mm pull: the cut lips part by %.2f mm\n", widest * 1e3);
   EXPECT_GT(widest, 0.5e-3);  // m: the lips part under the pull
   EXPECT_LT(widest, 1e-2);
@@ -271,17 +283,8 @@ TEST(Simulation, DefaultSceneCutsTheBlockAndTheWoundOpens) {
   (void)tet_components(mesh, &components);
   EXPECT_EQ(components, 1);  // the blade stops 1.2 cm above the bottom: an incision, not a split
   // The wound opens: copies made by the cut have moved apart from their originals.
-  double widest = 0.0;
   std::size_t copies = 0;
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    const VertexOrigin& origin = mesh.vertex_origin(static_cast<VertexId>(v));
-    if (origin.kind == VertexOrigin::Kind::kDuplicate) {
-      ++copies;
-      widest = std::max(widest, (simulation.state().x.values()[v] -
-                                 simulation.state().x.values()[origin.parents[0]])
-                                    .norm());
-    }
-  }
+  const double widest = widest_opening(simulation, &copies);
   EXPECT_GT(copies, 20u);
   EXPECT_GT(widest, 1e-3);  // m: the lips part by more than a millimetre
   EXPECT_LT(widest, 2e-2);

@@ -40,6 +40,10 @@ class BlockSparseMatrix {
   void multiply_add(double scale, std::span<const Vec3> p, std::span<Vec3> y) const;
 
  private:
+  /// store(row, (A p)_row) for every row, rows in parallel.
+  template <typename Store>
+  void for_each_row_product(std::span<const Vec3> p, const Store& store) const;
+
   std::uint64_t pattern_revision_ = ~std::uint64_t{0};
   std::vector<std::size_t> row_start_;
   std::vector<VertexId> columns_;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "incise/mesh/attributes.hpp"
+#include "incise/mesh/vertex_graph.hpp"
 #include "incise/physics/block_sparse.hpp"
 #include "incise/physics/corotational.hpp"
 #include "incise/physics/force_model.hpp"
@@ -85,7 +86,8 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   [[nodiscard]] Corners corners(TetId tet, std::span<const Vec3> x) const;
   /// out = scale K, assembled row by row from the last linearisation.
   void assemble_rows(std::span<Mat3> out, double scale) const;
-  /// Runs body(tet) for every element, colour by colour, each colour in parallel.
+  /// Runs body(tet, element, weight) for every element with material, colour by colour, each
+  /// colour in parallel.
   template <typename Body>
   void for_each_element(const Body& body) const;
 
@@ -102,8 +104,7 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
 
   std::uint64_t topology_revision_ = ~std::uint64_t{0};
   bool masses_stale_ = true;
-  std::vector<std::size_t> row_start_;  ///< vertex -> neighbours (compressed rows)
-  std::vector<VertexId> neighbor_vertex_;
+  VertexGraph graph_;
   std::vector<std::size_t> colour_start_;
   std::vector<TetId> coloured_tets_;
   double max_frequency_ = 0.0;

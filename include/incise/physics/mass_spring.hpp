@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "incise/mesh/attributes.hpp"
+#include "incise/mesh/vertex_graph.hpp"
 #include "incise/physics/force_model.hpp"
 #include "incise/physics/material.hpp"
 
@@ -80,10 +81,7 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
   std::vector<VertexId> dirty_;
   std::vector<char> is_dirty_;
   std::uint64_t adjacency_revision_ = ~std::uint64_t{0};
-  // Vertex -> (neighbour, edge) in compressed rows.
-  std::vector<std::size_t> row_start_;
-  std::vector<VertexId> neighbor_vertex_;
-  std::vector<EdgeId> neighbor_edge_;
+  VertexGraph graph_;  ///< vertex -> (neighbour, edge)
   // Linearisation: per-edge stiffness and damping blocks.
   std::vector<Mat3> stiffness_blocks_;
   std::vector<Mat3> damping_blocks_;
