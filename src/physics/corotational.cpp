@@ -101,6 +101,10 @@ Mat3 polar_rotation(const Mat3& F, Eigen::Quaterniond& warm_start) {
         const Eigen::Quaterniond step(1.0, 0.5 * turn.x(), 0.5 * turn.y(), 0.5 * turn.z());
         warm_start = warm_start * step;  // body frame: R <- R exp(W), first order, renormalised
         warm_start.normalize();
+        if (angle < 1e-8) {
+          // Quadratic convergence: the next turn would be below 1e-16; no need to compute it.
+          return warm_start.toRotationMatrix();
+        }
         continue;
       }
     }

@@ -270,27 +270,84 @@ Corners CorotationalFemModel::corners(TetId tet, std::span<const Vec3> x) const 
 
 void CorotationalFemModel::add_forces(std::span<const Vec3> x, std::span<const Vec3> v,
                                       std::span<Vec3> f) const {
+  element_forces(x, v, f, false);
+}
+
+void CorotationalFemModel::add_forces_and_linearize(std::span<const Vec3> x,
+                                                    std::span<const Vec3> v, std::span<Vec3> f) {
+  refresh();
+  linearization_.resize(mesh_->tet_count());
+  rotated_gradients_.resize(mesh_->tet_count());
+  rotation_seconds_ = 0.0;  // the rotations come with the forces
+  element_forces(x, v, f, true);
+  assemble_linearization_matrix();
+}
+
+void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<const Vec3> v,
+                                          std::span<Vec3> f, bool linearize) const {
   INCISE_ASSERT(topology_revision_ == mesh_->revision(), "FEM model used before refresh()");
+  const TetMesh& mesh = *mesh_;
   const double beta = parameters_.rayleigh_stiffness;
-  for_each_element([&](TetId tet, const FemElement& element, double weight) {
-    const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
-    const Mat3 R = polar_rotation(F, rotations_[tet]);
-    Mat3 P = corotated_stress(F, R, lame_);
-    if (beta > 0.0) {
-      // Stiffness-proportional damping with the element's current rotation.
-      P += beta * warped_stress_differential(R, lame_,
-                                             deformation_gradient(corners(tet, v), element.shape));
-    }
-    const Mat3 scaled = (-weight * element.shape.volume) * P;
-    const Tet& vertices = mesh_->tet(tet);
-    for (int a = 0; a < 4; ++a) {
-      f[vertices[a]] += scaled * element.shape.gradients[a];
-    }
-  });
-  if (parameters_.rayleigh_mass > 0.0) {
-    for (std::size_t i = 0; i < f.size(); ++i) {
-      f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
-    }
+  // Pass 1, elements in memory order: -w V P per element (and the tangent data).
+  scaled_stress_.resize(mesh.tet_count());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.tet_count(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                        const auto tet = static_cast<TetId>(t);
+                        const FemElement& element = elements_[tet];
+                        const double weight = fraction_[tet];
+                        if (!element.valid || weight == 0.0) {
+                          scaled_stress_[t].setZero();
+                          continue;
+                        }
+                        const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
+                        const Mat3 R = polar_rotation(F, rotations_[tet]);
+                        Mat3 P = corotated_stress(F, R, lame_);
+                        if (beta > 0.0) {
+                          // Stiffness-proportional damping with the element's current rotation.
+                          P += beta *
+                               warped_stress_differential(
+                                   R, lame_, deformation_gradient(corners(tet, v), element.shape));
+                        }
+                        scaled_stress_[t] = (-weight * element.shape.volume) * P;
+                        if (linearize) {
+                          store_linearization(tet, F, R);
+                        }
+                      }
+                    });
+  // Pass 2, vertices: gather f_i = sum over incident elements of (-w V P) grad N_corner, in
+  // a fixed order per vertex, so the sum does not depend on the thread count.
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, mesh.vertex_count(), 256),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+          Vec3 sum = Vec3::Zero();
+          for (std::size_t k = incidence_start_[i]; k < incidence_start_[i + 1]; ++k) {
+            const auto [tet, corner] = incidences_[k];
+            sum.noalias() += scaled_stress_[static_cast<std::size_t>(tet)] *
+                             elements_[tet].shape.gradients[corner];
+          }
+          f[i] += sum;
+          if (parameters_.rayleigh_mass > 0.0) {
+            f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
+          }
+        }
+      });
+}
+
+void CorotationalFemModel::store_linearization(TetId tet, const Mat3& F, const Mat3& R) const {
+  CorotatedLinearization& linearization = linearization_[static_cast<std::size_t>(tet)];
+  if (parameters_.tangent == TangentKind::kWarped) {
+    // Only what the warped tangent reads: a third of the bytes of a full linearisation.
+    linearization.warped = true;
+    linearization.rotation = R;
+    linearization.twist_weights.fill(-2.0 * lame_.mu);
+  } else {
+    linearization = corotated_linearization(F, R, lame_, parameters_.tangent);
+  }
+  auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
+  for (int a = 0; a < 4; ++a) {
+    rotated[a] = R * elements_[tet].shape.gradients[a];
   }
 }
 
@@ -341,6 +398,7 @@ void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::s
   const TetMesh& mesh = *mesh_;
   const auto start = std::chrono::steady_clock::now();
   linearization_.resize(mesh.tet_count());
+  rotated_gradients_.resize(mesh.tet_count());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.tet_count(), 256),
                     [&](const tbb::blocked_range<std::size_t>& range) {
                       for (std::size_t t = range.begin(); t != range.end(); ++t) {
@@ -350,12 +408,14 @@ void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::s
                           continue;
                         }
                         const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
-                        const Mat3 R = polar_rotation(F, rotations_[tet]);
-                        linearization_[t] =
-                            corotated_linearization(F, R, lame_, parameters_.tangent);
+                        store_linearization(tet, F, polar_rotation(F, rotations_[tet]));
                       }
                     });
   rotation_seconds_ = seconds_since(start);
+  assemble_linearization_matrix();
+}
+
+void CorotationalFemModel::assemble_linearization_matrix() {
   const auto assembly_start = std::chrono::steady_clock::now();
   assembled_ = false;
   if (parameters_.assemble) {
@@ -459,9 +519,24 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
               continue;
             }
             const auto& slot = slots_[static_cast<std::size_t>(tet)];
+            const CorotatedLinearization& linearization = linearization_[tet];
+            if (linearization.warped) {
+              // R K0_ab R^T = mu (g_a . g_b) I + lambda r_a r_b^T + mu r_b r_a^T, r = R g.
+              const auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
+              const double factor = scale * weight * element.shape.volume;
+              const Vec3 ra = factor * rotated[a];
+              for (int b = 0; b < 4; ++b) {
+                Mat3& block = out[slot[4 * a + b]];
+                block.noalias() += lame_.lambda * ra * rotated[b].transpose();
+                block.noalias() += lame_.mu * rotated[b] * ra.transpose();
+                block.diagonal().array() +=
+                    factor * lame_.mu * element.shape.gradients[a].dot(element.shape.gradients[b]);
+              }
+              continue;
+            }
             for (int b = 0; b < 4; ++b) {
               out[slot[4 * a + b]] +=
-                  stiffness_block(linearization_[tet], lame_, element.shape, scale * weight, a, b);
+                  stiffness_block(linearization, lame_, element.shape, scale * weight, a, b);
             }
           }
         }

@@ -37,15 +37,27 @@ MechanicalSystem::MechanicalSystem(TetMesh& mesh, ForceModel& model, BoundaryCon
   }
 }
 
-void MechanicalSystem::forces(double, std::span<const Vec3> x, std::span<const Vec3> v,
-                              std::span<Vec3> f) {
+void MechanicalSystem::external_and_damping_forces(std::span<const Vec3> v,
+                                                   std::span<Vec3> f) const {
   const auto masses = model_.masses();
   const Vec3& gravity = conditions_.gravity();
   for (std::size_t i = 0; i < f.size(); ++i) {
     const auto vertex = static_cast<VertexId>(i);
     f[i] = masses[i] * (gravity - damping_.viscous * v[i]) + conditions_.point_force(vertex);
   }
+}
+
+void MechanicalSystem::forces(double, std::span<const Vec3> x, std::span<const Vec3> v,
+                              std::span<Vec3> f) {
+  external_and_damping_forces(v, f);
   model_.add_forces(x, v, f);
+}
+
+void MechanicalSystem::forces_and_linearization(double, std::span<const Vec3> x,
+                                                std::span<const Vec3> v, std::span<Vec3> f) {
+  model_.refresh();
+  external_and_damping_forces(v, f);
+  model_.add_forces_and_linearize(x, v, f);
 }
 
 Vec3 MechanicalSystem::vertex_force(double, VertexId vertex, const Vec3& x, const Vec3& v,

@@ -205,8 +205,8 @@ void LinearizedSystemSolver::fill_scalar_values() {
 
 void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x,
                                                        double rhs_norm, LinearSolveStats& stats) {
-  // Three passes over memory per iteration: q = J p with p.q; the x, r and z updates with
-  // r.r and r.z; the new direction. Held rows are identity with r = z = p = 0 there.
+  // Two passes over memory per iteration: the new direction p and q = J p with p.q; the x, r
+  // and z updates with r.r and r.z. Held rows are identity with r = z = p = 0 there.
   const std::size_t n = rhs.size();
   const auto row_start = assembled_.row_start();
   const auto columns = assembled_.columns();
@@ -279,12 +279,24 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
     sum_rz += residual_[i].dot(preconditioned_[i]);
   });
   stats.relative_residual = std::sqrt(rr) / rhs_norm;
+  // q = J p for the first direction; afterwards J p_new = J z + beta J p_old is formed in the
+  // same pass as J z, so an iteration is two passes (the p and q recurrences are exact
+  // identities; only rounding differs from forming J p directly).
+  double beta = 0.0;
   int iteration = 0;
   while (stats.relative_residual > options_.tolerance && iteration < options_.max_iterations) {
     const auto product_start = std::chrono::steady_clock::now();
+    const bool first_direction = iteration == 0;
     const double curvature = chunked([&](std::size_t i, double& sum, double&) {
-                               product_[i] =
-                                   constrained_[i] != 0 ? Vec3::Zero() : row_product(i, direction_);
+                               if (constrained_[i] != 0) {
+                                 return;
+                               }
+                               if (first_direction) {
+                                 product_[i] = row_product(i, direction_);
+                               } else {
+                                 direction_[i] = preconditioned_[i] + beta * direction_[i];
+                                 product_[i] = row_product(i, preconditioned_) + beta * product_[i];
+                               }
                                sum += direction_[i].dot(product_[i]);
                              }).first;
     stats.seconds_products += seconds_since(product_start);
@@ -301,13 +313,8 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
     });
     ++iteration;
     stats.relative_residual = std::sqrt(rr_next) / rhs_norm;
-    if (stats.relative_residual <= options_.tolerance) {
-      break;
-    }
-    const double beta = rz_next / rz;
+    beta = rz_next / rz;
     rz = rz_next;
-    parallel_vertices(
-        n, [&](std::size_t i) { direction_[i] = preconditioned_[i] + beta * direction_[i]; });
   }
   stats.iterations = iteration;
 }

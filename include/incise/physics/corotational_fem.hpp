@@ -54,6 +54,10 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
                                   const NeighborState& neighbor) const override;
   [[nodiscard]] std::span<const VertexId> neighbors(VertexId vertex) const override;
   void prepare_linearization(std::span<const Vec3> x, std::span<const Vec3> v) override;
+  /// Forces and the linearisation at the same state in one element pass (each rotation is
+  /// computed once).
+  void add_forces_and_linearize(std::span<const Vec3> x, std::span<const Vec3> v,
+                                std::span<Vec3> f) override;
   void add_linearized_product(double a, double b, std::span<const Vec3> p,
                               std::span<Vec3> y) const override;
   void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const override;
@@ -84,6 +88,11 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   void rebuild_topology();
   void update_rest_data();
   [[nodiscard]] Corners corners(TetId tet, std::span<const Vec3> x) const;
+  void element_forces(std::span<const Vec3> x, std::span<const Vec3> v, std::span<Vec3> f,
+                      bool linearize) const;
+  /// Keeps an element's tangent and rotated shape gradients for products and assembly.
+  void store_linearization(TetId tet, const Mat3& F, const Mat3& R) const;
+  void assemble_linearization_matrix();
   /// out = scale K, assembled row by row from the last linearisation.
   void assemble_rows(std::span<Mat3> out, double scale) const;
   /// Runs body(tet, element, weight) for every element with material, colour by colour, each
@@ -109,7 +118,10 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   std::vector<TetId> coloured_tets_;
   double max_frequency_ = 0.0;
 
-  std::vector<CorotatedLinearization> linearization_;
+  // Written by the element loops (each element only by its own thread).
+  mutable std::vector<CorotatedLinearization> linearization_;
+  mutable std::vector<std::array<Vec3, 4>> rotated_gradients_;  ///< R grad N_a per element
+  mutable std::vector<Mat3> scaled_stress_;  ///< -w V P per element (N m), gathered per vertex
   BlockSparseMatrix stiffness_;
   std::vector<std::array<std::uint32_t, 16>> slots_;  ///< per tet: block (a, b) in stiffness_
   struct Incidence {

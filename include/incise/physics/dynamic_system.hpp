@@ -45,6 +45,13 @@ class DynamicSystem {
                                      std::span<const Vec3> v) = 0;
   virtual void add_linearized_product(double a, double b, std::span<const Vec3> p,
                                       std::span<Vec3> y) const = 0;
+  /// forces() then prepare_linearization() at the same state, in one pass where the system
+  /// can share the work.
+  virtual void forces_and_linearization(double t, std::span<const Vec3> x, std::span<const Vec3> v,
+                                        std::span<Vec3> f) {
+    forces(t, x, v, f);
+    prepare_linearization(t, x, v);
+  }
   /// Adds the diagonal 3x3 blocks of a K + b D (for preconditioning).
   virtual void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const = 0;
   /// Writes a K + b D into `matrix` (pattern over the mesh's edges); false when the system

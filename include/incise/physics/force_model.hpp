@@ -33,6 +33,13 @@ class ForceModel {
                                           const NeighborState& neighbor) const = 0;
   [[nodiscard]] virtual std::span<const VertexId> neighbors(VertexId vertex) const = 0;
   virtual void prepare_linearization(std::span<const Vec3> x, std::span<const Vec3> v) = 0;
+  /// add_forces then prepare_linearization at the same state; models that share work between
+  /// the two (the FEM's rotations) do both in one pass.
+  virtual void add_forces_and_linearize(std::span<const Vec3> x, std::span<const Vec3> v,
+                                        std::span<Vec3> f) {
+    add_forces(x, v, f);
+    prepare_linearization(x, v);
+  }
   virtual void add_linearized_product(double a, double b, std::span<const Vec3> p,
                                       std::span<Vec3> y) const = 0;
   virtual void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const = 0;

@@ -47,6 +47,8 @@ class MechanicalSystem final : public DynamicSystem {
     conditions_.prescribed_state(t, vertex, mesh_.rest_position(vertex), x, v);
   }
   void prepare_linearization(double t, std::span<const Vec3> x, std::span<const Vec3> v) override;
+  void forces_and_linearization(double t, std::span<const Vec3> x, std::span<const Vec3> v,
+                                std::span<Vec3> f) override;
   void add_linearized_product(double a, double b, std::span<const Vec3> p,
                               std::span<Vec3> y) const override;
   void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const override;
@@ -62,6 +64,9 @@ class MechanicalSystem final : public DynamicSystem {
   [[nodiscard]] const TetMesh& mesh() const { return mesh_; }
 
  private:
+  /// f = gravity, point forces and viscous damping (overwrites f).
+  void external_and_damping_forces(std::span<const Vec3> v, std::span<Vec3> f) const;
+
   TetMesh& mesh_;
   ForceModel& model_;
   BoundaryConditions& conditions_;

@@ -20,6 +20,7 @@ struct IntegratorStats {
   double solver_residual_last_step = 0.0;       ///< relative residual reached
   /// Where the last step's time went (s): linearisation (rotations, assembly), building the
   /// preconditioner or factorisation, matrix-vector products, and the whole step.
+  double seconds_forces = 0.0;
   double seconds_linearization = 0.0;
   double seconds_preconditioner = 0.0;
   double seconds_products = 0.0;
