@@ -262,6 +262,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
       residual_[i].setZero();
       preconditioned_[i].setZero();
       direction_[i].setZero();
+      product_[i].setZero();  // never written again: held rows stay out of every update
       return;
     }
     const Mat3& block = values[assembled_.diagonal(static_cast<VertexId>(i))];
