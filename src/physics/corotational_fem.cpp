@@ -416,18 +416,28 @@ void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::s
 }
 
 void CorotationalFemModel::assemble_linearization_matrix() {
-  const auto assembly_start = std::chrono::steady_clock::now();
+  // Lazily: a solver that assembles its own system matrix (assemble_linearization) never needs
+  // K on its own, and then nothing is assembled twice.
   assembled_ = false;
-  if (parameters_.assemble) {
-    assemble_rows(stiffness_.values(), 1.0);
-    assembled_ = true;
+  assembly_pending_ = parameters_.assemble;
+  assembly_seconds_ = 0.0;
+}
+
+void CorotationalFemModel::ensure_assembled() const {
+  if (!assembly_pending_) {
+    return;
   }
-  assembly_seconds_ = seconds_since(assembly_start);
+  const auto start = std::chrono::steady_clock::now();
+  assemble_rows(stiffness_.values(), 1.0);
+  assembled_ = true;
+  assembly_pending_ = false;
+  assembly_seconds_ += seconds_since(start);
 }
 
 void CorotationalFemModel::add_linearized_product(double a, double b, std::span<const Vec3> p,
                                                   std::span<Vec3> y) const {
   const double stiffness_scale = a + b * parameters_.rayleigh_stiffness;
+  ensure_assembled();
   if (assembled_) {
     stiffness_.multiply_add(stiffness_scale, p, y);
   } else {
@@ -452,6 +462,7 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
 void CorotationalFemModel::add_linearized_diagonal(double a, double b,
                                                    std::span<Mat3> diagonal) const {
   const double stiffness_scale = a + b * parameters_.rayleigh_stiffness;
+  ensure_assembled();
   if (assembled_) {
     const auto values = stiffness_.values();
     for (std::size_t i = 0; i < diagonal.size(); ++i) {
@@ -488,7 +499,9 @@ bool CorotationalFemModel::assemble_linearization(double a, double b,
                         }
                       });
   } else {
+    const auto start = std::chrono::steady_clock::now();
     assemble_rows(out, stiffness_scale);
+    assembly_seconds_ += seconds_since(start);
   }
   const double mass_scale = b * parameters_.rayleigh_mass;
   if (mass_scale != 0.0) {

@@ -76,7 +76,8 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   void set_assemble(bool assemble) { parameters_.assemble = assemble; }
   /// Number of colours of the element colouring (parallel passes per element loop).
   [[nodiscard]] std::size_t colour_count() const { return colour_start_.size() - 1; }
-  /// Time (s) spent in the last prepare_linearization on rotations and on assembly.
+  /// Time (s) spent in the last linearisation on rotations, and on assembling (K, or a system
+  /// matrix a solver asked for) since.
   [[nodiscard]] double last_rotation_seconds() const { return rotation_seconds_; }
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
@@ -93,6 +94,8 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   /// Keeps an element's tangent and rotated shape gradients for products and assembly.
   void store_linearization(TetId tet, const Mat3& F, const Mat3& R) const;
   void assemble_linearization_matrix();
+  /// Assembles K into stiffness_ if the last linearisation has not been yet.
+  void ensure_assembled() const;
   /// out = scale K, assembled row by row from the last linearisation.
   void assemble_rows(std::span<Mat3> out, double scale) const;
   /// Runs body(tet, element, weight) for every element with material, colour by colour, each
@@ -122,7 +125,7 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   mutable std::vector<CorotatedLinearization> linearization_;
   mutable std::vector<std::array<Vec3, 4>> rotated_gradients_;  ///< R grad N_a per element
   mutable std::vector<Mat3> scaled_stress_;  ///< -w V P per element (N m), gathered per vertex
-  BlockSparseMatrix stiffness_;
+  mutable BlockSparseMatrix stiffness_;
   std::vector<std::array<std::uint32_t, 16>> slots_;  ///< per tet: block (a, b) in stiffness_
   struct Incidence {
     TetId tet;
@@ -130,9 +133,10 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   };
   std::vector<std::size_t> incidence_start_;  ///< vertex -> its incidences (compressed rows)
   std::vector<Incidence> incidences_;
-  bool assembled_ = false;
+  mutable bool assembled_ = false;
+  mutable bool assembly_pending_ = false;
   double rotation_seconds_ = 0.0;
-  double assembly_seconds_ = 0.0;
+  mutable double assembly_seconds_ = 0.0;
 };
 
 }  // namespace incise
