@@ -263,6 +263,20 @@ void CorotationalFemModel::for_each_element(const Body& body) const {
   }
 }
 
+template <typename Body>
+void CorotationalFemModel::for_each_valid_element_in_order(const Body& body) const {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh_->tet_count(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                        const auto tet = static_cast<TetId>(t);
+                        const FemElement& element = elements_[tet];
+                        if (element.valid) {
+                          body(tet, element);
+                        }
+                      }
+                    });
+}
+
 Corners CorotationalFemModel::corners(TetId tet, std::span<const Vec3> x) const {
   const Tet& vertices = mesh_->tet(tet);
   return {x[vertices[0]], x[vertices[1]], x[vertices[2]], x[vertices[3]]};
@@ -399,18 +413,10 @@ void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::s
   const auto start = std::chrono::steady_clock::now();
   linearization_.resize(mesh.tet_count());
   rotated_gradients_.resize(mesh.tet_count());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.tet_count(), 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                        const auto tet = static_cast<TetId>(t);
-                        const FemElement& element = elements_[tet];
-                        if (!element.valid) {
-                          continue;
-                        }
-                        const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
-                        store_linearization(tet, F, polar_rotation(F, rotations_[tet]));
-                      }
-                    });
+  for_each_valid_element_in_order([&](TetId tet, const FemElement& element) {
+    const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
+    store_linearization(tet, F, polar_rotation(F, rotations_[tet]));
+  });
   rotation_seconds_ = seconds_since(start);
   assemble_linearization_matrix();
 }
@@ -559,20 +565,13 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
 double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {
   const TetMesh& mesh = *mesh_;
   std::vector<double> energy(mesh.tet_count(), 0.0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.tet_count(), 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                        const auto tet = static_cast<TetId>(t);
-                        const FemElement& element = elements_[tet];
-                        if (!element.valid) {
-                          continue;
-                        }
-                        const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
-                        Eigen::Quaterniond start = rotations_[tet];
-                        energy[t] = fraction_[tet] * element.shape.volume *
-                                    corotated_energy_density(F, polar_rotation(F, start), lame_);
-                      }
-                    });
+  for_each_valid_element_in_order([&](TetId tet, const FemElement& element) {
+    const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
+    Eigen::Quaterniond start = rotations_[tet];
+    energy[static_cast<std::size_t>(tet)] =
+        fraction_[tet] * element.shape.volume *
+        corotated_energy_density(F, polar_rotation(F, start), lame_);
+  });
   double total = 0.0;
   for (double e : energy) {
     total += e;  // serial: the same sum whatever the thread count

@@ -98,6 +98,10 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   void ensure_assembled() const;
   /// out = scale K, assembled row by row from the last linearisation.
   void assemble_rows(std::span<Mat3> out, double scale) const;
+  /// Runs body(tet, element) for every element with a valid rest shape, in parallel over
+  /// blocks of consecutive elements (for loops that write only per-element data).
+  template <typename Body>
+  void for_each_valid_element_in_order(const Body& body) const;
   /// Runs body(tet, element, weight) for every element with material, colour by colour, each
   /// colour in parallel.
   template <typename Body>
