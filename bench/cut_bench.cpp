@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 
+#include "incise/core/timing.hpp"
 #include "incise/cut/subdivision_cutter.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
@@ -64,11 +65,10 @@ int main() {
     BoxGridOptions options;
     options.cells = {n, n, n};
     options.size = Vec3(0.1, 0.1, 0.1);
-    const auto setup_start = std::chrono::steady_clock::now();
+    const auto setup_start = Clock::now();
     TetMesh mesh = make_box_grid(options);
     SubdivisionCutter cutter(mesh);
-    const double setup =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
+    const double setup = seconds_since(setup_start);
     std::vector<BladePose> path;
     for (int i = 0; i <= 20; ++i) {
       const double y = 0.04 + 0.001 * i;

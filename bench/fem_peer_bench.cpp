@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "incise/core/timing.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/physics/corotational_fem.hpp"
 #include "incise/physics/mechanical_system.hpp"
@@ -37,17 +38,12 @@
 namespace {
 
 using namespace incise;
-using Clock = std::chrono::steady_clock;
 
 constexpr double kYoung = 3.0e3;     // Pa
 constexpr double kPoisson = 0.45;    // -
 constexpr double kDensity = 1000.0;  // kg/m^3
 constexpr double kSize = 0.1;        // m
 constexpr double kDt = 0.01;         // s
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 BoxGridOptions cube(int cells) {
   BoxGridOptions options;
@@ -184,12 +180,10 @@ BulletRun run_bullet(int cells, int steps) {
   btDbvtBroadphase broadphase;
   PeerSolver deformable_solver;
   deformable_solver.setImplicit(true);
-  if (std::getenv("INCISE_BENCH_BULLET_DEFAULTS") == nullptr) {
-    const char* tolerance = std::getenv("INCISE_BENCH_BULLET_TOLERANCE");
-    const char* iterations = std::getenv("INCISE_BENCH_BULLET_ITERATIONS");
-    deformable_solver.configure(1, tolerance != nullptr ? std::atof(tolerance) : 1e-6,
-                                iterations != nullptr ? std::atoi(iterations) : 1000);
-  }
+  const char* tolerance = std::getenv("INCISE_BENCH_BULLET_TOLERANCE");
+  const char* iterations = std::getenv("INCISE_BENCH_BULLET_ITERATIONS");
+  deformable_solver.configure(1, tolerance != nullptr ? std::atof(tolerance) : 1e-6,
+                              iterations != nullptr ? std::atoi(iterations) : 1000);
   btDeformableMultiBodyConstraintSolver constraint_solver;
   constraint_solver.setDeformableSolver(&deformable_solver);
   btDeformableMultiBodyDynamicsWorld world(&dispatcher, &broadphase, &constraint_solver,

@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "incise/core/timing.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/quality.hpp"
 #include "incise/mesh/validate.hpp"
@@ -59,7 +60,7 @@ Runner add_mesh_command(CLI::App& app) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   return [=]() {
-    const auto start = std::chrono::steady_clock::now();
+    const auto start = Clock::now();
     SurfaceMesh surface = read_surface(*input);
     for (const std::string& note : surface.notes) {
       std::cerr << "note: " << note << "\n";
@@ -83,8 +84,7 @@ Runner add_mesh_command(CLI::App& app) {
     const ValidationReport report = validate(mesh);
     const QualitySummary quality = summarize_quality(mesh);
     write_tet_mesh(*output, mesh);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds = seconds_since(start);
     std::cerr << fmt::format(
         "wrote {} ({} vertices, {} tetrahedra, volume {:.6g}, min dihedral {:.1f} deg, {:.2f} s)\n",
         *output, mesh.vertex_count(), mesh.tet_count(), total_volume(mesh),

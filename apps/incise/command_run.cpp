@@ -14,6 +14,7 @@
 
 #include "commands.hpp"
 #include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
 #include "incise/scene/simulation.hpp"
 
 namespace incise::app {
@@ -97,10 +98,8 @@ Runner add_run_command(CLI::App& app) {
         simulation.mesh().tet_count(), simulation.total_mass(), simulation.integrator().name(),
         scene.integrator.dt, frame_count);
     Progress progress(frame_count);
-    const auto start = std::chrono::steady_clock::now();
-    auto elapsed = [&start] {
-      return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    };
+    const auto start = Clock::now();
+    auto elapsed = [&start] { return seconds_since(start); };
     const RunResult result =
         simulation.run(frame_count, output, name, scene.vtu_every,
                        [&](const FrameRecord& record) { progress.update(record, elapsed()); });

@@ -7,17 +7,12 @@
 #include <numeric>
 
 #include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
 #include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
 
 namespace incise {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 void triangle_bounds(const std::array<Vec3, 3>& triangle, Vec3& low, Vec3& high) {
   low = triangle[0].cwiseMin(triangle[1]).cwiseMin(triangle[2]);

@@ -224,10 +224,9 @@ Mat3 stiffness_block(const CorotatedLinearization& linearization, const LamePara
   const Vec3 ra = linearization.rotation * ga;
   const Vec3 rb = linearization.rotation * gb;
   if (linearization.warped) {
-    // R K0_ab R^T with K0_ab = mu (g_a . g_b) I + lambda g_a g_b^T + mu g_b g_a^T.
-    return (weight * rest.volume) *
-           (lame.mu * ga.dot(gb) * Mat3::Identity() + lame.lambda * ra * rb.transpose() +
-            lame.mu * rb * ra.transpose());
+    Mat3 block = Mat3::Zero();
+    add_warped_stiffness_block(block, ra, rb, ga.dot(gb), lame, weight * rest.volume);
+    return block;
   }
   Mat3 block = (2.0 * lame.mu * ga.dot(gb)) * Mat3::Identity() + lame.lambda * ra * rb.transpose();
   for (int k = 0; k < 3; ++k) {
@@ -235,53 +234,6 @@ Mat3 stiffness_block(const CorotatedLinearization& linearization, const LamePara
              (linearization.twist_modes[k] * gb).transpose();
   }
   return (weight * rest.volume) * block;
-}
-
-void add_stiffness_blocks(const CorotatedLinearization& linearization, const LameParameters& lame,
-                          const TetRestShape& rest, double scale,
-                          const std::array<Mat3*, 16>& blocks) {
-  // Rotated gradients once per element, then outer products per block:
-  // K_ab = V w [2 mu (g_a . g_b) I + lambda r_a r_b^T + sum_k c_k (M_k g_a)(M_k g_b)^T].
-  std::array<Vec3, 4> rotated;
-  for (int a = 0; a < 4; ++a) {
-    rotated[a] = linearization.rotation * rest.gradients[a];
-  }
-  const double factor = scale * rest.volume;
-  if (linearization.warped) {
-    // R K0 R^T: mu (g_a . g_b) I + lambda r_a r_b^T + mu r_b r_a^T.
-    for (int a = 0; a < 4; ++a) {
-      for (int b = a; b < 4; ++b) {
-        Mat3 block = (factor * lame.lambda) * rotated[a] * rotated[b].transpose();
-        block.noalias() += (factor * lame.mu) * rotated[b] * rotated[a].transpose();
-        block.diagonal().array() += factor * lame.mu * rest.gradients[a].dot(rest.gradients[b]);
-        *blocks[4 * a + b] += block;
-        if (b != a) {
-          *blocks[4 * b + a] += block.transpose();
-        }
-      }
-    }
-    return;
-  }
-  std::array<std::array<Vec3, 4>, 3> twisted;
-  for (int a = 0; a < 4; ++a) {
-    for (int k = 0; k < 3; ++k) {
-      twisted[k][a] = linearization.twist_modes[k] * rest.gradients[a];
-    }
-  }
-  for (int a = 0; a < 4; ++a) {
-    for (int b = a; b < 4; ++b) {
-      Mat3 block = (factor * lame.lambda) * rotated[a] * rotated[b].transpose();
-      for (int k = 0; k < 3; ++k) {
-        block.noalias() +=
-            (factor * linearization.twist_weights[k]) * twisted[k][a] * twisted[k][b].transpose();
-      }
-      block.diagonal().array() += factor * 2.0 * lame.mu * rest.gradients[a].dot(rest.gradients[b]);
-      *blocks[4 * a + b] += block;
-      if (b != a) {
-        *blocks[4 * b + a] += block.transpose();
-      }
-    }
-  }
 }
 
 ElementMatrix corotated_stiffness(const Corners& x, const TetRestShape& rest,

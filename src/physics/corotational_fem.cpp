@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
 #include "incise/physics/lumped_mass.hpp"
 
 namespace incise {
@@ -18,10 +19,6 @@ namespace {
 /// Colours 0..63 come from a 64-bit mask per vertex; the rare element that finds all of them
 /// taken around its corners goes to colour 64, which is processed serially.
 constexpr std::size_t kParallelColours = 64;
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 }  // namespace
 
@@ -60,11 +57,6 @@ CorotationalFemModel::~CorotationalFemModel() {
   if (mesh_ != nullptr) {
     mesh_->remove_observer(this);
   }
-}
-
-void CorotationalFemModel::on_tet_replaced(const TetMesh&, TetId, std::span<const TetId>,
-                                           const Tet&) {
-  masses_stale_ = true;
 }
 
 void CorotationalFemModel::set_material_fraction(TetId tet, double fraction) {
@@ -292,7 +284,6 @@ void CorotationalFemModel::add_forces_and_linearize(std::span<const Vec3> x,
   refresh();
   linearization_.resize(mesh_->tet_count());
   rotated_gradients_.resize(mesh_->tet_count());
-  rotation_seconds_ = 0.0;  // the rotations come with the forces
   element_forces(x, v, f, true);
   assemble_linearization_matrix();
 }
@@ -410,14 +401,12 @@ std::span<const VertexId> CorotationalFemModel::neighbors(VertexId vertex) const
 void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
   refresh();
   const TetMesh& mesh = *mesh_;
-  const auto start = std::chrono::steady_clock::now();
   linearization_.resize(mesh.tet_count());
   rotated_gradients_.resize(mesh.tet_count());
   for_each_valid_element_in_order([&](TetId tet, const FemElement& element) {
     const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
     store_linearization(tet, F, polar_rotation(F, rotations_[tet]));
   });
-  rotation_seconds_ = seconds_since(start);
   assemble_linearization_matrix();
 }
 
@@ -433,7 +422,7 @@ void CorotationalFemModel::ensure_assembled() const {
   if (!assembly_pending_) {
     return;
   }
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   assemble_rows(stiffness_.values(), 1.0);
   assembled_ = true;
   assembly_pending_ = false;
@@ -505,7 +494,7 @@ bool CorotationalFemModel::assemble_linearization(double a, double b,
                         }
                       });
   } else {
-    const auto start = std::chrono::steady_clock::now();
+    const auto start = Clock::now();
     assemble_rows(out, stiffness_scale);
     assembly_seconds_ += seconds_since(start);
   }
@@ -543,13 +532,10 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
               // R K0_ab R^T = mu (g_a . g_b) I + lambda r_a r_b^T + mu r_b r_a^T, r = R g.
               const auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
               const double factor = scale * weight * element.shape.volume;
-              const Vec3 ra = factor * rotated[a];
               for (int b = 0; b < 4; ++b) {
-                Mat3& block = out[slot[4 * a + b]];
-                block.noalias() += lame_.lambda * ra * rotated[b].transpose();
-                block.noalias() += lame_.mu * rotated[b] * ra.transpose();
-                block.diagonal().array() +=
-                    factor * lame_.mu * element.shape.gradients[a].dot(element.shape.gradients[b]);
+                add_warped_stiffness_block(
+                    out[slot[4 * a + b]], rotated[a], rotated[b],
+                    element.shape.gradients[a].dot(element.shape.gradients[b]), lame_, factor);
               }
               continue;
             }

@@ -55,7 +55,6 @@ void MechanicalSystem::forces(double, std::span<const Vec3> x, std::span<const V
 
 void MechanicalSystem::forces_and_linearization(double, std::span<const Vec3> x,
                                                 std::span<const Vec3> v, std::span<Vec3> f) {
-  model_.refresh();
   external_and_damping_forces(v, f);
   model_.add_forces_and_linearize(x, v, f);
 }

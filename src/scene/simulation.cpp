@@ -7,17 +7,12 @@
 #include <optional>
 
 #include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
 #include "incise/cut/subdivision_cutter.hpp"
 #include "incise/mesh/validate.hpp"
 
 namespace incise {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 std::vector<VertexId> select(const TetMesh& mesh, const RegionSpec& region,
                              const std::string& scene) {

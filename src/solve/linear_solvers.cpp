@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
 
 namespace incise {
 
@@ -18,10 +19,6 @@ namespace {
 constexpr std::size_t kChunk = 2048;
 /// Rows per chunk of the fused CG passes (reductions in the same fixed order).
 constexpr std::size_t kFusedChunk = 1024;
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 template <typename Body>
 void parallel_vertices(std::size_t n, const Body& body) {
@@ -33,24 +30,36 @@ void parallel_vertices(std::size_t n, const Body& body) {
                     });
 }
 
-/// sum_i term(i), deterministic: each fixed chunk summed by one thread, chunks summed in order.
-template <typename Term>
-double parallel_sum(std::size_t n, const Term& term) {
-  const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  std::vector<double> partial(chunks, 0.0);
+/// Two sums over i < n at once, deterministic: body(i, first, second) adds to both; each fixed
+/// chunk of `chunk` rows is summed by one thread, then the chunks in order.
+template <typename Body>
+std::pair<double, double> chunked_sums(std::size_t n, std::size_t chunk, const Body& body) {
+  const std::size_t chunks = (n + chunk - 1) / chunk;
+  std::vector<double> first(chunks, 0.0);
+  std::vector<double> second(chunks, 0.0);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-    double sum = 0.0;
-    const std::size_t end = std::min(n, (c + 1) * kChunk);
-    for (std::size_t i = c * kChunk; i < end; ++i) {
-      sum += term(i);
+    double sum_first = 0.0;
+    double sum_second = 0.0;
+    const std::size_t end = std::min(n, (c + 1) * chunk);
+    for (std::size_t i = c * chunk; i < end; ++i) {
+      body(i, sum_first, sum_second);
     }
-    partial[c] = sum;
+    first[c] = sum_first;
+    second[c] = sum_second;
   });
-  double total = 0.0;
-  for (double p : partial) {
-    total += p;
+  std::pair<double, double> total{0.0, 0.0};
+  for (std::size_t c = 0; c < chunks; ++c) {
+    total.first += first[c];
+    total.second += second[c];
   }
   return total;
+}
+
+/// sum_i term(i), deterministic (see chunked_sums).
+template <typename Term>
+double parallel_sum(std::size_t n, const Term& term) {
+  return chunked_sums(n, kChunk, [&](std::size_t i, double& sum, double&) { sum += term(i); })
+      .first;
 }
 
 }  // namespace
@@ -203,6 +212,17 @@ void LinearizedSystemSolver::fill_scalar_values() {
                     });
 }
 
+Mat3 LinearizedSystemSolver::preconditioner_block(const Mat3& diagonal_block) const {
+  switch (options_.preconditioner) {
+    case Preconditioner::kBlockJacobi:
+      return diagonal_block.inverse();
+    case Preconditioner::kJacobi:
+      return diagonal_block.diagonal().cwiseInverse().asDiagonal();
+    default:
+      return Mat3::Identity();
+  }
+}
+
 void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x,
                                                        double rhs_norm, LinearSolveStats& stats) {
   // Two passes over memory per iteration: the new direction p and q = J p with p.q; the x, r
@@ -216,29 +236,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   product_.resize(n);
   preconditioned_.resize(n);
   diagonal_.resize(n);
-  const bool blocks = options_.preconditioner == Preconditioner::kBlockJacobi;
-  const bool scaled = options_.preconditioner != Preconditioner::kNone;
-  const std::size_t chunks = (n + kFusedChunk - 1) / kFusedChunk;
-  std::vector<double> first(chunks), second(chunks);
-  auto chunked = [&](const auto& body) {
-    tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-      double sum_first = 0.0;
-      double sum_second = 0.0;
-      const std::size_t end = std::min(n, (c + 1) * kFusedChunk);
-      for (std::size_t i = c * kFusedChunk; i < end; ++i) {
-        body(i, sum_first, sum_second);
-      }
-      first[c] = sum_first;
-      second[c] = sum_second;
-    });
-    double total_first = 0.0;
-    double total_second = 0.0;
-    for (std::size_t c = 0; c < chunks; ++c) {
-      total_first += first[c];
-      total_second += second[c];
-    }
-    return std::pair{total_first, total_second};
-  };
+  auto chunked = [&](const auto& body) { return chunked_sums(n, kFusedChunk, body); };
   auto row_product = [&](std::size_t i, std::span<const Vec3> p) {
     Vec3 sum = Vec3::Zero();
     for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
@@ -265,14 +263,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
       product_[i].setZero();  // never written again: held rows stay out of every update
       return;
     }
-    const Mat3& block = values[assembled_.diagonal(static_cast<VertexId>(i))];
-    if (blocks) {
-      diagonal_[i] = block.inverse();
-    } else if (scaled) {
-      diagonal_[i] = block.diagonal().cwiseInverse().asDiagonal();
-    } else {
-      diagonal_[i].setIdentity();
-    }
+    diagonal_[i] = preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
     residual_[i] = warm ? Vec3(rhs[i] - row_product(i, x)) : rhs[i];
     preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
     direction_[i] = preconditioned_[i];
@@ -286,7 +277,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   double beta = 0.0;
   int iteration = 0;
   while (stats.relative_residual > options_.tolerance && iteration < options_.max_iterations) {
-    const auto product_start = std::chrono::steady_clock::now();
+    const auto product_start = Clock::now();
     const bool first_direction = iteration == 0;
     const double curvature = chunked([&](std::size_t i, double& sum, double&) {
                                if (constrained_[i] != 0) {
@@ -324,7 +315,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
                                                double a, double b,
                                                std::span<const char> constrained,
                                                std::span<const Vec3> rhs, std::span<Vec3> x) {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   const std::size_t n = rhs.size();
   masses_ = system.masses();
   constrained_ = constrained;
@@ -344,7 +335,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
   const bool needs_matrix = options_.type == LinearSolverType::kDirect ||
                             options_.preconditioner == Preconditioner::kIncompleteCholesky;
   if (needs_matrix) {
-    const auto build_start = std::chrono::steady_clock::now();
+    const auto build_start = Clock::now();
     if (!assemble(system, mass_scale, a, b)) {
       throw InputError(
           "this model offers matrix-free products only: use the cg solver with the jacobi or "
@@ -409,7 +400,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
   }
 
   if (options_.assembled && options_.preconditioner != Preconditioner::kIncompleteCholesky) {
-    const auto build_start = std::chrono::steady_clock::now();
+    const auto build_start = Clock::now();
     if (assemble(system, mass_scale, a, b)) {
       stats.seconds_preconditioner += seconds_since(build_start);
       fused_conjugate_gradients(rhs, x, rhs_norm, stats);
@@ -423,23 +414,16 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
   direction_.resize(n);
   product_.resize(n);
   preconditioned_.resize(n);
-  const auto build_start = std::chrono::steady_clock::now();
+  const auto build_start = Clock::now();
   if (options_.preconditioner == Preconditioner::kJacobi ||
       options_.preconditioner == Preconditioner::kBlockJacobi) {
     diagonal_.resize(n);
     parallel_vertices(
         n, [&](std::size_t i) { diagonal_[i] = mass_scale * masses_[i] * Mat3::Identity(); });
     system.add_linearized_diagonal(a, b, diagonal_);
-    const bool blocks = options_.preconditioner == Preconditioner::kBlockJacobi;
     parallel_vertices(n, [&](std::size_t i) {
-      if (constrained_[i] != 0) {
-        diagonal_[i].setIdentity();
-      } else if (blocks) {
-        diagonal_[i] = diagonal_[i].inverse().eval();
-      } else {
-        const Vec3 inverse = diagonal_[i].diagonal().cwiseInverse();
-        diagonal_[i] = inverse.asDiagonal();
-      }
+      diagonal_[i] =
+          constrained_[i] != 0 ? Mat3(Mat3::Identity()) : preconditioner_block(diagonal_[i]);
     });
   }
   stats.seconds_preconditioner += seconds_since(build_start);
@@ -461,7 +445,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     }
   };
   auto timed_apply = [&](std::span<const Vec3> p, std::span<Vec3> y) {
-    const auto product_start = std::chrono::steady_clock::now();
+    const auto product_start = Clock::now();
     apply(system, mass_scale, a, b, p, y);
     stats.seconds_products += seconds_since(product_start);
   };

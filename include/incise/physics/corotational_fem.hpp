@@ -76,13 +76,10 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   void set_assemble(bool assemble) { parameters_.assemble = assemble; }
   /// Number of colours of the element colouring (parallel passes per element loop).
   [[nodiscard]] std::size_t colour_count() const { return colour_start_.size() - 1; }
-  /// Time (s) spent in the last linearisation on rotations, and on assembling (K, or a system
-  /// matrix a solver asked for) since.
-  [[nodiscard]] double last_rotation_seconds() const { return rotation_seconds_; }
+  /// Time (s) spent assembling since the last linearisation (K, or a system matrix a solver
+  /// asked for).
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
-  void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
-                       const Tet& parent_vertices) override;
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
 
  private:
@@ -139,7 +136,6 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   std::vector<Incidence> incidences_;
   mutable bool assembled_ = false;
   mutable bool assembly_pending_ = false;
-  double rotation_seconds_ = 0.0;
   mutable double assembly_seconds_ = 0.0;
 };
 

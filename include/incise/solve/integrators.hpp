@@ -18,10 +18,9 @@ struct IntegratorStats {
   std::size_t touched_last_step = 0;            ///< vertices advanced by the last step
   std::size_t solver_iterations_last_step = 0;  ///< CG iterations (implicit schemes)
   double solver_residual_last_step = 0.0;       ///< relative residual reached
-  /// Where the last step's time went (s): linearisation (rotations, assembly), building the
-  /// preconditioner or factorisation, matrix-vector products, and the whole step.
+  /// Where the last step's time went (s): forces together with the linearisation, building the
+  /// system matrix and preconditioner or factorisation, matrix-vector products, the whole step.
   double seconds_forces = 0.0;
-  double seconds_linearization = 0.0;
   double seconds_preconditioner = 0.0;
   double seconds_products = 0.0;
   double seconds_step = 0.0;
@@ -141,8 +140,7 @@ class BackwardEuler final : public Integrator {
  private:
   BackwardEulerOptions options_;
   LinearizedSystemSolver solver_;
-  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, product_, last_delta_,
-      previous_delta_;
+  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, last_delta_, previous_delta_;
   std::vector<char> constrained_;
 };
 

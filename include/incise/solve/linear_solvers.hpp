@@ -67,6 +67,9 @@ class LinearizedSystemSolver {
   void apply(const DynamicSystem& system, double mass_scale, double a, double b,
              std::span<const Vec3> p, std::span<Vec3> y);
   bool assemble(const DynamicSystem& system, double mass_scale, double a, double b);
+  /// The (block-)Jacobi preconditioner's block for a diagonal block of the system matrix
+  /// (identity without preconditioning).
+  [[nodiscard]] Mat3 preconditioner_block(const Mat3& diagonal_block) const;
   /// PCG over the assembled matrix with fused passes (Jacobi, block-Jacobi or none).
   void fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
                                  LinearSolveStats& stats);
