@@ -21,15 +21,22 @@ void triangle_bounds(const std::array<Vec3, 3>& triangle, Vec3& low, Vec3& high)
 
 }  // namespace
 
-SubdivisionCutter::SubdivisionCutter(TetMesh& mesh, const CutterOptions& options)
+SubdivisionCutter::SubdivisionCutter(TetMesh& mesh, const CutterOptions& options,
+                                     const VertexData<Vec3>* positions)
     : mesh_(mesh),
       options_(options),
-      grid_(mesh),
+      positions_(positions),
+      grid_(mesh, positions),
       on_cut_(mesh, 0, VertexRule::kDefault),
       ancestry_(mesh, Ancestry{}, TetRule::kCopy) {
   if (!(options_.snap_fraction > 0.0 && options_.snap_fraction < 0.5)) {
     throw InputError("snap fraction must lie in (0, 0.5)");
   }
+  if (positions_ != nullptr && positions_->size() != mesh.vertex_count()) {
+    throw InputError("the cutter's positions do not belong to its mesh");
+  }
+  swept_.set_cell(grid_.cell_size());
+  cut_faces_.set_cell(grid_.cell_size());
   // A copy of a vertex on the cut is on the cut too.
   on_cut_.set_hook([](VertexData<char>& data, VertexId vertex, const VertexOrigin& origin) {
     if (origin.kind == VertexOrigin::Kind::kDuplicate) {
@@ -47,6 +54,7 @@ const Ancestry& SubdivisionCutter::ancestry(TetId tet) {
   if (entry.id < 0) {
     entry.id = static_cast<std::int32_t>(ancestor_codes_.size());
     ancestor_codes_.push_back(0);
+    ancestor_presplit_.push_back(0);
     for (int a = 0; a < 4; ++a) {
       entry.corners[a] = mesh_.rest_position(mesh_.tet(tet)[a]);
     }
@@ -58,6 +66,14 @@ const Ancestry& SubdivisionCutter::ancestry(TetId tet) {
 std::array<std::size_t, 7> SubdivisionCutter::accumulated_case_counts() const {
   std::array<std::size_t, 7> counts{};
   std::vector<char> seen(ancestor_codes_.size(), 0);
+  // An original is partly cut while the blade is inside one of its descendants.
+  std::vector<char> under_blade(ancestor_codes_.size(), 0);
+  for (TetId t : active_) {
+    const std::int32_t id = ancestry_[t].id;
+    if (id >= 0) {
+      under_blade[static_cast<std::size_t>(id)] = 1;
+    }
+  }
   for (std::size_t t = 0; t < mesh_.tet_count(); ++t) {
     const Ancestry& origin = ancestry_[static_cast<TetId>(t)];
     if (origin.id < 0 || seen[static_cast<std::size_t>(origin.id)] != 0) {
@@ -68,9 +84,7 @@ std::array<std::size_t, 7> SubdivisionCutter::accumulated_case_counts() const {
     if (code == 0) {
       continue;
     }
-    const bool partial =
-        started_ && segment_intersects_tet(pose_.tip, pose_.base, origin.corners[0],
-                                           origin.corners[1], origin.corners[2], origin.corners[3]);
+    const bool partial = under_blade[static_cast<std::size_t>(origin.id)] != 0;
     ++counts[static_cast<std::size_t>(cut_case_table()[cut_state_key(code, partial)].kind)];
   }
   return counts;
@@ -109,9 +123,8 @@ void SubdivisionCutter::track_point_tet() {
   const Vec3& tip = pose_.tip;
   auto holds = [&](TetId t) {
     const Tet& v = mesh_.tet(t);
-    return locate_in_tet(tip, mesh_.rest_position(v[0]), mesh_.rest_position(v[1]),
-                         mesh_.rest_position(v[2]),
-                         mesh_.rest_position(v[3])) != TetLocation::kOutside;
+    return locate_in_tet(tip, position(v[0]), position(v[1]), position(v[2]), position(v[3])) !=
+           TetLocation::kOutside;
   };
   // The seed's search: the previous tetrahedron, then its neighbours, then everywhere (here
   // through the grid, so "everywhere" is local too).
@@ -144,52 +157,98 @@ void SubdivisionCutter::update_active_tets() {
   grid_.query(pose_.tip.cwiseMin(pose_.base), pose_.tip.cwiseMax(pose_.base), scratch_);
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
-    if (segment_intersects_tet(pose_.tip, pose_.base, mesh_.rest_position(v[0]),
-                               mesh_.rest_position(v[1]), mesh_.rest_position(v[2]),
-                               mesh_.rest_position(v[3]))) {
+    if (segment_intersects_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]),
+                               position(v[2]), position(v[3]))) {
       active_.push_back(t);
     }
   }
 }
 
-bool SubdivisionCutter::is_cut_face(VertexId a, VertexId b, VertexId c) const {
+bool SubdivisionCutter::is_cut_face(TetId tet, int local_face) const {
+  const Tet& v = mesh_.tet(tet);
+  const auto& face = tet_local::kFaces[local_face];
+  const VertexId a = v[face[0]];
+  const VertexId b = v[face[1]];
+  const VertexId c = v[face[2]];
   if (on_cut_[a] == 0 || on_cut_[b] == 0 || on_cut_[c] == 0) {
     return false;
   }
-  const Vec3& pa = mesh_.rest_position(a);
-  const Vec3& pb = mesh_.rest_position(b);
-  const Vec3& pc = mesh_.rest_position(c);
+  // Found on the cut before (in material space; exact up to round-off, since children and
+  // copies of a cut face lie inside it at rest).
+  const Vec3& ra = mesh_.rest_position(a);
+  const Vec3& rb = mesh_.rest_position(b);
+  const Vec3& rc = mesh_.rest_position(c);
+  const double rest_size = std::max({(rb - ra).norm(), (rc - rb).norm(), (ra - rc).norm()});
+  if (cut_faces_.near((ra + rb + rc) / 3.0, 1e-9 * rest_size)) {
+    return true;
+  }
+  // On the blade's swept surface since the positions last moved: vertices on the cut lie on it
+  // or within the snap distance of it, so a face between them belongs to the cut when its
+  // centroid does too, and when the two tetrahedra sharing it lie on opposite sides (a flat
+  // tetrahedron whose four vertices are all on the cut belongs to one side: without this rule
+  // all its faces would count and it would fall out as a piece of its own).
+  const TetId neighbor = mesh_.tet_neighbors(tet)[local_face];
+  if (neighbor < 0) {
+    return false;
+  }
+  const Vec3& apex = position(v[local_face]);
+  const Tet& w = mesh_.tet(neighbor);
+  VertexId other = kInvalidId;
+  for (VertexId x : w) {
+    if (x != a && x != b && x != c) {
+      other = x;
+    }
+  }
+  INCISE_ASSERT(other != kInvalidId, "neighbours do not share a face");
+  const Vec3& other_apex = position(other);
+  const Vec3& pa = position(a);
+  const Vec3& pb = position(b);
+  const Vec3& pc = position(c);
   const double size = std::max({(pb - pa).norm(), (pc - pb).norm(), (pa - pc).norm()});
-  // Vertices on the cut lie on the swept surface or within the snap distance of it; a face
-  // between them belongs to the cut when its centroid does too.
-  const double tolerance = options_.snap_fraction * size * 1.01;
-  const Vec3 centroid = (pa + pb + pc) / 3.0;
-  const double cell = grid_.cell_size();
-  const Eigen::Array<long, 3, 1> low = ((centroid.array() - tolerance) / cell).floor().cast<long>();
-  const Eigen::Array<long, 3, 1> high =
-      ((centroid.array() + tolerance) / cell).floor().cast<long>();
-  nearby_.clear();
+  return swept_.any_near((pa + pb + pc) / 3.0, options_.snap_fraction * size * 1.01,
+                         [&](const std::array<Vec3, 3>& t) {
+                           const Vec3 normal = (t[1] - t[0]).cross(t[2] - t[0]).normalized();
+                           const double zero = 1e-12 * size;
+                           const double side = normal.dot(apex - t[0]);
+                           const double other_side = normal.dot(other_apex - t[0]);
+                           return (side > zero && other_side < -zero) ||
+                                  (side < -zero && other_side > zero);
+                         });
+}
+
+template <typename Accept>
+bool SubdivisionCutter::TriangleIndex::any_near(const Vec3& point, double tolerance,
+                                                Accept accept) const {
+  if (triangles_.empty()) {
+    return false;
+  }
+  const Eigen::Array<long, 3, 1> low = ((point.array() - tolerance) / cell_).floor().cast<long>();
+  const Eigen::Array<long, 3, 1> high = ((point.array() + tolerance) / cell_).floor().cast<long>();
   for (long k = low[2]; k <= high[2]; ++k) {
     for (long j = low[1]; j <= high[1]; ++j) {
       for (long i = low[0]; i <= high[0]; ++i) {
-        const auto it = surface_cells_.find(cell_key(i, j, k));
-        if (it != surface_cells_.end()) {
-          nearby_.insert(nearby_.end(), it->second.begin(), it->second.end());
+        const auto it = cells_.find(key(i, j, k));
+        if (it == cells_.end()) {
+          continue;
+        }
+        for (std::uint32_t index : it->second) {
+          const auto& t = triangles_[index];
+          if (squared_distance_to_triangle(point, t[0], t[1], t[2]) <= tolerance * tolerance &&
+              accept(t)) {
+            return true;
+          }
         }
       }
-    }
-  }
-  for (std::uint32_t index : nearby_) {
-    const auto& triangle = surface_[index];
-    if (squared_distance_to_triangle(centroid, triangle[0], triangle[1], triangle[2]) <=
-        tolerance * tolerance) {
-      return true;
     }
   }
   return false;
 }
 
-std::uint64_t SubdivisionCutter::cell_key(long i, long j, long k) const {
+bool SubdivisionCutter::TriangleIndex::near(const Vec3& point, double tolerance) const {
+  return any_near(point, tolerance, [](const std::array<Vec3, 3>&) { return true; });
+}
+
+std::uint64_t SubdivisionCutter::TriangleIndex::key(long i, long j, long k) {
   // 21 bits per axis, offset so negative cells hash too.
   const auto part = [](long value) {
     return static_cast<std::uint64_t>(value + (1L << 20)) & 0x1fffffU;
@@ -197,17 +256,17 @@ std::uint64_t SubdivisionCutter::cell_key(long i, long j, long k) const {
   return part(i) << 42U | part(j) << 21U | part(k);
 }
 
-void SubdivisionCutter::index_triangle(std::size_t triangle) {
-  const auto& t = surface_[triangle];
-  const double cell = grid_.cell_size();
+void SubdivisionCutter::TriangleIndex::add(const std::array<Vec3, 3>& t) {
+  const auto index = static_cast<std::uint32_t>(triangles_.size());
+  triangles_.push_back(t);
   const Eigen::Array<long, 3, 1> low =
-      (t[0].cwiseMin(t[1]).cwiseMin(t[2]).array() / cell).floor().cast<long>();
+      (t[0].cwiseMin(t[1]).cwiseMin(t[2]).array() / cell_).floor().cast<long>();
   const Eigen::Array<long, 3, 1> high =
-      (t[0].cwiseMax(t[1]).cwiseMax(t[2]).array() / cell).floor().cast<long>();
+      (t[0].cwiseMax(t[1]).cwiseMax(t[2]).array() / cell_).floor().cast<long>();
   for (long k = low[2]; k <= high[2]; ++k) {
     for (long j = low[1]; j <= high[1]; ++j) {
       for (long i = low[0]; i <= high[0]; ++i) {
-        surface_cells_[cell_key(i, j, k)].push_back(static_cast<std::uint32_t>(triangle));
+        cells_[key(i, j, k)].push_back(index);
       }
     }
   }
@@ -236,7 +295,6 @@ std::size_t SubdivisionCutter::separate(VertexId vertex) {
   }
   for (std::size_t i = 0; i < around.size(); ++i) {
     const TetId t = around[i];
-    const Tet& tet = mesh_.tet(t);
     const int local = mesh_.local_index(t, vertex);
     for (int f = 0; f < 4; ++f) {
       if (f == local) {
@@ -246,8 +304,7 @@ std::size_t SubdivisionCutter::separate(VertexId vertex) {
       if (neighbor < 0 || neighbor < t) {
         continue;
       }
-      const auto& face = tet_local::kFaces[f];
-      if (is_cut_face(tet[face[0]], tet[face[1]], tet[face[2]])) {
+      if (is_cut_face(t, f)) {
         continue;
       }
       const auto it = index.find(neighbor);
@@ -347,23 +404,10 @@ void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
   }
 }
 
-void SubdivisionCutter::move_to(const BladePose& pose) {
-  if (!started_) {
-    start(pose);
-    return;
-  }
-  const BladePose from = pose_;
-  pose_ = pose;
-  ++stats_.moves;
-
-  // ---- collision detection: tets the swept surface touches, edges it crosses ---------------
-  auto start = Clock::now();
-  const auto triangles = swept_triangles(from, pose);
-  std::vector<Crossing> crossings;
-  std::vector<VertexId> snapped;
-  std::vector<TetId> touched;
+SubdivisionCutter::Contact SubdivisionCutter::detect(
+    const std::vector<std::array<Vec3, 3>>& triangles) {
+  Contact contact;
   for (const auto& triangle : triangles) {
-    stats_.swept_area += 0.5 * (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]).norm();
     Vec3 low;
     Vec3 high;
     triangle_bounds(triangle, low, high);
@@ -371,27 +415,26 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     for (TetId t : scratch_) {
       const Tet& v = mesh_.tet(t);
       // Bounding boxes first: the exact test is the expensive part of collision detection.
-      Vec3 tet_low = mesh_.rest_position(v[0]);
+      Vec3 tet_low = position(v[0]);
       Vec3 tet_high = tet_low;
       for (int k = 1; k < 4; ++k) {
-        tet_low = tet_low.cwiseMin(mesh_.rest_position(v[k]));
-        tet_high = tet_high.cwiseMax(mesh_.rest_position(v[k]));
+        tet_low = tet_low.cwiseMin(position(v[k]));
+        tet_high = tet_high.cwiseMax(position(v[k]));
       }
       if ((tet_low.array() > high.array()).any() || (tet_high.array() < low.array()).any()) {
         continue;
       }
-      if (triangle_intersects_tet(triangle[0], triangle[1], triangle[2], mesh_.rest_position(v[0]),
-                                  mesh_.rest_position(v[1]), mesh_.rest_position(v[2]),
-                                  mesh_.rest_position(v[3]))) {
-        touched.push_back(t);
+      if (triangle_intersects_tet(triangle[0], triangle[1], triangle[2], position(v[0]),
+                                  position(v[1]), position(v[2]), position(v[3]))) {
+        contact.touched.push_back(t);
       }
     }
   }
-  std::sort(touched.begin(), touched.end());
-  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-  stats_.candidate_tets = touched.size();
+  std::sort(contact.touched.begin(), contact.touched.end());
+  contact.touched.erase(std::unique(contact.touched.begin(), contact.touched.end()),
+                        contact.touched.end());
   std::vector<std::pair<VertexId, VertexId>> edges;
-  for (TetId t : touched) {
+  for (TetId t : contact.touched) {
     const Tet& v = mesh_.tet(t);
     for (const auto& e : tet_local::kEdges) {
       edges.emplace_back(std::min(v[e[0]], v[e[1]]), std::max(v[e[0]], v[e[1]]));
@@ -400,8 +443,8 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   std::sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   for (const auto& [a, b] : edges) {
-    const Vec3& pa = mesh_.rest_position(a);
-    const Vec3& pb = mesh_.rest_position(b);
+    const Vec3& pa = position(a);
+    const Vec3& pb = position(b);
     for (const auto& triangle : triangles) {
       if (!segment_intersects_triangle(pa, pb, triangle[0], triangle[1], triangle[2])) {
         continue;
@@ -412,101 +455,390 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
       if (da == db) {
         // The edge lies in the blade's plane: its ends on the swept triangle are on the cut.
         for (VertexId end : {a, b}) {
-          const Vec3& p = mesh_.rest_position(end);
-          if (squared_distance_to_triangle(p, triangle[0], triangle[1], triangle[2]) <=
+          if (squared_distance_to_triangle(position(end), triangle[0], triangle[1], triangle[2]) <=
               1e-24 * normal.norm()) {
-            snapped.push_back(end);
+            contact.snapped.push_back(end);
           }
         }
         break;
       }
       const double t = std::clamp(da / (da - db), 0.0, 1.0);
       if (t <= options_.snap_fraction) {
-        snapped.push_back(a);
+        contact.snapped.push_back(a);
       } else if (t >= 1.0 - options_.snap_fraction) {
-        snapped.push_back(b);
+        contact.snapped.push_back(b);
       } else {
-        crossings.push_back({a, b, t});
+        contact.crossings.push_back({a, b, t});
       }
       break;
     }
   }
-  // The seed's cut-edge code of every tetrahedron this move crossed, and its case.
-  {
-    std::vector<std::pair<VertexId, VertexId>> crossed;
-    for (const Crossing& crossing : crossings) {
-      crossed.emplace_back(std::min(crossing.a, crossing.b), std::max(crossing.a, crossing.b));
-    }
-    std::sort(crossed.begin(), crossed.end());
-    // Accumulate on each original tetrahedron the edges of its own that the crossings lie on
-    // (a crossing inside one of its faces or its interior is not an original edge).
-    for (TetId t : touched) {
-      const Ancestry& origin = ancestry(t);
-      for (const Crossing& crossing : crossings) {
-        if (mesh_.local_index(t, crossing.a) < 0 || mesh_.local_index(t, crossing.b) < 0) {
-          continue;
-        }
-        const Vec3 point = (1.0 - crossing.t) * mesh_.rest_position(crossing.a) +
-                           crossing.t * mesh_.rest_position(crossing.b);
-        Mat3 frame;
-        frame << origin.corners[1] - origin.corners[0], origin.corners[2] - origin.corners[0],
-            origin.corners[3] - origin.corners[0];
-        const Vec3 local = frame.inverse() * (point - origin.corners[0]);
-        const std::array<double, 4> weights{1.0 - local.sum(), local[0], local[1], local[2]};
-        int nonzero[2] = {-1, -1};
-        int count = 0;
-        for (int k = 0; k < 4; ++k) {
-          if (std::abs(weights[k]) > 1e-9) {
-            if (count < 2) {
-              nonzero[count] = k;
-            }
-            ++count;
-          }
-        }
-        if (count != 2) {
-          continue;
-        }
-        for (int k = 0; k < 6; ++k) {
-          const auto& e = tet_local::kEdges[k];
-          if ((e[0] == nonzero[0] && e[1] == nonzero[1]) ||
-              (e[0] == nonzero[1] && e[1] == nonzero[0])) {
-            ancestor_codes_[static_cast<std::size_t>(origin.id)] |=
-                static_cast<std::uint8_t>(1U << k);
-          }
-        }
+  return contact;
+}
+
+void SubdivisionCutter::classify(const Contact& contact, const BladePose& pose) {
+  std::vector<std::pair<VertexId, VertexId>> crossed;
+  for (const Crossing& crossing : contact.crossings) {
+    crossed.emplace_back(std::min(crossing.a, crossing.b), std::max(crossing.a, crossing.b));
+  }
+  std::sort(crossed.begin(), crossed.end());
+  // The seed's per-move code and case of every tetrahedron this move crossed.
+  for (TetId t : contact.touched) {
+    const Tet& v = mesh_.tet(t);
+    std::uint8_t code = 0;
+    for (int k = 0; k < 6; ++k) {
+      const auto& e = tet_local::kEdges[k];
+      if (std::binary_search(crossed.begin(), crossed.end(),
+                             std::pair{std::min(v[e[0]], v[e[1]]), std::max(v[e[0]], v[e[1]])})) {
+        code = static_cast<std::uint8_t>(code | 1U << k);
       }
     }
-    for (TetId t : touched) {
-      const Tet& v = mesh_.tet(t);
-      std::uint8_t code = 0;
-      for (int k = 0; k < 6; ++k) {
-        const auto& e = tet_local::kEdges[k];
-        if (std::binary_search(crossed.begin(), crossed.end(),
-                               std::pair{std::min(v[e[0]], v[e[1]]), std::max(v[e[0]], v[e[1]])})) {
-          code = static_cast<std::uint8_t>(code | 1U << k);
+    if (code == 0) {
+      continue;
+    }
+    const bool partial = segment_intersects_tet(pose.tip, pose.base, position(v[0]), position(v[1]),
+                                                position(v[2]), position(v[3]));
+    ++stats_.case_counts[static_cast<std::size_t>(
+        cut_case_table()[cut_state_key(code, partial)].kind)];
+  }
+}
+
+void SubdivisionCutter::mark_on_cut(VertexId vertex) {
+  on_cut_[vertex] = 1;
+  // The seed's cut-edge codes, accumulated on the originals: a vertex on the cut inside an
+  // edge of an original tetrahedron (at rest, where the original's corners are) cuts that edge,
+  // whichever move or operation put it there.
+  const Vec3& point = mesh_.rest_position(vertex);
+  for (TetId t : mesh_.vertex_tets(vertex)) {
+    const Ancestry& origin = ancestry(t);
+    Mat3 frame;
+    frame << origin.corners[1] - origin.corners[0], origin.corners[2] - origin.corners[0],
+        origin.corners[3] - origin.corners[0];
+    const Vec3 local = frame.inverse() * (point - origin.corners[0]);
+    const std::array<double, 4> weights{1.0 - local.sum(), local[0], local[1], local[2]};
+    int ends[2] = {-1, -1};
+    int count = 0;
+    for (int k = 0; k < 4; ++k) {
+      if (std::abs(weights[k]) > 1e-9) {
+        if (count < 2) {
+          ends[count] = k;
         }
+        ++count;
       }
-      if (code == 0) {
-        continue;
+    }
+    if (count != 2) {
+      continue;
+    }
+    for (int k = 0; k < 6; ++k) {
+      const auto& e = tet_local::kEdges[k];
+      if ((e[0] == ends[0] && e[1] == ends[1]) || (e[0] == ends[1] && e[1] == ends[0])) {
+        ancestor_codes_[static_cast<std::size_t>(origin.id)] |= static_cast<std::uint8_t>(1U << k);
       }
-      const bool partial = segment_intersects_tet(
-          pose.tip, pose.base, mesh_.rest_position(v[0]), mesh_.rest_position(v[1]),
-          mesh_.rest_position(v[2]), mesh_.rest_position(v[3]));
-      ++stats_.case_counts[static_cast<std::size_t>(
-          cut_case_table()[cut_state_key(code, partial)].kind)];
     }
   }
+}
+
+void SubdivisionCutter::insert_blade_points(const BladePose& pose, const Vec3& normal) {
+  // Where the blade line enters and leaves each tetrahedron it passes through (and its tip or
+  // base where they are inside), as parameters from the tip (0) to the base (1).
+  const Vec3 direction = pose.base - pose.tip;
+  if (direction.squaredNorm() == 0.0) {
+    return;
+  }
+  grid_.query(pose.tip.cwiseMin(pose.base), pose.tip.cwiseMax(pose.base), scratch_);
+  std::vector<double> parameters;
+  for (TetId t : scratch_) {
+    const Tet& v = mesh_.tet(t);
+    const std::array<Vec3, 4> p{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
+    if (!segment_intersects_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3])) {
+      continue;
+    }
+    double enter = 0.0;
+    double leave = 1.0;
+    for (int f = 0; f < 4; ++f) {
+      const auto& face = tet_local::kFaces[f];
+      Vec3 inward = (p[face[1]] - p[face[0]]).cross(p[face[2]] - p[face[0]]);
+      if (inward.dot(p[f] - p[face[0]]) < 0.0) {
+        inward = -inward;  // towards the opposite vertex
+      }
+      const double at_tip = inward.dot(pose.tip - p[face[0]]);
+      const double rate = inward.dot(direction);
+      if (rate > 0.0) {
+        enter = std::max(enter, -at_tip / rate);
+      } else if (rate < 0.0) {
+        leave = std::min(leave, -at_tip / rate);
+      }
+    }
+    if (enter <= leave) {
+      parameters.push_back(enter);
+      parameters.push_back(leave);
+    }
+  }
+  std::sort(parameters.begin(), parameters.end());
+  parameters.erase(std::unique(parameters.begin(), parameters.end(),
+                               [](double a, double b) { return b - a < 1e-12; }),
+                   parameters.end());
+  for (double s : parameters) {
+    insert_point(pose.tip + s * direction, normal);
+  }
+}
+
+void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
+  grid_.query(point, point, scratch_);
+  TetId holder = kInvalidId;
+  for (TetId t : scratch_) {
+    const Tet& v = mesh_.tet(t);
+    if (locate_in_tet(point, position(v[0]), position(v[1]), position(v[2]), position(v[3])) !=
+        TetLocation::kOutside) {
+      holder = t;
+      break;
+    }
+  }
+  if (holder == kInvalidId) {
+    return;  // outside the body, or in the gap of an opened cut
+  }
+  const Tet v = mesh_.tet(holder);
+  Mat3 frame;
+  frame << position(v[1]) - position(v[0]), position(v[2]) - position(v[0]),
+      position(v[3]) - position(v[0]);
+  const Vec3 local = frame.inverse() * (point - position(v[0]));
+  std::array<double, 4> weights{1.0 - local.sum(), local[0], local[1], local[2]};
+  // A point close to a face, edge or vertex of its tetrahedron (relative to the element) snaps
+  // onto it, so no child is thinner than the snap fraction of its parent, but only where that
+  // moves it within the swept surface (away from vertices that lie on the surface): a vertex
+  // put on the cut must lie on it. A point that would move off the surface is left out; near
+  // it, the cut opens as the crossings of the swept surface place it.
+  const double round_off = 1e-9;
+  const int largest =
+      static_cast<int>(std::max_element(weights.begin(), weights.end()) - weights.begin());
+  std::array<double, 4> snapped = weights;
+  double sum = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    if (k != largest && weights[k] < options_.snap_fraction) {
+      snapped[k] = 0.0;
+    }
+    sum += snapped[k];
+  }
+  Vec3 moved = Vec3::Zero();
+  double size = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    snapped[k] /= sum;
+    moved += snapped[k] * position(v[k]);
+    size = std::max(size, (position(v[k]) - position(v[(k + 1) % 4])).norm());
+  }
+  if (std::abs(normal.dot(moved - point)) > round_off * size) {
+    return;
+  }
+  weights = snapped;
+  int count = 0;
+  double smallest = 1.0;
+  for (double w : weights) {
+    if (w > 0.0) {
+      ++count;
+      smallest = std::min(smallest, w);
+    }
+  }
+  // A point on a face, edge or vertex that lies in the cut already needs nothing.
+  bool all_on_cut = true;
+  for (int k = 0; k < 4; ++k) {
+    if (weights[k] > 0.0 && on_cut_[v[k]] == 0) {
+      all_on_cut = false;
+    }
+  }
+  if (count < 4 && all_on_cut) {
+    return;
+  }
+  VertexId inserted = kInvalidId;
+  if (count == 1) {
+    if (on_cut_[v[largest]] == 0) {
+      mark_on_cut(v[largest]);
+      ++stats_.vertices_snapped;
+    }
+    return;
+  }
+  if (count == 2) {
+    int ends[2] = {-1, -1};
+    for (int k = 0, n = 0; k < 4; ++k) {
+      if (weights[k] > 0.0) {
+        ends[n++] = k;
+      }
+    }
+    const EdgeId edge = mesh_.find_edge(v[ends[0]], v[ends[1]]);
+    INCISE_ASSERT(edge != kInvalidId, "a tetrahedron's edge is missing");
+    const double t = mesh_.edge(edge)[1] == v[ends[1]] ? weights[ends[1]] : weights[ends[0]];
+    inserted = split_edge(mesh_, edge, t);
+    ++stats_.edges_split;
+  } else if (count == 3) {
+    const int opposite =
+        static_cast<int>(std::find(weights.begin(), weights.end(), 0.0) - weights.begin());
+    const auto& face = tet_local::kFaces[opposite];
+    inserted =
+        split_face(mesh_, holder, opposite, {weights[face[0]], weights[face[1]], weights[face[2]]});
+  } else {
+    inserted = split_tet(mesh_, holder, weights);
+  }
+  mark_on_cut(inserted);
+  ++stats_.blade_vertices;
+  stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, smallest);
+}
+
+void SubdivisionCutter::presplit_generic(const Contact& contact) {
+  // The cut tetrahedra of this move whose originals have not had the generic split yet, by
+  // their vertices (ids of tetrahedra change while splitting).
+  std::vector<Tet> chosen;
+  std::map<std::pair<VertexId, VertexId>, double> crossing_at;
+  for (const Crossing& crossing : contact.crossings) {
+    const bool forward = crossing.a < crossing.b;
+    crossing_at[{std::min(crossing.a, crossing.b), std::max(crossing.a, crossing.b)}] =
+        forward ? crossing.t : 1.0 - crossing.t;
+  }
+  for (TetId t : contact.touched) {
+    const Tet& v = mesh_.tet(t);
+    bool crossed = false;
+    for (const auto& e : tet_local::kEdges) {
+      crossed =
+          crossed || crossing_at.contains({std::min(v[e[0]], v[e[1]]), std::max(v[e[0]], v[e[1]])});
+    }
+    const auto id = static_cast<std::size_t>(ancestry(t).id);
+    if (crossed && ancestor_presplit_[id] == 0) {
+      ancestor_presplit_[id] = 1;
+      chosen.push_back(v);
+      ++stats_.generic_splits;
+    }
+  }
+  // Every edge: at the crossing, else at its midpoint.
+  std::map<std::pair<VertexId, VertexId>, VertexId> node;
+  for (const Tet& v : chosen) {
+    for (const auto& e : tet_local::kEdges) {
+      const std::pair key{std::min(v[e[0]], v[e[1]]), std::max(v[e[0]], v[e[1]])};
+      const EdgeId edge = mesh_.find_edge(key.first, key.second);
+      if (edge == kInvalidId) {
+        continue;  // split already, for a neighbour
+      }
+      const auto crossing = crossing_at.find(key);
+      const double from_low = crossing != crossing_at.end() ? crossing->second : 0.5;
+      const double t = mesh_.edge(edge)[0] == key.first ? from_low : 1.0 - from_low;
+      const VertexId middle = split_edge(mesh_, edge, t);
+      node[key] = middle;
+      if (crossing != crossing_at.end()) {
+        mark_on_cut(middle);
+      }
+      ++stats_.edges_split;
+      stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
+    }
+  }
+  // Every face: at the centroid of the largest of the triangles it now consists of.
+  std::vector<std::array<VertexId, 3>> faces;
+  for (const Tet& v : chosen) {
+    for (const auto& f : tet_local::kFaces) {
+      std::array<VertexId, 3> key{v[f[0]], v[f[1]], v[f[2]]};
+      std::sort(key.begin(), key.end());
+      faces.push_back(key);
+    }
+  }
+  std::sort(faces.begin(), faces.end());
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  for (const auto& face : faces) {
+    std::vector<VertexId> members(face.begin(), face.end());
+    for (int i = 0; i < 3; ++i) {
+      const auto it = node.find({face[i], face[(i + 1) % 3]});
+      const auto reverse = node.find({face[(i + 1) % 3], face[i]});
+      if (it != node.end()) {
+        members.push_back(it->second);
+      } else if (reverse != node.end()) {
+        members.push_back(reverse->second);
+      }
+    }
+    std::sort(members.begin(), members.end());
+    const auto member = [&](VertexId x) {
+      return std::binary_search(members.begin(), members.end(), x);
+    };
+    TetId best_tet = kInvalidId;
+    int best_face = -1;
+    double best_area = 0.0;
+    for (VertexId x : members) {
+      for (TetId t : mesh_.vertex_tets(x)) {
+        const Tet& v = mesh_.tet(t);
+        for (int f = 0; f < 4; ++f) {
+          const auto& local = tet_local::kFaces[f];
+          if (!member(v[local[0]]) || !member(v[local[1]]) || !member(v[local[2]])) {
+            continue;
+          }
+          const double area = (position(v[local[1]]) - position(v[local[0]]))
+                                  .cross(position(v[local[2]]) - position(v[local[0]]))
+                                  .norm();
+          if (area > best_area) {
+            best_area = area;
+            best_tet = t;
+            best_face = f;
+          }
+        }
+      }
+    }
+    if (best_tet != kInvalidId) {
+      (void)split_face(mesh_, best_tet, best_face, {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0});
+      stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, 1.0 / 3.0);
+    }
+  }
+}
+
+void SubdivisionCutter::move_to(const BladePose& pose) {
+  if (!started_) {
+    start(pose);
+    return;
+  }
+  const BladePose from = pose_;
+  pose_ = pose;
+  ++stats_.moves;
+  const auto triangles = swept_triangles(from, pose);
+  for (const auto& triangle : triangles) {
+    stats_.swept_area += 0.5 * (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]).norm();
+  }
+
+  // ---- the blade line: vertices where it crosses faces, and at its tip ---------------------
+  auto start = Clock::now();
+  if (positions_moved_) {
+    // The body moved since the last cut: the swept triangles of earlier moves no longer lie
+    // on the material they cut (the cut faces found then stay known at rest).
+    grid_.refit();
+    swept_.clear();
+    positions_moved_ = false;
+  }
+  if (options_.open_under_blade && !triangles.empty()) {
+    // Both ends of the swept surface: the previous blade line was inserted by the previous
+    // move already (unless the body moved since or this is the first move).
+    const auto unit_normal = [](const std::array<Vec3, 3>& t) {
+      return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
+    };
+    insert_blade_points(from, unit_normal(triangles.front()));
+    insert_blade_points(pose, unit_normal(triangles.back()));
+  }
+  double gc_seconds = seconds_since(start);
+
+  // ---- collision detection: tets the swept surface touches, edges it crosses ---------------
+  start = Clock::now();
+  Contact contact = detect(triangles);
+  stats_.candidate_tets = contact.touched.size();
+  classify(contact, pose);
   stats_.cd_seconds = seconds_since(start);
+  if (options_.split == SplitMode::kGeneric && !contact.crossings.empty()) {
+    start = Clock::now();
+    presplit_generic(contact);
+    gc_seconds += seconds_since(start);
+    start = Clock::now();
+    contact = detect(triangles);
+    stats_.cd_seconds += seconds_since(start);
+  }
 
   // ---- topology and geometry changes ---------------------------------------------------------
   start = Clock::now();
-  for (VertexId v : snapped) {
+  for (VertexId v : contact.snapped) {
     if (on_cut_[v] == 0) {
-      on_cut_[v] = 1;
+      mark_on_cut(v);
       ++stats_.vertices_snapped;
     }
   }
-  for (const Crossing& crossing : crossings) {
+  for (const Crossing& crossing : contact.crossings) {
     if (on_cut_[crossing.a] != 0 && on_cut_[crossing.b] != 0) {
       continue;  // both ends already on the cut: the crossing is the cut itself
     }
@@ -514,19 +846,19 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     INCISE_ASSERT(edge != kInvalidId, "a crossed edge vanished before it was split");
     const double t = mesh_.edge(edge)[0] == crossing.a ? crossing.t : 1.0 - crossing.t;
     const VertexId middle = split_edge(mesh_, edge, t);
-    on_cut_[middle] = 1;
+    mark_on_cut(middle);
     ++stats_.edges_split;
     stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
   }
   for (const auto& triangle : triangles) {
     surface_.push_back(triangle);
-    index_triangle(surface_.size() - 1);
+    swept_.add(triangle);
   }
 
   // Open the cut: vertices on it near this move's surface, separated where cut faces part
-  // their tetrahedra. Faces counted once, before separation.
+  // their tetrahedra. Faces found on the cut are recorded at rest, each once.
   std::vector<VertexId> candidates;
-  std::vector<std::array<VertexId, 3>> opened;
+  std::vector<std::array<VertexId, 3>> found;
   for (const auto& triangle : triangles) {
     Vec3 low;
     Vec3 high;
@@ -543,22 +875,28 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
       for (int f = 0; f < 4; ++f) {
         const TetId neighbor = mesh_.tet_neighbors(t)[f];
         const auto& face = tet_local::kFaces[f];
-        if (neighbor > t && is_cut_face(tet[face[0]], tet[face[1]], tet[face[2]])) {
+        if (neighbor > t && is_cut_face(t, f)) {
           std::array<VertexId, 3> key{tet[face[0]], tet[face[1]], tet[face[2]]};
           std::sort(key.begin(), key.end());
-          opened.push_back(key);
+          found.push_back(key);
         }
       }
     }
   }
-  std::sort(opened.begin(), opened.end());
-  opened.erase(std::unique(opened.begin(), opened.end()), opened.end());
-  for (const auto& face : opened) {
-    const Vec3& p0 = mesh_.rest_position(face[0]);
-    stats_.cut_area +=
-        0.5 * (mesh_.rest_position(face[1]) - p0).cross(mesh_.rest_position(face[2]) - p0).norm();
+  std::sort(found.begin(), found.end());
+  found.erase(std::unique(found.begin(), found.end()), found.end());
+  for (const auto& face : found) {
+    const std::array<Vec3, 3> rest{mesh_.rest_position(face[0]), mesh_.rest_position(face[1]),
+                                   mesh_.rest_position(face[2])};
+    const double size = std::max(
+        {(rest[1] - rest[0]).norm(), (rest[2] - rest[1]).norm(), (rest[0] - rest[2]).norm()});
+    if (cut_faces_.near((rest[0] + rest[1] + rest[2]) / 3.0, 1e-9 * size)) {
+      continue;  // known already (a face at the crack front, or a child of one)
+    }
+    cut_faces_.add(rest);
+    ++stats_.cut_faces;
+    stats_.cut_area += 0.5 * (rest[1] - rest[0]).cross(rest[2] - rest[0]).norm();
   }
-  stats_.cut_faces += opened.size();
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   const auto first_copy = static_cast<VertexId>(mesh_.vertex_count());
@@ -570,7 +908,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     candidates.push_back(v);
   }
   resolve_pinched_edges(candidates);
-  stats_.gc_seconds = seconds_since(start);
+  stats_.gc_seconds = gc_seconds + seconds_since(start);
   stats_.total_cd_seconds += stats_.cd_seconds;
   stats_.total_gc_seconds += stats_.gc_seconds;
 

@@ -7,13 +7,20 @@
 
 namespace incise {
 
-TetGrid::TetGrid(TetMesh& mesh, double cell_size) : mesh_(&mesh) {
-  const auto [low, high] = bounding_box(mesh);
+TetGrid::TetGrid(TetMesh& mesh, const VertexData<Vec3>* positions, double cell_size)
+    : mesh_(&mesh), positions_(positions) {
+  Vec3 low = Vec3::Zero();
+  Vec3 high = Vec3::Zero();
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const Vec3& p = position(static_cast<VertexId>(v));
+    low = v == 0 ? p : low.cwiseMin(p);
+    high = v == 0 ? p : high.cwiseMax(p);
+  }
   if (cell_size <= 0.0) {
     double sum = 0.0;
     for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
       const auto& ends = mesh.edge(static_cast<EdgeId>(e));
-      sum += (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
+      sum += (position(ends[0]) - position(ends[1])).norm();
     }
     cell_size = mesh.edge_count() > 0 ? 2.0 * sum / static_cast<double>(mesh.edge_count()) : 1.0;
   }
@@ -29,10 +36,17 @@ TetGrid::TetGrid(TetMesh& mesh, double cell_size) : mesh_(&mesh) {
     dims_[k] = std::max(1L, static_cast<long>(std::ceil(extent[k] / cell_)));
   }
   cells_.assign(static_cast<std::size_t>(dims_[0] * dims_[1] * dims_[2]), {});
-  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    insert(static_cast<TetId>(t), mesh.tet(static_cast<TetId>(t)));
-  }
+  refit();
   mesh.add_observer(this);
+}
+
+void TetGrid::refit() {
+  for (auto& cell : cells_) {
+    cell.clear();
+  }
+  for (std::size_t t = 0; t < mesh_->tet_count(); ++t) {
+    insert(static_cast<TetId>(t), mesh_->tet(static_cast<TetId>(t)));
+  }
 }
 
 TetGrid::~TetGrid() {
@@ -48,7 +62,8 @@ std::size_t TetGrid::cell_index(long i, long j, long k) const {
 void TetGrid::cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>& first,
                          std::array<long, 3>& last) const {
   for (int k = 0; k < 3; ++k) {
-    // Points outside the grid fall into its border cells (edits never move rest positions far).
+    // Points outside the grid fall into its border cells (a deformed body may leave the box the
+    // grid was built on; that costs speed, not correctness).
     first[k] =
         std::clamp(static_cast<long>(std::floor((low[k] - origin_[k]) / cell_)), 0L, dims_[k] - 1);
     last[k] =
@@ -57,10 +72,10 @@ void TetGrid::cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>&
 }
 
 void TetGrid::bounds(const Tet& tet, Vec3& low, Vec3& high) const {
-  low = high = mesh_->rest_position(tet[0]);
+  low = high = position(tet[0]);
   for (int i = 1; i < 4; ++i) {
-    low = low.cwiseMin(mesh_->rest_position(tet[i]));
-    high = high.cwiseMax(mesh_->rest_position(tet[i]));
+    low = low.cwiseMin(position(tet[i]));
+    high = high.cwiseMax(position(tet[i]));
   }
 }
 

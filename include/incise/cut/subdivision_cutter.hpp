@@ -20,11 +20,27 @@
 
 namespace incise {
 
+/// How a tetrahedron the blade crosses is split.
+enum class SplitMode {
+  /// Only the edges the cut crosses are split (conformingly), so each case takes the fewest
+  /// children it needs.
+  kMinimal,
+  /// The seed's generic split (its Fig. 4): every edge of a cut tetrahedron is split (at the
+  /// crossing, else at the midpoint) and every face at a face point, before the cut itself is
+  /// resolved as in kMinimal. Conforming, so neighbours are split along too. For comparison.
+  kGeneric,
+};
+
 struct CutterOptions {
   /// A crossing within this fraction of an edge's length from an end snaps to that vertex
-  /// instead of splitting the edge; a split child keeps at least this fraction of its
+  /// instead of splitting the edge (and a blade point with a barycentric coordinate below it
+  /// snaps onto the face, edge or vertex); a split child keeps at least this fraction of its
   /// parent's volume.
   double snap_fraction = 0.1;
+  SplitMode split = SplitMode::kMinimal;
+  /// Insert vertices on the blade line (face crossings and the tip), so the tetrahedra holding
+  /// the blade open up to it during the move rather than after the blade has left them.
+  bool open_under_blade = true;
 };
 
 struct CutStats {
@@ -37,9 +53,11 @@ struct CutStats {
   std::size_t edges_split = 0;
   std::size_t vertices_snapped = 0;
   std::size_t vertices_duplicated = 0;
-  std::size_t cut_faces = 0;      ///< faces opened (each counted once)
-  double cut_area = 0.0;          ///< area of the opened faces, one side (m^2)
-  double swept_area = 0.0;        ///< area swept by the blade (m^2)
+  std::size_t blade_vertices = 0;  ///< vertices inserted on the blade line
+  std::size_t generic_splits = 0;  ///< tetrahedra given the generic split (SplitMode::kGeneric)
+  std::size_t cut_faces = 0;       ///< faces opened (each counted once)
+  double cut_area = 0.0;    ///< rest area of the faces found on the cut, each once, one side (m^2)
+  double swept_area = 0.0;  ///< area swept by the blade (m^2)
   double min_volume_ratio = 1.0;  ///< smallest child / parent volume ratio of any split
   // The active point tetrahedron (the one holding the blade tip), as the seed tracks it.
   std::size_t point_same = 0;      ///< tip still in the previous tetrahedron
@@ -65,7 +83,18 @@ struct Ancestry {
 
 class SubdivisionCutter {
  public:
-  explicit SubdivisionCutter(TetMesh& mesh, const CutterOptions& options = {});
+  /// Cuts `mesh` where the blade meets its rest positions, or its current `positions` (m) when
+  /// given: a VertexData of the same mesh that outlives the cutter.
+  explicit SubdivisionCutter(TetMesh& mesh, const CutterOptions& options = {},
+                             const VertexData<Vec3>* positions = nullptr);
+  SubdivisionCutter(const SubdivisionCutter&) = delete;
+  SubdivisionCutter& operator=(const SubdivisionCutter&) = delete;
+
+  /// Tells the cutter that the current positions moved (after a physics step): its spatial
+  /// index is refitted before the next move. Not needed when cutting on rest positions.
+  void positions_changed() { positions_moved_ = positions_ != nullptr; }
+  /// The position the cutter intersects for a vertex (m).
+  [[nodiscard]] const Vec3& position(VertexId vertex) const { return grid_.position(vertex); }
 
   /// Puts the blade at a pose without cutting.
   void start(const BladePose& pose);
@@ -101,28 +130,73 @@ class SubdivisionCutter {
     VertexId b;
     double t;  ///< from a (0) to b (1)
   };
+  /// What the swept triangles meet: tetrahedra, crossed edges, vertices they snap to.
+  struct Contact {
+    std::vector<TetId> touched;
+    std::vector<Crossing> crossings;
+    std::vector<VertexId> snapped;
+  };
+  /// Triangles indexed by the spatial-hash cells of their bounding boxes, so a query looks only
+  /// at nearby ones however many there are.
+  class TriangleIndex {
+   public:
+    void set_cell(double cell) { cell_ = cell; }
+    void add(const std::array<Vec3, 3>& triangle);
+    /// Whether `point` lies within `tolerance` (m) of a stored triangle.
+    [[nodiscard]] bool near(const Vec3& point, double tolerance) const;
+    /// Whether `point` lies within `tolerance` (m) of a stored triangle for which
+    /// `accept(triangle)` holds.
+    template <typename Accept>
+    [[nodiscard]] bool any_near(const Vec3& point, double tolerance, Accept accept) const;
+    void clear() {
+      triangles_.clear();
+      cells_.clear();
+    }
+    [[nodiscard]] const std::vector<std::array<Vec3, 3>>& triangles() const { return triangles_; }
+
+   private:
+    [[nodiscard]] static std::uint64_t key(long i, long j, long k);
+    double cell_ = 1.0;
+    std::vector<std::array<Vec3, 3>> triangles_;
+    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells_;
+  };
+
+  [[nodiscard]] Contact detect(const std::vector<std::array<Vec3, 3>>& triangles);
+  void classify(const Contact& contact, const BladePose& pose);
+  /// Inserts vertices on the blade line of `pose`; `normal` (unit) is that of the swept surface
+  /// there.
+  void insert_blade_points(const BladePose& pose, const Vec3& normal);
+  void insert_point(const Vec3& point, const Vec3& normal);
+  void presplit_generic(const Contact& contact);
+  /// Puts a vertex on the cut and records the original edge it lies in, if any.
+  void mark_on_cut(VertexId vertex);
   void track_point_tet();
   void update_active_tets();
-  [[nodiscard]] bool is_cut_face(VertexId a, VertexId b, VertexId c) const;
+  /// Whether face `local_face` of `tet` (an interior face) lies on the cut and parts the two
+  /// tetrahedra sharing it.
+  [[nodiscard]] bool is_cut_face(TetId tet, int local_face) const;
   std::size_t separate(VertexId vertex);
   /// The ancestry of a tetrahedron, assigning a new original to one added afresh.
   const Ancestry& ancestry(TetId tet);
   void resolve_pinched_edges(std::vector<VertexId> vertices);
 
-  /// Indices of swept triangles by spatial-hash cell of their bounding boxes, so the cut-face
-  /// test looks only at nearby ones however long the path gets.
-  void index_triangle(std::size_t triangle);
-  [[nodiscard]] std::uint64_t cell_key(long i, long j, long k) const;
-
   TetMesh& mesh_;
   CutterOptions options_;
+  const VertexData<Vec3>* positions_;
   TetGrid grid_;
-  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> surface_cells_;
-  mutable std::vector<std::uint32_t> nearby_;
+  bool positions_moved_ = false;
+  /// Swept triangles since the positions last moved (where the blade went, in the space the
+  /// cutter intersects).
+  TriangleIndex swept_;
+  /// Rest triangles of every face found on the cut: the cut in material space, which stays
+  /// valid however the body moves (children of a cut face lie inside it; copies of its
+  /// vertices keep their rest positions).
+  TriangleIndex cut_faces_;
   VertexData<char> on_cut_;
   TetData<Ancestry> ancestry_;
   std::vector<std::uint8_t> ancestor_codes_;
-  std::vector<std::array<Vec3, 3>> surface_;
+  std::vector<char> ancestor_presplit_;       ///< per original: given the generic split already
+  std::vector<std::array<Vec3, 3>> surface_;  ///< every swept triangle, for inspection
   BladePose pose_;
   bool started_ = false;
   TetId point_tet_ = kInvalidId;

@@ -1,17 +1,22 @@
 #pragma once
-// A uniform grid of tetrahedron bounding boxes (rest positions) that follows every mesh edit,
-// so finding the tetrahedra near the blade costs the same on any mesh size.
+// A uniform grid of tetrahedron bounding boxes that follows every mesh edit, so finding the
+// tetrahedra near the blade costs the same on any mesh size. The boxes are those of the rest
+// positions, or of current positions (a VertexData that follows the mesh) when the cut happens
+// in the deformed configuration; after those move, refit() rebuilds the grid.
 
 #include <vector>
 
+#include "incise/mesh/attributes.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
 namespace incise {
 
 class TetGrid final : public MeshObserver {
  public:
-  /// Cell size defaults to twice the mean edge length.
-  explicit TetGrid(TetMesh& mesh, double cell_size = 0.0);
+  /// Cell size defaults to twice the mean edge length. `positions` (m), when given, must
+  /// outlive the grid.
+  explicit TetGrid(TetMesh& mesh, const VertexData<Vec3>* positions = nullptr,
+                   double cell_size = 0.0);
   ~TetGrid() override;
   TetGrid(const TetGrid&) = delete;
   TetGrid& operator=(const TetGrid&) = delete;
@@ -19,6 +24,12 @@ class TetGrid final : public MeshObserver {
   /// Tetrahedra whose bounding box overlaps [low, high] (each once, unsorted).
   void query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) const;
   [[nodiscard]] double cell_size() const { return cell_; }
+  /// Re-inserts every tetrahedron at its current bounds (after the positions moved).
+  void refit();
+  /// The position the grid uses for a vertex (m).
+  [[nodiscard]] const Vec3& position(VertexId vertex) const {
+    return positions_ != nullptr ? (*positions_)[vertex] : mesh_->rest_position(vertex);
+  }
 
   void on_tet_added(const TetMesh& mesh, TetId tet) override;
   void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
@@ -43,6 +54,7 @@ class TetGrid final : public MeshObserver {
   std::size_t cell_index(long i, long j, long k) const;
 
   TetMesh* mesh_;
+  const VertexData<Vec3>* positions_;
   Vec3 origin_;
   double cell_ = 1.0;
   std::array<long, 3> dims_{1, 1, 1};
