@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 
@@ -102,11 +103,46 @@ double SubdivisionCutter::min_volume_ratio_to_original() const {
   return ratio;
 }
 
+SubdivisionCutter::MaterialPoint SubdivisionCutter::material_point(const Vec3& point) {
+  MaterialPoint result;
+  grid_.query(point, point, scratch_);
+  for (TetId t : scratch_) {
+    const Tet& v = mesh_.tet(t);
+    if (locate_in_tet(point, position(v[0]), position(v[1]), position(v[2]), position(v[3])) ==
+        TetLocation::kOutside) {
+      continue;
+    }
+    Mat3 frame;
+    frame << position(v[1]) - position(v[0]), position(v[2]) - position(v[0]),
+        position(v[3]) - position(v[0]);
+    const Vec3 local = frame.inverse() * (point - position(v[0]));
+    result.vertices = v;
+    result.weights = {1.0 - local.sum(), local[0], local[1], local[2]};
+    break;
+  }
+  return result;
+}
+
+Vec3 SubdivisionCutter::current(const MaterialPoint& point, const Vec3& fallback) const {
+  if (point.vertices[0] == kInvalidId) {
+    return fallback;
+  }
+  Vec3 sum = Vec3::Zero();
+  for (int k = 0; k < 4; ++k) {
+    sum += point.weights[k] * position(point.vertices[k]);
+  }
+  return sum;
+}
+
 void SubdivisionCutter::start(const BladePose& pose) {
   pose_ = pose;
   started_ = true;
   track_point_tet();
   update_active_tets();
+  if (positions_ != nullptr) {
+    tip_material_ = material_point(pose.tip);
+    base_material_ = material_point(pose.base);
+  }
 }
 
 void SubdivisionCutter::cut_along(const std::vector<BladePose>& path) {
@@ -182,33 +218,28 @@ bool SubdivisionCutter::is_cut_face(TetId tet, int local_face) const {
   if (cut_faces_.near((ra + rb + rc) / 3.0, 1e-9 * rest_size)) {
     return true;
   }
-  // On the blade's swept surface since the positions last moved: vertices on the cut lie on it
-  // or within the snap distance of it, so a face between them belongs to the cut when its
-  // centroid does too, and when the two tetrahedra sharing it lie on opposite sides (a flat
-  // tetrahedron whose four vertices are all on the cut belongs to one side: without this rule
-  // all its faces would count and it would fall out as a piece of its own).
+  // On the blade's swept surface (at rest): vertices on the cut lie on it or within the snap
+  // distance of it, so a face between them belongs to the cut when its centroid does too, and
+  // when the two tetrahedra sharing it lie on opposite sides (a flat tetrahedron whose four
+  // vertices are all on the cut belongs to one side: without this rule all its faces would
+  // count and it would fall out as a piece of its own).
   const TetId neighbor = mesh_.tet_neighbors(tet)[local_face];
   if (neighbor < 0) {
     return false;
   }
-  const Vec3& apex = position(v[local_face]);
-  const Tet& w = mesh_.tet(neighbor);
+  const Vec3& apex = mesh_.rest_position(v[local_face]);
   VertexId other = kInvalidId;
-  for (VertexId x : w) {
+  for (VertexId x : mesh_.tet(neighbor)) {
     if (x != a && x != b && x != c) {
       other = x;
     }
   }
   INCISE_ASSERT(other != kInvalidId, "neighbours do not share a face");
-  const Vec3& other_apex = position(other);
-  const Vec3& pa = position(a);
-  const Vec3& pb = position(b);
-  const Vec3& pc = position(c);
-  const double size = std::max({(pb - pa).norm(), (pc - pb).norm(), (pa - pc).norm()});
-  return swept_.any_near((pa + pb + pc) / 3.0, options_.snap_fraction * size * 1.01,
+  const Vec3& other_apex = mesh_.rest_position(other);
+  return swept_.any_near((ra + rb + rc) / 3.0, options_.snap_fraction * rest_size * 1.01,
                          [&](const std::array<Vec3, 3>& t) {
                            const Vec3 normal = (t[1] - t[0]).cross(t[2] - t[0]).normalized();
-                           const double zero = 1e-12 * size;
+                           const double zero = 1e-12 * rest_size;
                            const double side = normal.dot(apex - t[0]);
                            const double other_side = normal.dot(other_apex - t[0]);
                            return (side > zero && other_side < -zero) ||
@@ -257,12 +288,21 @@ std::uint64_t SubdivisionCutter::TriangleIndex::key(long i, long j, long k) {
 }
 
 void SubdivisionCutter::TriangleIndex::add(const std::array<Vec3, 3>& t) {
+  add(t, Vec3::Constant(-std::numeric_limits<double>::max()),
+      Vec3::Constant(std::numeric_limits<double>::max()));
+}
+
+void SubdivisionCutter::TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low,
+                                           const Vec3& box_high) {
+  const Vec3 t_low = t[0].cwiseMin(t[1]).cwiseMin(t[2]).cwiseMax(box_low);
+  const Vec3 t_high = t[0].cwiseMax(t[1]).cwiseMax(t[2]).cwiseMin(box_high);
+  if ((t_low.array() > t_high.array()).any()) {
+    return;
+  }
   const auto index = static_cast<std::uint32_t>(triangles_.size());
   triangles_.push_back(t);
-  const Eigen::Array<long, 3, 1> low =
-      (t[0].cwiseMin(t[1]).cwiseMin(t[2]).array() / cell_).floor().cast<long>();
-  const Eigen::Array<long, 3, 1> high =
-      (t[0].cwiseMax(t[1]).cwiseMax(t[2]).array() / cell_).floor().cast<long>();
+  const Eigen::Array<long, 3, 1> low = (t_low.array() / cell_).floor().cast<long>();
+  const Eigen::Array<long, 3, 1> high = (t_high.array() / cell_).floor().cast<long>();
   for (long k = low[2]; k <= high[2]; ++k) {
     for (long j = low[1]; j <= high[1]; ++j) {
       for (long i = low[0]; i <= high[0]; ++i) {
@@ -474,6 +514,45 @@ SubdivisionCutter::Contact SubdivisionCutter::detect(
     }
   }
   return contact;
+}
+
+void SubdivisionCutter::record_swept(const std::vector<std::array<Vec3, 3>>& triangles,
+                                     const Contact& contact) {
+  if (positions_ == nullptr) {
+    for (const auto& triangle : triangles) {
+      swept_.add(triangle);
+    }
+    return;
+  }
+  for (TetId t : contact.touched) {
+    const Tet& v = mesh_.tet(t);
+    Mat3 world;
+    Mat3 rest;
+    for (int k = 0; k < 3; ++k) {
+      world.col(k) = position(v[k + 1]) - position(v[0]);
+      rest.col(k) = mesh_.rest_position(v[k + 1]) - mesh_.rest_position(v[0]);
+    }
+    if (!(std::abs(world.determinant()) > 0.0)) {
+      continue;  // flattened in the current configuration: no map to rest from it
+    }
+    const Mat3 to_rest = rest * world.inverse();
+    Vec3 low = mesh_.rest_position(v[0]);
+    Vec3 high = low;
+    double size = 0.0;
+    for (int k = 1; k < 4; ++k) {
+      low = low.cwiseMin(mesh_.rest_position(v[k]));
+      high = high.cwiseMax(mesh_.rest_position(v[k]));
+      size = std::max(size, rest.col(k - 1).norm());
+    }
+    const Vec3 margin = Vec3::Constant(1e-9 * size);
+    for (const auto& triangle : triangles) {
+      std::array<Vec3, 3> image;
+      for (int k = 0; k < 3; ++k) {
+        image[k] = mesh_.rest_position(v[0]) + to_rest * (triangle[k] - position(v[0]));
+      }
+      swept_.add(image, low - margin, high + margin);
+    }
+  }
 }
 
 void SubdivisionCutter::classify(const Contact& contact, const BladePose& pose) {
@@ -787,7 +866,11 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     start(pose);
     return;
   }
-  const BladePose from = pose_;
+  BladePose from = pose_;
+  if (positions_ != nullptr) {
+    from.tip = current(tip_material_, from.tip);
+    from.base = current(base_material_, from.base);
+  }
   pose_ = pose;
   ++stats_.moves;
   const auto triangles = swept_triangles(from, pose);
@@ -798,10 +881,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   // ---- the blade line: vertices where it crosses faces, and at its tip ---------------------
   auto start = Clock::now();
   if (positions_moved_) {
-    // The body moved since the last cut: the swept triangles of earlier moves no longer lie
-    // on the material they cut (the cut faces found then stay known at rest).
-    grid_.refit();
-    swept_.clear();
+    grid_.refit();  // the body moved since the last cut
     positions_moved_ = false;
   }
   if (options_.open_under_blade && !triangles.empty()) {
@@ -819,6 +899,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   start = Clock::now();
   Contact contact = detect(triangles);
   stats_.candidate_tets = contact.touched.size();
+  record_swept(triangles, contact);
   classify(contact, pose);
   stats_.cd_seconds = seconds_since(start);
   if (options_.split == SplitMode::kGeneric && !contact.crossings.empty()) {
@@ -850,10 +931,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     ++stats_.edges_split;
     stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
   }
-  for (const auto& triangle : triangles) {
-    surface_.push_back(triangle);
-    swept_.add(triangle);
-  }
+  surface_.insert(surface_.end(), triangles.begin(), triangles.end());
 
   // Open the cut: vertices on it near this move's surface, separated where cut faces part
   // their tetrahedra. Faces found on the cut are recorded at rest, each once.
@@ -914,6 +992,10 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
 
   track_point_tet();
   update_active_tets();
+  if (positions_ != nullptr) {
+    tip_material_ = material_point(pose.tip);
+    base_material_ = material_point(pose.base);
+  }
 }
 
 }  // namespace incise

@@ -550,7 +550,8 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     scene.tool.cutter = "subdivision";
   }
   if (top.has("cutter")) {
-    const ObjectReader cutter(context, top.at("cutter"), "cutter", {"type", "snap_fraction"});
+    const ObjectReader cutter(context, top.at("cutter"), "cutter",
+                              {"type", "snap_fraction", "split"});
     scene.tool.cutter = cutter.string("type", "subdivision");
     if (scene.tool.cutter != "subdivision" && scene.tool.cutter != "none") {
       context.fail("cutter.type",
@@ -559,6 +560,11 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     scene.tool.snap_fraction = cutter.positive("snap_fraction", 0.1);
     if (scene.tool.snap_fraction >= 0.5) {
       context.fail("cutter.snap_fraction", "must be below 0.5");
+    }
+    scene.tool.split = cutter.string("split", "minimal");
+    if (scene.tool.split != "minimal" && scene.tool.split != "generic") {
+      context.fail("cutter.split",
+                   "unknown split '" + scene.tool.split + "' (known: minimal, generic)");
     }
   }
   if (scene.tool.cutter != "none" && scene.tool.poses.empty()) {

@@ -149,7 +149,13 @@ Simulation::Simulation(const SceneDescription& scene) : parts_(std::make_unique<
     p.warnings.push_back("nothing is fixed: the body falls freely under gravity");
   }
   if (scene.tool.cutter == "subdivision") {
-    p.cutter = std::make_unique<SubdivisionCutter>(p.mesh, CutterOptions{scene.tool.snap_fraction});
+    CutterOptions options;
+    options.snap_fraction = scene.tool.snap_fraction;
+    options.split = scene.tool.split == "generic" ? SplitMode::kGeneric : SplitMode::kMinimal;
+    // The blade path is given in the body's rest frame: cutting on the simulation's current
+    // positions (SubdivisionCutter's deformed configuration) does not yet carry the swept
+    // surface with a wound that opens non-affinely behind the blade.
+    p.cutter = std::make_unique<SubdivisionCutter>(p.mesh, options);
   }
 }
 
@@ -259,8 +265,8 @@ RunResult Simulation::run(int frames, const std::filesystem::path& output_dir,
         if (holder != kInvalidId) {
           VertexId nearest = p.mesh.tet(holder)[0];
           for (VertexId v : p.mesh.tet(holder)) {
-            if ((p.mesh.rest_position(v) - pose.tip).norm() <
-                (p.mesh.rest_position(nearest) - pose.tip).norm()) {
+            if ((p.cutter->position(v) - pose.tip).norm() <
+                (p.cutter->position(nearest) - pose.tip).norm()) {
               nearest = v;
             }
           }

@@ -142,6 +142,9 @@ class SubdivisionCutter {
    public:
     void set_cell(double cell) { cell_ = cell; }
     void add(const std::array<Vec3, 3>& triangle);
+    /// Adds a triangle that is only valid inside the box [low, high] (m): queries outside it do
+    /// not see it.
+    void add(const std::array<Vec3, 3>& triangle, const Vec3& low, const Vec3& high);
     /// Whether `point` lies within `tolerance` (m) of a stored triangle.
     [[nodiscard]] bool near(const Vec3& point, double tolerance) const;
     /// Whether `point` lies within `tolerance` (m) of a stored triangle for which
@@ -162,6 +165,8 @@ class SubdivisionCutter {
   };
 
   [[nodiscard]] Contact detect(const std::vector<std::array<Vec3, 3>>& triangles);
+  /// Records this move's swept triangles at rest, through the tetrahedra they touch.
+  void record_swept(const std::vector<std::array<Vec3, 3>>& triangles, const Contact& contact);
   void classify(const Contact& contact, const BladePose& pose);
   /// Inserts vertices on the blade line of `pose`; `normal` (unit) is that of the swept surface
   /// there.
@@ -180,13 +185,29 @@ class SubdivisionCutter {
   const Ancestry& ancestry(TetId tet);
   void resolve_pinched_edges(std::vector<VertexId> vertices);
 
+  /// A point carried by the material: barycentric weights on four vertices (or none, outside).
+  struct MaterialPoint {
+    std::array<VertexId, 4> vertices{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
+    std::array<double, 4> weights{};
+  };
+  [[nodiscard]] MaterialPoint material_point(const Vec3& point);
+  /// Where a material point is now; `fallback` (m) when it was outside the body.
+  [[nodiscard]] Vec3 current(const MaterialPoint& point, const Vec3& fallback) const;
+
   TetMesh& mesh_;
   CutterOptions options_;
   const VertexData<Vec3>* positions_;
   TetGrid grid_;
   bool positions_moved_ = false;
-  /// Swept triangles since the positions last moved (where the blade went, in the space the
-  /// cutter intersects).
+  /// The blade's tip and base at the last pose, carried by the body as it moves (deformed
+  /// configuration): the next move sweeps from where that material is now, so the swept
+  /// surface starts at the crack front rather than where the front was.
+  MaterialPoint tip_material_;
+  MaterialPoint base_material_;
+  /// Where the blade went, at rest (in material space): the swept triangles themselves when
+  /// cutting at rest; in the deformed configuration, their images under the affine map from
+  /// current to rest positions of each tetrahedron they touched, valid inside its rest bounds
+  /// (exact there, since the deformation is linear on each tetrahedron).
   TriangleIndex swept_;
   /// Rest triangles of every face found on the cut: the cut in material space, which stays
   /// valid however the body moves (children of a cut face lie inside it; copies of its

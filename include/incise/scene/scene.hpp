@@ -52,6 +52,7 @@ struct ToolSpec {
   std::vector<BladePose> poses;  ///< empty: no tool
   std::string cutter = "none";   ///< "subdivision" or "none"
   double snap_fraction = 0.1;
+  std::string split = "minimal";  ///< "minimal" or "generic" (the seed's 1:17 style)
 };
 
 struct SceneDescription {
