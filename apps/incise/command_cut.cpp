@@ -23,6 +23,7 @@ Runner add_cut_command(CLI::App& app) {
   auto output = std::make_shared<std::string>();
   auto report_path = std::make_shared<std::string>();
   auto snap = std::make_shared<double>(CutterOptions{}.snap_fraction);
+  auto split = std::make_shared<std::string>("minimal");
   command->add_option("mesh", *mesh_path, "Tetrahedral mesh")->required()->check(CLI::ExistingFile);
   command
       ->add_option("--blade", *blade_path,
@@ -31,6 +32,12 @@ Runner add_cut_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   command->add_option("--method", *method, "Cutting method")
       ->check(CLI::IsMember({"subdivision"}))
+      ->capture_default_str();
+  command
+      ->add_option("--split", *split,
+                   "minimal: split only the edges the cut crosses; generic: the seed's generic "
+                   "split of every cut tetrahedron first (for comparison)")
+      ->check(CLI::IsMember({"minimal", "generic"}))
       ->capture_default_str();
   command->add_option("-o,--output", *output, "Cut mesh (.vtu, .msh, .mesh, .obj, .node)")
       ->required();
@@ -49,7 +56,10 @@ Runner add_cut_command(CLI::App& app) {
     const std::size_t tets_in = mesh.tet_count();
     const std::size_t vertices_in = mesh.vertex_count();
     const double volume_in = total_volume(mesh);
-    SubdivisionCutter cutter(mesh, CutterOptions{*snap});
+    CutterOptions options;
+    options.snap_fraction = *snap;
+    options.split = *split == "generic" ? SplitMode::kGeneric : SplitMode::kMinimal;
+    SubdivisionCutter cutter(mesh, options);
     std::size_t invalid_frames = 0;
     std::string first_problem;
     cutter.start(path.front());
@@ -95,6 +105,8 @@ Runner add_cut_command(CLI::App& app) {
       json["invalid_frames"] = invalid_frames;
       json["min_volume_ratio"] = stats.min_volume_ratio;  // child / immediate parent
       json["cut_area"] = stats.cut_area;
+      json["split"] = *split;
+      json["blade_vertices"] = stats.blade_vertices;
       json["swept_area"] = stats.swept_area;
       json["edges_split"] = stats.edges_split;
       json["vertices_duplicated"] = stats.vertices_duplicated;
