@@ -15,6 +15,18 @@
 namespace incise {
 namespace {
 
+double longest_edge(const std::array<Vec3, 3>& t) {
+  return std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
+}
+
+/// The vertices of a tetrahedron's face, sorted: one key per face whichever tet it is seen from.
+std::array<VertexId, 3> face_key(const Tet& tet, int local_face) {
+  const auto& face = tet_local::kFaces[local_face];
+  std::array<VertexId, 3> key{tet[face[0]], tet[face[1]], tet[face[2]]};
+  std::sort(key.begin(), key.end());
+  return key;
+}
+
 void triangle_bounds(const std::array<Vec3, 3>& triangle, Vec3& low, Vec3& high) {
   low = triangle[0].cwiseMin(triangle[1]).cwiseMin(triangle[2]);
   high = triangle[0].cwiseMax(triangle[1]).cwiseMax(triangle[2]);
@@ -105,22 +117,30 @@ double SubdivisionCutter::min_volume_ratio_to_original() const {
 
 SubdivisionCutter::MaterialPoint SubdivisionCutter::material_point(const Vec3& point) {
   MaterialPoint result;
+  const TetId holder = locate(point);
+  if (holder != kInvalidId) {
+    result.vertices = mesh_.tet(holder);
+    result.weights = weights_in(point, holder);
+  }
+  return result;
+}
+
+TetId SubdivisionCutter::locate(const Vec3& point) {
   grid_.query(point, point, scratch_);
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
-    if (locate_in_tet(point, position(v[0]), position(v[1]), position(v[2]), position(v[3])) ==
+    if (locate_in_tet(point, position(v[0]), position(v[1]), position(v[2]), position(v[3])) !=
         TetLocation::kOutside) {
-      continue;
+      return t;
     }
-    Mat3 frame;
-    frame << position(v[1]) - position(v[0]), position(v[2]) - position(v[0]),
-        position(v[3]) - position(v[0]);
-    const Vec3 local = frame.inverse() * (point - position(v[0]));
-    result.vertices = v;
-    result.weights = {1.0 - local.sum(), local[0], local[1], local[2]};
-    break;
   }
-  return result;
+  return kInvalidId;
+}
+
+std::array<double, 4> SubdivisionCutter::weights_in(const Vec3& point, TetId tet) const {
+  const Tet& v = mesh_.tet(tet);
+  return barycentric_coordinates(point, position(v[0]), position(v[1]), position(v[2]),
+                                 position(v[3]));
 }
 
 Vec3 SubdivisionCutter::current(const MaterialPoint& point, const Vec3& fallback) const {
@@ -177,14 +197,7 @@ void SubdivisionCutter::track_point_tet() {
       }
     }
   }
-  grid_.query(tip, tip, scratch_);
-  point_tet_ = kInvalidId;
-  for (TetId t : scratch_) {
-    if (holds(t)) {
-      point_tet_ = t;
-      break;
-    }
-  }
+  point_tet_ = locate(tip);
   ++(point_tet_ == kInvalidId ? stats_.point_outside : stats_.point_global);
 }
 
@@ -200,6 +213,12 @@ void SubdivisionCutter::update_active_tets() {
   }
 }
 
+bool SubdivisionCutter::known_cut_face(const std::array<Vec3, 3>& rest, double size) const {
+  // In material space, exact up to round-off: children and copies of a cut face lie inside it
+  // at rest.
+  return cut_faces_.near((rest[0] + rest[1] + rest[2]) / 3.0, 1e-9 * size);
+}
+
 bool SubdivisionCutter::is_cut_face(TetId tet, int local_face) const {
   const Tet& v = mesh_.tet(tet);
   const auto& face = tet_local::kFaces[local_face];
@@ -209,13 +228,10 @@ bool SubdivisionCutter::is_cut_face(TetId tet, int local_face) const {
   if (on_cut_[a] == 0 || on_cut_[b] == 0 || on_cut_[c] == 0) {
     return false;
   }
-  // Found on the cut before (in material space; exact up to round-off, since children and
-  // copies of a cut face lie inside it at rest).
-  const Vec3& ra = mesh_.rest_position(a);
-  const Vec3& rb = mesh_.rest_position(b);
-  const Vec3& rc = mesh_.rest_position(c);
-  const double rest_size = std::max({(rb - ra).norm(), (rc - rb).norm(), (ra - rc).norm()});
-  if (cut_faces_.near((ra + rb + rc) / 3.0, 1e-9 * rest_size)) {
+  const std::array<Vec3, 3> rest{mesh_.rest_position(a), mesh_.rest_position(b),
+                                 mesh_.rest_position(c)};
+  const double rest_size = longest_edge(rest);
+  if (known_cut_face(rest, rest_size)) {
     return true;
   }
   // On the blade's swept surface (at rest): vertices on the cut lie on it or within the snap
@@ -236,15 +252,15 @@ bool SubdivisionCutter::is_cut_face(TetId tet, int local_face) const {
   }
   INCISE_ASSERT(other != kInvalidId, "neighbours do not share a face");
   const Vec3& other_apex = mesh_.rest_position(other);
-  return swept_.any_near((ra + rb + rc) / 3.0, options_.snap_fraction * rest_size * 1.01,
-                         [&](const std::array<Vec3, 3>& t) {
-                           const Vec3 normal = (t[1] - t[0]).cross(t[2] - t[0]).normalized();
-                           const double zero = 1e-12 * rest_size;
-                           const double side = normal.dot(apex - t[0]);
-                           const double other_side = normal.dot(other_apex - t[0]);
-                           return (side > zero && other_side < -zero) ||
-                                  (side < -zero && other_side > zero);
-                         });
+  return swept_.any_near(
+      (rest[0] + rest[1] + rest[2]) / 3.0, options_.snap_fraction * rest_size * 1.01,
+      [&](const std::array<Vec3, 3>& t) {
+        const Vec3 normal = (t[1] - t[0]).cross(t[2] - t[0]).normalized();
+        const double zero = 1e-12 * rest_size;
+        const double side = normal.dot(apex - t[0]);
+        const double other_side = normal.dot(other_apex - t[0]);
+        return (side > zero && other_side < -zero) || (side < -zero && other_side > zero);
+      });
 }
 
 template <typename Accept>
@@ -590,11 +606,8 @@ void SubdivisionCutter::mark_on_cut(VertexId vertex) {
   const Vec3& point = mesh_.rest_position(vertex);
   for (TetId t : mesh_.vertex_tets(vertex)) {
     const Ancestry& origin = ancestry(t);
-    Mat3 frame;
-    frame << origin.corners[1] - origin.corners[0], origin.corners[2] - origin.corners[0],
-        origin.corners[3] - origin.corners[0];
-    const Vec3 local = frame.inverse() * (point - origin.corners[0]);
-    const std::array<double, 4> weights{1.0 - local.sum(), local[0], local[1], local[2]};
+    const std::array<double, 4> weights = barycentric_coordinates(
+        point, origin.corners[0], origin.corners[1], origin.corners[2], origin.corners[3]);
     int ends[2] = {-1, -1};
     int count = 0;
     for (int k = 0; k < 4; ++k) {
@@ -663,25 +676,12 @@ void SubdivisionCutter::insert_blade_points(const BladePose& pose, const Vec3& n
 }
 
 void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
-  grid_.query(point, point, scratch_);
-  TetId holder = kInvalidId;
-  for (TetId t : scratch_) {
-    const Tet& v = mesh_.tet(t);
-    if (locate_in_tet(point, position(v[0]), position(v[1]), position(v[2]), position(v[3])) !=
-        TetLocation::kOutside) {
-      holder = t;
-      break;
-    }
-  }
+  const TetId holder = locate(point);
   if (holder == kInvalidId) {
     return;  // outside the body, or in the gap of an opened cut
   }
   const Tet v = mesh_.tet(holder);
-  Mat3 frame;
-  frame << position(v[1]) - position(v[0]), position(v[2]) - position(v[0]),
-      position(v[3]) - position(v[0]);
-  const Vec3 local = frame.inverse() * (point - position(v[0]));
-  std::array<double, 4> weights{1.0 - local.sum(), local[0], local[1], local[2]};
+  std::array<double, 4> weights = weights_in(point, holder);
   // A point close to a face, edge or vertex of its tetrahedron (relative to the element) snaps
   // onto it, so no child is thinner than the snap fraction of its parent, but only where that
   // moves it within the swept surface (away from vertices that lie on the surface): a vertex
@@ -729,10 +729,8 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   }
   VertexId inserted = kInvalidId;
   if (count == 1) {
-    if (on_cut_[v[largest]] == 0) {
-      mark_on_cut(v[largest]);
-      ++stats_.vertices_snapped;
-    }
+    mark_on_cut(v[largest]);  // not on the cut yet: that case returned above
+    ++stats_.vertices_snapped;
     return;
   }
   if (count == 2) {
@@ -809,10 +807,8 @@ void SubdivisionCutter::presplit_generic(const Contact& contact) {
   // Every face: at the centroid of the largest of the triangles it now consists of.
   std::vector<std::array<VertexId, 3>> faces;
   for (const Tet& v : chosen) {
-    for (const auto& f : tet_local::kFaces) {
-      std::array<VertexId, 3> key{v[f[0]], v[f[1]], v[f[2]]};
-      std::sort(key.begin(), key.end());
-      faces.push_back(key);
+    for (int f = 0; f < 4; ++f) {
+      faces.push_back(face_key(v, f));
     }
   }
   std::sort(faces.begin(), faces.end());
@@ -820,12 +816,9 @@ void SubdivisionCutter::presplit_generic(const Contact& contact) {
   for (const auto& face : faces) {
     std::vector<VertexId> members(face.begin(), face.end());
     for (int i = 0; i < 3; ++i) {
-      const auto it = node.find({face[i], face[(i + 1) % 3]});
-      const auto reverse = node.find({face[(i + 1) % 3], face[i]});
+      const auto it = node.find(std::minmax(face[i], face[(i + 1) % 3]));
       if (it != node.end()) {
         members.push_back(it->second);
-      } else if (reverse != node.end()) {
-        members.push_back(reverse->second);
       }
     }
     std::sort(members.begin(), members.end());
@@ -952,11 +945,8 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
       const Tet& tet = mesh_.tet(t);
       for (int f = 0; f < 4; ++f) {
         const TetId neighbor = mesh_.tet_neighbors(t)[f];
-        const auto& face = tet_local::kFaces[f];
         if (neighbor > t && is_cut_face(t, f)) {
-          std::array<VertexId, 3> key{tet[face[0]], tet[face[1]], tet[face[2]]};
-          std::sort(key.begin(), key.end());
-          found.push_back(key);
+          found.push_back(face_key(tet, f));
         }
       }
     }
@@ -966,9 +956,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   for (const auto& face : found) {
     const std::array<Vec3, 3> rest{mesh_.rest_position(face[0]), mesh_.rest_position(face[1]),
                                    mesh_.rest_position(face[2])};
-    const double size = std::max(
-        {(rest[1] - rest[0]).norm(), (rest[2] - rest[1]).norm(), (rest[0] - rest[2]).norm()});
-    if (cut_faces_.near((rest[0] + rest[1] + rest[2]) / 3.0, 1e-9 * size)) {
+    if (known_cut_face(rest, longest_edge(rest))) {
       continue;  // known already (a face at the crack front, or a child of one)
     }
     cut_faces_.add(rest);

@@ -694,6 +694,14 @@ double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d)
   return (b - a).dot((c - a).cross(d - a)) / 6.0;
 }
 
+std::array<double, 4> barycentric_coordinates(const Vec3& p, const Vec3& a, const Vec3& b,
+                                              const Vec3& c, const Vec3& d) {
+  Mat3 frame;
+  frame << b - a, c - a, d - a;
+  const Vec3 local = frame.inverse() * (p - a);
+  return {1.0 - local.sum(), local[0], local[1], local[2]};
+}
+
 double signed_volume(const TetMesh& mesh, TetId tet) {
   const Tet& v = mesh.tet(tet);
   return signed_volume(mesh.rest_position(v[0]), mesh.rest_position(v[1]), mesh.rest_position(v[2]),

@@ -151,11 +151,6 @@ class SubdivisionCutter {
     /// `accept(triangle)` holds.
     template <typename Accept>
     [[nodiscard]] bool any_near(const Vec3& point, double tolerance, Accept accept) const;
-    void clear() {
-      triangles_.clear();
-      cells_.clear();
-    }
-    [[nodiscard]] const std::vector<std::array<Vec3, 3>>& triangles() const { return triangles_; }
 
    private:
     [[nodiscard]] static std::uint64_t key(long i, long j, long k);
@@ -180,6 +175,8 @@ class SubdivisionCutter {
   /// Whether face `local_face` of `tet` (an interior face) lies on the cut and parts the two
   /// tetrahedra sharing it.
   [[nodiscard]] bool is_cut_face(TetId tet, int local_face) const;
+  /// Whether a face with these rest corners (longest edge `size`, m) was found on the cut before.
+  [[nodiscard]] bool known_cut_face(const std::array<Vec3, 3>& rest, double size) const;
   std::size_t separate(VertexId vertex);
   /// The ancestry of a tetrahedron, assigning a new original to one added afresh.
   const Ancestry& ancestry(TetId tet);
@@ -191,6 +188,10 @@ class SubdivisionCutter {
     std::array<double, 4> weights{};
   };
   [[nodiscard]] MaterialPoint material_point(const Vec3& point);
+  /// A tetrahedron holding `point` (at the positions the cutter intersects), or kInvalidId.
+  [[nodiscard]] TetId locate(const Vec3& point);
+  /// Barycentric coordinates of `point` in `tet` (at the positions the cutter intersects).
+  [[nodiscard]] std::array<double, 4> weights_in(const Vec3& point, TetId tet) const;
   /// Where a material point is now; `fallback` (m) when it was outside the body.
   [[nodiscard]] Vec3 current(const MaterialPoint& point, const Vec3& fallback) const;
 

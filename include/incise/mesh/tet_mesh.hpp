@@ -209,6 +209,11 @@ class TetMesh {
 /// positively oriented tetrahedron. Floating point: use predicates.hpp for exact signs.
 [[nodiscard]] double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 [[nodiscard]] double signed_volume(const TetMesh& mesh, TetId tet);
+/// Barycentric coordinates of p in the tetrahedron (a, b, c, d) (floating point; they sum to 1
+/// and are all in [0, 1] for a point inside).
+[[nodiscard]] std::array<double, 4> barycentric_coordinates(const Vec3& p, const Vec3& a,
+                                                            const Vec3& b, const Vec3& c,
+                                                            const Vec3& d);
 /// Sum of signed tetrahedron volumes (m^3).
 [[nodiscard]] double total_volume(const TetMesh& mesh);
 
