@@ -5,6 +5,10 @@
 
 #include <algorithm>
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
+
 #include "incise/core/error.hpp"
 #include "incise/mesh/vertex_graph.hpp"
 
@@ -60,16 +64,90 @@ void BlockSparseMatrix::set_zero() {
   std::fill(values_.begin(), values_.end(), Mat3::Zero());
 }
 
+namespace {
+
+/// One row after another, Eigen's 3x3 block times vector.
+void multiply_rows_portable(const Mat3* values, const VertexId* columns,
+                            const std::size_t* row_start, std::size_t begin, std::size_t end,
+                            const Vec3* p, Vec3* out) {
+  for (std::size_t i = begin; i < end; ++i) {
+    Vec3 sum = Vec3::Zero();
+    for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
+      sum.noalias() += values[k] * p[columns[k]];
+    }
+    out[i - begin] = sum;
+  }
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define INCISE_HAVE_AVX2_ROWS 1
+
+// Written by hand because Eigen picks its SIMD width when compiled, and the portable build
+// (SSE2) would leave AVX2/FMA unused on the machines that have it; a product is a third
+// faster this way (BENCHMARKS.md). A column-major 3x3 block is nine contiguous doubles, so
+// columns 0 and 1 are the first three lanes of 4-wide loads at offsets 0 and 3, and column 2
+// is the last three lanes of the load at offset 5 (no load reads past the block); that
+// column is summed in its own register and shifted into place once per row.
+__attribute__((target("avx2,fma"))) void multiply_rows_avx2(const Mat3* blocks,
+                                                            const VertexId* columns,
+                                                            const std::size_t* row_start,
+                                                            std::size_t begin, std::size_t end,
+                                                            const Vec3* p, Vec3* out) {
+  const double* values = blocks->data();
+  for (std::size_t i = begin; i < end; ++i) {
+    __m256d first = _mm256_setzero_pd();
+    __m256d second = _mm256_setzero_pd();
+    __m256d third_shifted = _mm256_setzero_pd();
+    for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
+      const double* a = values + 9 * k;
+      const double* q = p[columns[k]].data();
+      first = _mm256_fmadd_pd(_mm256_loadu_pd(a), _mm256_broadcast_sd(q), first);
+      second = _mm256_fmadd_pd(_mm256_loadu_pd(a + 3), _mm256_broadcast_sd(q + 1), second);
+      third_shifted =
+          _mm256_fmadd_pd(_mm256_loadu_pd(a + 5), _mm256_broadcast_sd(q + 2), third_shifted);
+    }
+    alignas(32) double sum[4];
+    alignas(32) double third[4];
+    _mm256_store_pd(sum, _mm256_add_pd(first, second));
+    _mm256_store_pd(third, third_shifted);
+    out[i - begin] = Vec3(sum[0] + third[1], sum[1] + third[2], sum[2] + third[3]);
+  }
+}
+
+bool cpu_has_avx2_fma() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+}
+#endif
+
+}  // namespace
+
+void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::span<const Vec3> p,
+                                      Vec3* out) const {
+  INCISE_ASSERT(end <= rows() && p.size() >= rows(), "product outside the matrix");
+#ifdef INCISE_HAVE_AVX2_ROWS
+  static const bool avx2 = cpu_has_avx2_fma();  // a property of the machine, asked once
+  if (avx2) {
+    multiply_rows_avx2(values_.data(), columns_.data(), row_start_.data(), begin, end, p.data(),
+                       out);
+    return;
+  }
+#endif
+  multiply_rows_portable(values_.data(), columns_.data(), row_start_.data(), begin, end, p.data(),
+                         out);
+}
+
 template <typename Store>
 void BlockSparseMatrix::for_each_row_product(std::span<const Vec3> p, const Store& store) const {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows(), 512),
                     [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                        Vec3 sum = Vec3::Zero();
-                        for (std::size_t k = row_start_[i]; k < row_start_[i + 1]; ++k) {
-                          sum.noalias() += values_[k] * p[columns_[k]];
+                      Vec3 sums[512];
+                      for (std::size_t begin = range.begin(); begin < range.end(); begin += 512) {
+                        const std::size_t end = std::min(range.end(), begin + 512);
+                        multiply_rows(begin, end, p, sums);
+                        for (std::size_t i = begin; i < end; ++i) {
+                          store(i, sums[i - begin]);
                         }
-                        store(i, sum);
                       }
                     });
 }

@@ -89,10 +89,21 @@ Mat3 polar_rotation(const Mat3& F, Eigen::Quaterniond& warm_start) {
                          0.5 * (local(1, 0) - local(0, 1)));
     const Mat3 S = 0.5 * (local + local.transpose());
     const Mat3 G = S.trace() * Mat3::Identity() - S;
-    const double determinant = G.determinant();
-    const double minor = G(0, 0) * G(1, 1) - G(0, 1) * G(1, 0);
-    if (G(0, 0) > 0.0 && minor > 0.0 && determinant > 1e-6 * scale * scale * scale) {
-      const Vec3 turn = 2.0 * (G.inverse() * asymmetry);
+    // G is symmetric: its adjugate has six distinct entries, and Sylvester's criterion on the
+    // leading minors says whether G is positive definite.
+    const double adj00 = G(1, 1) * G(2, 2) - G(1, 2) * G(1, 2);
+    const double adj01 = G(0, 2) * G(1, 2) - G(0, 1) * G(2, 2);
+    const double adj02 = G(0, 1) * G(1, 2) - G(0, 2) * G(1, 1);
+    const double adj11 = G(0, 0) * G(2, 2) - G(0, 2) * G(0, 2);
+    const double adj12 = G(0, 1) * G(0, 2) - G(0, 0) * G(1, 2);
+    const double adj22 = G(0, 0) * G(1, 1) - G(0, 1) * G(0, 1);
+    const double determinant = G(0, 0) * adj00 + G(0, 1) * adj01 + G(0, 2) * adj02;
+    if (G(0, 0) > 0.0 && adj22 > 0.0 && determinant > 1e-6 * scale * scale * scale) {
+      const double factor = 2.0 / determinant;
+      const Vec3 turn(
+          factor * (adj00 * asymmetry.x() + adj01 * asymmetry.y() + adj02 * asymmetry.z()),
+          factor * (adj01 * asymmetry.x() + adj11 * asymmetry.y() + adj12 * asymmetry.z()),
+          factor * (adj02 * asymmetry.x() + adj12 * asymmetry.y() + adj22 * asymmetry.z()));
       const double angle = turn.norm();
       if (angle < 1e-14 * (1.0 + scale)) {
         return R;
@@ -101,8 +112,9 @@ Mat3 polar_rotation(const Mat3& F, Eigen::Quaterniond& warm_start) {
         const Eigen::Quaterniond step(1.0, 0.5 * turn.x(), 0.5 * turn.y(), 0.5 * turn.z());
         warm_start = warm_start * step;  // body frame: R <- R exp(W), first order, renormalised
         warm_start.normalize();
-        if (angle < 1e-8) {
-          // Quadratic convergence: the next turn would be below 1e-16; no need to compute it.
+        if (angle < 1e-6) {
+          // Quadratic convergence: what is left after this turn is of order angle^2, below
+          // 1e-12 rad (the stress error it makes is far below the solver's tolerance).
           return warm_start.toRotationMatrix();
         }
         continue;

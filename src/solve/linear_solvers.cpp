@@ -2,7 +2,9 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/IterativeLinearSolvers>
 #include <array>
 #include <chrono>
@@ -30,23 +32,28 @@ void parallel_vertices(std::size_t n, const Body& body) {
                     });
 }
 
-/// Two sums over i < n at once, deterministic: body(i, first, second) adds to both; each fixed
-/// chunk of `chunk` rows is summed by one thread, then the chunks in order.
+/// Two sums over i < n at once, deterministic: body(begin, end, first, second) adds the rows
+/// begin <= i < end to both; each fixed chunk of `chunk` rows is summed by one thread, then
+/// the chunks in order.
 template <typename Body>
 std::pair<double, double> chunked_sums(std::size_t n, std::size_t chunk, const Body& body) {
   const std::size_t chunks = (n + chunk - 1) / chunk;
   std::vector<double> first(chunks, 0.0);
   std::vector<double> second(chunks, 0.0);
-  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-    double sum_first = 0.0;
-    double sum_second = 0.0;
-    const std::size_t end = std::min(n, (c + 1) * chunk);
-    for (std::size_t i = c * chunk; i < end; ++i) {
-      body(i, sum_first, sum_second);
-    }
-    first[c] = sum_first;
-    second[c] = sum_second;
-  });
+  // The static partitioner hands each thread the same chunks in every pass, so a CG
+  // iteration finds its vectors in the core's own cache.
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, chunks, 1),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t c = range.begin(); c != range.end(); ++c) {
+          double sum_first = 0.0;
+          double sum_second = 0.0;
+          body(c * chunk, std::min(n, (c + 1) * chunk), sum_first, sum_second);
+          first[c] = sum_first;
+          second[c] = sum_second;
+        }
+      },
+      tbb::auto_partitioner());
   std::pair<double, double> total{0.0, 0.0};
   for (std::size_t c = 0; c < chunks; ++c) {
     total.first += first[c];
@@ -58,7 +65,12 @@ std::pair<double, double> chunked_sums(std::size_t n, std::size_t chunk, const B
 /// sum_i term(i), deterministic (see chunked_sums).
 template <typename Term>
 double parallel_sum(std::size_t n, const Term& term) {
-  return chunked_sums(n, kChunk, [&](std::size_t i, double& sum, double&) { sum += term(i); })
+  return chunked_sums(n, kChunk,
+                      [&](std::size_t begin, std::size_t end, double& sum, double&) {
+                        for (std::size_t i = begin; i < end; ++i) {
+                          sum += term(i);
+                        }
+                      })
       .first;
 }
 
@@ -224,29 +236,40 @@ Mat3 LinearizedSystemSolver::preconditioner_block(const Mat3& diagonal_block) co
 }
 
 void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x,
-                                                       double rhs_norm, LinearSolveStats& stats) {
+                                                       double rhs_norm, bool start_from_x,
+                                                       LinearSolveStats& stats) {
   // Two passes over memory per iteration: the new direction p and q = J p with p.q; the x, r
   // and z updates with r.r and r.z. Held rows are identity with r = z = p = 0 there.
   const std::size_t n = rhs.size();
-  const auto row_start = assembled_.row_start();
-  const auto columns = assembled_.columns();
   const auto values = assembled_.values();
   residual_.resize(n);
   direction_.resize(n);
   product_.resize(n);
   preconditioned_.resize(n);
   diagonal_.resize(n);
-  auto chunked = [&](const auto& body) { return chunked_sums(n, kFusedChunk, body); };
-  auto row_product = [&](std::size_t i, std::span<const Vec3> p) {
-    Vec3 sum = Vec3::Zero();
-    for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
-      sum.noalias() += values[k] * p[columns[k]];
-    }
-    return sum;
+  // Each pass walks fixed chunks of rows; a chunk's matrix rows are multiplied into `rows`
+  // first (the kernel), then combined with the vectors row by row.
+  auto chunked = [&](const auto& row_body) {
+    return chunked_sums(n, kFusedChunk,
+                        [&](std::size_t begin, std::size_t end, double& first, double& second) {
+                          for (std::size_t i = begin; i < end; ++i) {
+                            row_body(i, first, second);
+                          }
+                        });
+  };
+  auto chunked_products = [&](std::span<const Vec3> p, const auto& row_body) {
+    return chunked_sums(n, kFusedChunk,
+                        [&](std::size_t begin, std::size_t end, double& first, double& second) {
+                          std::array<Vec3, kFusedChunk> rows;
+                          assembled_.multiply_rows(begin, end, p, rows.data());
+                          for (std::size_t i = begin; i < end; ++i) {
+                            row_body(i, rows[i - begin], first, second);
+                          }
+                        });
   };
   // Preconditioner and the initial residual (warm start from x).
   bool warm = false;
-  if (options_.warm_start) {
+  if (start_from_x) {
     for (std::size_t i = 0; i < n && !warm; ++i) {
       warm = constrained_[i] == 0 && !x[i].isZero(0.0);
     }
@@ -254,22 +277,23 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   if (!warm) {
     std::fill(x.begin(), x.end(), Vec3::Zero());
   }
-  auto [rr, rz] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
-    if (constrained_[i] != 0) {
-      diagonal_[i].setZero();
-      residual_[i].setZero();
-      preconditioned_[i].setZero();
-      direction_[i].setZero();
-      product_[i].setZero();  // never written again: held rows stay out of every update
-      return;
-    }
-    diagonal_[i] = preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
-    residual_[i] = warm ? Vec3(rhs[i] - row_product(i, x)) : rhs[i];
-    preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
-    direction_[i] = preconditioned_[i];
-    sum_rr += residual_[i].squaredNorm();
-    sum_rz += residual_[i].dot(preconditioned_[i]);
-  });
+  auto [rr, rz] =
+      chunked_products(x, [&](std::size_t i, const Vec3& row_x, double& sum_rr, double& sum_rz) {
+        if (constrained_[i] != 0) {
+          diagonal_[i].setZero();
+          residual_[i].setZero();
+          preconditioned_[i].setZero();
+          direction_[i].setZero();
+          product_[i].setZero();  // never written again: held rows stay out of every update
+          return;
+        }
+        diagonal_[i] = preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
+        residual_[i] = rhs[i] - row_x;  // x is zero on a cold start
+        preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
+        direction_[i] = preconditioned_[i];
+        sum_rr += residual_[i].squaredNorm();
+        sum_rz += residual_[i].dot(preconditioned_[i]);
+      });
   stats.relative_residual = std::sqrt(rr) / rhs_norm;
   // q = J p for the first direction; afterwards J p_new = J z + beta J p_old is formed in the
   // same pass as J z, so an iteration is two passes (the p and q recurrences are exact
@@ -279,23 +303,28 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   while (stats.relative_residual > options_.tolerance && iteration < options_.max_iterations) {
     const auto product_start = Clock::now();
     const bool first_direction = iteration == 0;
-    const double curvature = chunked([&](std::size_t i, double& sum, double&) {
-                               if (constrained_[i] != 0) {
-                                 return;
-                               }
-                               if (first_direction) {
-                                 product_[i] = row_product(i, direction_);
-                               } else {
-                                 direction_[i] = preconditioned_[i] + beta * direction_[i];
-                                 product_[i] = row_product(i, preconditioned_) + beta * product_[i];
-                               }
-                               sum += direction_[i].dot(product_[i]);
-                             }).first;
+    const double curvature =
+        chunked_products(first_direction ? std::span<const Vec3>(direction_)
+                                         : std::span<const Vec3>(preconditioned_),
+                         [&](std::size_t i, const Vec3& row_p, double& sum, double&) {
+                           if (constrained_[i] != 0) {
+                             return;
+                           }
+                           if (first_direction) {
+                             product_[i] = row_p;
+                           } else {
+                             direction_[i] = preconditioned_[i] + beta * direction_[i];
+                             product_[i] = row_p + beta * product_[i];
+                           }
+                           sum += direction_[i].dot(product_[i]);
+                         })
+            .first;
     stats.seconds_products += seconds_since(product_start);
     if (!(curvature > 0.0)) {
       break;  // converged to rounding, or not positive definite: keep x
     }
     const double alpha = rz / curvature;
+    const auto update_start = Clock::now();
     const auto [rr_next, rz_next] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
       x[i] += alpha * direction_[i];
       residual_[i] -= alpha * product_[i];
@@ -303,6 +332,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
       sum_rr += residual_[i].squaredNorm();
       sum_rz += residual_[i].dot(preconditioned_[i]);
     });
+    stats.seconds_vector_updates += seconds_since(update_start);
     ++iteration;
     stats.relative_residual = std::sqrt(rr_next) / rhs_norm;
     beta = rz_next / rz;
@@ -311,10 +341,64 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   stats.iterations = iteration;
 }
 
+template <typename Product>
+void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3>> basis,
+                                            std::span<const Vec3> rhs, std::span<Vec3> x,
+                                            const Product& product) {
+  // x = V y with (V^T A V) y = V^T rhs: the best start in span(V) in the energy norm, so never
+  // worse than any one basis field or the linear extrapolation of two. The small system is
+  // solved by its eigenvectors, dropping directions the basis does not span (earlier
+  // solutions can be nearly parallel).
+  const std::size_t k = basis.size();
+  const std::size_t n = rhs.size();
+  auto free_dot = [&](std::span<const Vec3> u, std::span<const Vec3> w) {
+    return parallel_sum(n,
+                        [&](std::size_t i) { return constrained_[i] != 0 ? 0.0 : u[i].dot(w[i]); });
+  };
+  basis_products_.resize(k);
+  Eigen::MatrixXd gram(k, k);
+  Eigen::VectorXd load(k);
+  for (std::size_t j = 0; j < k; ++j) {
+    // Held rows are zero in x, so they are dropped from the basis before multiplying.
+    masked_.resize(n);
+    parallel_vertices(
+        n, [&](std::size_t i) { masked_[i] = constrained_[i] != 0 ? Vec3::Zero() : basis[j][i]; });
+    basis_products_[j].resize(n);
+    product(std::span<const Vec3>(masked_), std::span<Vec3>(basis_products_[j]));
+    for (std::size_t i = 0; i <= j; ++i) {
+      gram(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
+          free_dot(basis[i], basis_products_[j]);
+      gram(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(i)) =
+          gram(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j));
+    }
+    load(static_cast<Eigen::Index>(j)) = free_dot(basis[j], rhs);
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram);
+  const Eigen::VectorXd& values = eigen.eigenvalues();
+  Eigen::VectorXd combination = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(k));
+  const double largest = values.size() > 0 ? values.maxCoeff() : 0.0;
+  for (Eigen::Index m = 0; m < values.size(); ++m) {
+    if (largest > 0.0 && values(m) > 1e-12 * largest) {
+      const Eigen::VectorXd direction = eigen.eigenvectors().col(m);
+      combination += (direction.dot(load) / values(m)) * direction;
+    }
+  }
+  parallel_vertices(n, [&](std::size_t i) {
+    Vec3 start = Vec3::Zero();
+    if (constrained_[i] == 0) {
+      for (std::size_t j = 0; j < k; ++j) {
+        start += combination(static_cast<Eigen::Index>(j)) * basis[j][i];
+      }
+    }
+    x[i] = start;
+  });
+}
+
 LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, double mass_scale,
                                                double a, double b,
                                                std::span<const char> constrained,
-                                               std::span<const Vec3> rhs, std::span<Vec3> x) {
+                                               std::span<const Vec3> rhs, std::span<Vec3> x,
+                                               std::span<const std::span<const Vec3>> start_basis) {
   const auto start = Clock::now();
   const std::size_t n = rhs.size();
   masses_ = system.masses();
@@ -403,7 +487,15 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     const auto build_start = Clock::now();
     if (assemble(system, mass_scale, a, b)) {
       stats.seconds_preconditioner += seconds_since(build_start);
-      fused_conjugate_gradients(rhs, x, rhs_norm, stats);
+      if (!start_basis.empty()) {
+        const auto start_start = Clock::now();
+        galerkin_start(start_basis, rhs, x, [&](std::span<const Vec3> p, std::span<Vec3> y) {
+          assembled_.multiply(p, y);
+        });
+        stats.seconds_start += seconds_since(start_start);
+      }
+      fused_conjugate_gradients(rhs, x, rhs_norm, options_.warm_start || !start_basis.empty(),
+                                stats);
       stats.seconds_total = seconds_since(start);
       return stats;
     }
@@ -449,8 +541,13 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     apply(system, mass_scale, a, b, p, y);
     stats.seconds_products += seconds_since(product_start);
   };
+  if (!start_basis.empty()) {
+    const auto start_start = Clock::now();
+    galerkin_start(start_basis, rhs, x, timed_apply);
+    stats.seconds_start += seconds_since(start_start);
+  }
   bool nonzero_start = false;
-  if (options_.warm_start) {
+  if (options_.warm_start || !start_basis.empty()) {
     for (std::size_t i = 0; i < n && !nonzero_start; ++i) {
       nonzero_start = constrained_[i] == 0 && !x[i].isZero(0.0);
     }

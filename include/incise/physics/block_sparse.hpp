@@ -38,6 +38,9 @@ class BlockSparseMatrix {
   void multiply(std::span<const Vec3> p, std::span<Vec3> y) const;
   /// y += scale A p.
   void multiply_add(double scale, std::span<const Vec3> p, std::span<Vec3> y) const;
+  /// out[i - begin] = (A p)_i for begin <= i < end, on the calling thread: the kernel under
+  /// every product, for callers that fuse other per-row work into the same pass.
+  void multiply_rows(std::size_t begin, std::size_t end, std::span<const Vec3> p, Vec3* out) const;
 
  private:
   /// store(row, (A p)_row) for every row, rows in parallel.

@@ -23,6 +23,7 @@ struct IntegratorStats {
   double seconds_forces = 0.0;
   double seconds_preconditioner = 0.0;
   double seconds_products = 0.0;
+  double seconds_vector_updates = 0.0;
   double seconds_step = 0.0;
 };
 
@@ -140,7 +141,9 @@ class BackwardEuler final : public Integrator {
  private:
   BackwardEulerOptions options_;
   LinearizedSystemSolver solver_;
-  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_, last_delta_, previous_delta_;
+  std::vector<Vec3> x_trial_, v_trial_, force_, rhs_, delta_;
+  /// The first Newton step's velocity changes of the last steps, newest first.
+  std::vector<std::vector<Vec3>> history_;
   std::vector<char> constrained_;
 };
 

@@ -27,6 +27,9 @@ struct LinearSolverOptions {
   int max_iterations = 500;
   /// Start CG from the caller's x (the last solution) instead of zero.
   bool warm_start = true;
+  /// Implicit integrators keep this many earlier solutions and start CG from their best
+  /// combination (Galerkin projection); 0 extrapolates the last two linearly instead.
+  int start_history = 8;
   /// Run CG on the assembled matrix when the system can assemble it (fused passes); false
   /// multiplies through the system's matrix-free products (kept for comparison).
   bool assembled = true;
@@ -43,6 +46,8 @@ struct LinearSolveStats {
   double relative_residual = 0.0;
   double seconds_preconditioner = 0.0;  ///< building it (factorisation for direct solves)
   double seconds_products = 0.0;        ///< matrix-vector products
+  double seconds_vector_updates = 0.0;  ///< the x, r, z updates and their dot products
+  double seconds_start = 0.0;           ///< the starting guess from a basis
   double seconds_total = 0.0;
 };
 
@@ -57,9 +62,13 @@ class LinearizedSystemSolver {
   /// in `constrained`) are identity with x = 0 there. x holds the warm start on entry.
   /// Throws InputError if a direct solve or incomplete Cholesky is asked of a system that
   /// cannot assemble its matrix, or if the factorisation fails.
+  /// `start_basis`, when given, replaces the warm start: CG starts from the combination of
+  /// these fields that minimises the error in the energy norm over their span (they are
+  /// typically the solutions of earlier steps; dependent ones are harmless).
   LinearSolveStats solve(const DynamicSystem& system, double mass_scale, double a, double b,
                          std::span<const char> constrained, std::span<const Vec3> rhs,
-                         std::span<Vec3> x);
+                         std::span<Vec3> x,
+                         std::span<const std::span<const Vec3>> start_basis = {});
   [[nodiscard]] const LinearSolverOptions& options() const { return options_; }
 
  private:
@@ -72,7 +81,11 @@ class LinearizedSystemSolver {
   [[nodiscard]] Mat3 preconditioner_block(const Mat3& diagonal_block) const;
   /// PCG over the assembled matrix with fused passes (Jacobi, block-Jacobi or none).
   void fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
-                                 LinearSolveStats& stats);
+                                 bool start_from_x, LinearSolveStats& stats);
+  /// x = the Galerkin combination of `basis` (see solve()); `product` applies the matrix.
+  template <typename Product>
+  void galerkin_start(std::span<const std::span<const Vec3>> basis, std::span<const Vec3> rhs,
+                      std::span<Vec3> x, const Product& product);
   void build_scalar_pattern();
   void fill_scalar_values();
 
@@ -81,6 +94,8 @@ class LinearizedSystemSolver {
   std::span<const char> constrained_;
   std::vector<Vec3> residual_, direction_, product_, preconditioned_;
   std::vector<Mat3> diagonal_;
+  std::vector<std::vector<Vec3>> basis_products_;
+  std::vector<Vec3> masked_;
   BlockSparseMatrix assembled_;
   // Scalar copy of the free rows and columns for LDL^T and incomplete Cholesky.
   std::uint64_t scalar_pattern_revision_ = ~std::uint64_t{0};
