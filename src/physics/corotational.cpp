@@ -237,7 +237,9 @@ Mat3 stiffness_block(const CorotatedLinearization& linearization, const LamePara
   const Vec3 rb = linearization.rotation * gb;
   if (linearization.warped) {
     Mat3 block = Mat3::Zero();
-    add_warped_stiffness_block(block, ra, rb, ga.dot(gb), lame, weight * rest.volume);
+    const double factor = weight * rest.volume;
+    add_warped_stiffness_block(block, (factor * lame.lambda) * ra, (factor * lame.mu) * ra, rb,
+                               factor * lame.mu * ga.dot(gb));
     return block;
   }
   Mat3 block = (2.0 * lame.mu * ga.dot(gb)) * Mat3::Identity() + lame.lambda * ra * rb.transpose();

@@ -512,6 +512,7 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
   // Row by row: each thread owns whole block rows, so nothing is shared and the sum order per
   // block is fixed (deterministic); every element's blocks are computed once in all.
   const auto row_start = stiffness_.row_start();
+  const bool warped = parameters_.tangent == TangentKind::kWarped;
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(0, incidence_start_.size() - 1, 128),
       [&](const tbb::blocked_range<std::size_t>& range) {
@@ -527,18 +528,20 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
               continue;
             }
             const auto& slot = slots_[static_cast<std::size_t>(tet)];
-            const CorotatedLinearization& linearization = linearization_[tet];
-            if (linearization.warped) {
-              // R K0_ab R^T = mu (g_a . g_b) I + lambda r_a r_b^T + mu r_b r_a^T, r = R g.
+            if (warped) {
               const auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
               const double factor = scale * weight * element.shape.volume;
+              const Vec3 lambda_a = (factor * lame_.lambda) * rotated[a];
+              const Vec3 mu_a = (factor * lame_.mu) * rotated[a];
+              const Vec3& gradient_a = element.shape.gradients[a];
               for (int b = 0; b < 4; ++b) {
                 add_warped_stiffness_block(
-                    out[slot[4 * a + b]], rotated[a], rotated[b],
-                    element.shape.gradients[a].dot(element.shape.gradients[b]), lame_, factor);
+                    out[slot[4 * a + b]], lambda_a, mu_a, rotated[b],
+                    factor * lame_.mu * gradient_a.dot(element.shape.gradients[b]));
               }
               continue;
             }
+            const CorotatedLinearization& linearization = linearization_[tet];
             for (int b = 0; b < 4; ++b) {
               out[slot[4 * a + b]] +=
                   stiffness_block(linearization, lame_, element.shape, scale * weight, a, b);

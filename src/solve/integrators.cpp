@@ -317,6 +317,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   stats_.seconds_preconditioner = 0.0;
   stats_.seconds_products = 0.0;
   stats_.seconds_vector_updates = 0.0;
+  stats_.seconds_solver_start = 0.0;
 
   for (int newton = 0; newton < options_.newton_steps; ++newton) {
     for (std::size_t i = 0; i < n; ++i) {
@@ -354,6 +355,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
     stats_.seconds_preconditioner += solve.seconds_preconditioner;
     stats_.seconds_products += solve.seconds_products;
     stats_.seconds_vector_updates += solve.seconds_vector_updates;
+    stats_.seconds_solver_start += solve.seconds_start;
     for (std::size_t i = 0; i < n; ++i) {
       if (constrained_[i] == 0) {
         v_trial_[i] += delta_[i];

@@ -62,6 +62,28 @@ std::pair<double, double> chunked_sums(std::size_t n, std::size_t chunk, const B
   return total;
 }
 
+/// `count` sums over i < n at once, deterministic like chunked_sums: body(begin, end, sums)
+/// adds the rows begin <= i < end to sums[0..count).
+template <typename Body>
+std::vector<double> chunked_sums(std::size_t n, std::size_t chunk, std::size_t count,
+                                 const Body& body) {
+  const std::size_t chunks = (n + chunk - 1) / chunk;
+  std::vector<double> partial(chunks * count, 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                        body(c * chunk, std::min(n, (c + 1) * chunk), &partial[c * count]);
+                      }
+                    });
+  std::vector<double> total(count, 0.0);
+  for (std::size_t c = 0; c < chunks; ++c) {
+    for (std::size_t m = 0; m < count; ++m) {
+      total[m] += partial[c * count + m];
+    }
+  }
+  return total;
+}
+
 /// sum_i term(i), deterministic (see chunked_sums).
 template <typename Term>
 double parallel_sum(std::size_t n, const Term& term) {
@@ -351,13 +373,7 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
   // solutions can be nearly parallel).
   const std::size_t k = basis.size();
   const std::size_t n = rhs.size();
-  auto free_dot = [&](std::span<const Vec3> u, std::span<const Vec3> w) {
-    return parallel_sum(n,
-                        [&](std::size_t i) { return constrained_[i] != 0 ? 0.0 : u[i].dot(w[i]); });
-  };
   basis_products_.resize(k);
-  Eigen::MatrixXd gram(k, k);
-  Eigen::VectorXd load(k);
   for (std::size_t j = 0; j < k; ++j) {
     // Held rows are zero in x, so they are dropped from the basis before multiplying.
     masked_.resize(n);
@@ -365,13 +381,38 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
         n, [&](std::size_t i) { masked_[i] = constrained_[i] != 0 ? Vec3::Zero() : basis[j][i]; });
     basis_products_[j].resize(n);
     product(std::span<const Vec3>(masked_), std::span<Vec3>(basis_products_[j]));
-    for (std::size_t i = 0; i <= j; ++i) {
-      gram(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
-          free_dot(basis[i], basis_products_[j]);
-      gram(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(i)) =
-          gram(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j));
+  }
+  // V^T A V (lower triangle, row by row) and V^T rhs over the free rows, in one pass.
+  const std::size_t pairs = k * (k + 1) / 2;
+  const std::vector<double> sums =
+      chunked_sums(n, kChunk, pairs + k, [&](std::size_t begin, std::size_t end, double* out) {
+        for (std::size_t i = begin; i < end; ++i) {
+          if (constrained_[i] != 0) {
+            continue;
+          }
+          std::size_t entry = 0;
+          for (std::size_t row = 0; row < k; ++row) {
+            for (std::size_t column = 0; column <= row; ++column) {
+              out[entry++] += basis[row][i].dot(basis_products_[column][i]);
+            }
+          }
+          for (std::size_t row = 0; row < k; ++row) {
+            out[pairs + row] += basis[row][i].dot(rhs[i]);
+          }
+        }
+      });
+  Eigen::MatrixXd gram(k, k);
+  Eigen::VectorXd load(k);
+  std::size_t entry = 0;
+  for (std::size_t row = 0; row < k; ++row) {
+    for (std::size_t column = 0; column <= row; ++column) {
+      const auto r = static_cast<Eigen::Index>(row);
+      const auto c = static_cast<Eigen::Index>(column);
+      gram(r, c) = sums[entry];
+      gram(c, r) = sums[entry];
+      ++entry;
     }
-    load(static_cast<Eigen::Index>(j)) = free_dot(basis[j], rhs);
+    load(static_cast<Eigen::Index>(row)) = sums[pairs + row];
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(gram);
   const Eigen::VectorXd& values = eigen.eigenvalues();

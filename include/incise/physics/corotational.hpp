@@ -105,17 +105,17 @@ struct CorotatedLinearization {
 [[nodiscard]] Mat3 stiffness_block(const CorotatedLinearization& linearization,
                                    const LameParameters& lame, const TetRestShape& rest,
                                    double weight, int a, int b);
-/// Adds the warped block factor * R K0_ab R^T to `block`, from the rotated gradients
-/// r_a = R grad N_a, r_b and grad N_a . grad N_b (factor: weight times rest volume, times any
-/// scale). Inline and accumulating in place: assembly calls it 16 times per element.
-inline void add_warped_stiffness_block(Mat3& block, const Vec3& rotated_a, const Vec3& rotated_b,
-                                       double gradient_dot, const LameParameters& lame,
-                                       double factor) {
-  // R K0_ab R^T with K0_ab = mu (g_a . g_b) I + lambda g_a g_b^T + mu g_b g_a^T, r = R g.
-  const Vec3 scaled_a = factor * rotated_a;
-  block.noalias() += lame.lambda * scaled_a * rotated_b.transpose();
-  block.noalias() += lame.mu * rotated_b * scaled_a.transpose();
-  block.diagonal().array() += factor * lame.mu * gradient_dot;
+/// Adds the warped block factor * R K0_ab R^T to `block`, where
+///   R K0_ab R^T = mu (g_a . g_b) I + lambda r_a r_b^T + mu r_b r_a^T,  r = R g
+/// (g = grad N, factor: weight times rest volume, times any scale). Takes the row corner's
+/// factors ready made, lambda_a = factor lambda r_a and mu_a = factor mu r_a, and
+/// diagonal = factor mu g_a . g_b, because assembly reuses them for the four blocks of a row.
+/// Inline and accumulating in place: assembly calls it 16 times per element.
+inline void add_warped_stiffness_block(Mat3& block, const Vec3& lambda_a, const Vec3& mu_a,
+                                       const Vec3& rotated_b, double diagonal) {
+  block.noalias() += lambda_a * rotated_b.transpose();
+  block.noalias() += rotated_b * mu_a.transpose();
+  block.diagonal().array() += diagonal;
 }
 /// The whole 12x12 element stiffness (N/m), corners in order, x, y, z per corner.
 [[nodiscard]] ElementMatrix corotated_stiffness(const Corners& x, const TetRestShape& rest,

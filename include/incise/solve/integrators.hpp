@@ -24,6 +24,7 @@ struct IntegratorStats {
   double seconds_preconditioner = 0.0;
   double seconds_products = 0.0;
   double seconds_vector_updates = 0.0;
+  double seconds_solver_start = 0.0;  ///< CG starting guesses from earlier solutions
   double seconds_step = 0.0;
 };
 
