@@ -453,7 +453,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     if (integrator.has("solver")) {
       const ObjectReader solver(
           context, integrator.at("solver"), "integrator.solver",
-          {"type", "preconditioner", "tolerance", "max_iterations", "warm_start"});
+          {"type", "preconditioner", "tolerance", "max_iterations", "warm_start", "start_history"});
       LinearSolverOptions options;
       try {
         options.type = parse_linear_solver_type(solver.string("type", "cg"));
@@ -469,6 +469,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
       options.tolerance = solver.positive("tolerance", options.tolerance);
       options.max_iterations = solver.integer("max_iterations", options.max_iterations, 1, 1000000);
       options.warm_start = solver.boolean("warm_start", options.warm_start);
+      options.start_history = solver.integer("start_history", options.start_history, 0, 64);
       spec.backward_euler.solver = options;
       spec.static_solve.solver = options;
     }

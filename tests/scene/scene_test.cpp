@@ -96,7 +96,7 @@ TEST(SceneParsing, CorotationalFemKeys) {
       R"({"mesh": {"box": {"cells": [2, 2, 2]}},
           "model": {"type": "corotational-fem", "rayleigh": [0.1, 0.002], "assemble": false},
           "integrator": {"type": "backward-euler", "dt": 0.01, "newton_steps": 2,
-                         "solver": {"type": "direct"}}})",
+                         "solver": {"type": "direct", "start_history": 3}}})",
       "fem.json");
   EXPECT_EQ(scene.model_type, "corotational-fem");
   EXPECT_DOUBLE_EQ(scene.fem.rayleigh_mass, 0.1);
@@ -105,6 +105,12 @@ TEST(SceneParsing, CorotationalFemKeys) {
   EXPECT_EQ(scene.fem.tangent, TangentKind::kWarped);
   EXPECT_EQ(scene.integrator.backward_euler.newton_steps, 2);
   EXPECT_EQ(scene.integrator.backward_euler.solver.type, LinearSolverType::kDirect);
+  EXPECT_EQ(scene.integrator.backward_euler.solver.start_history, 3);
+  EXPECT_NE(
+      error_of(
+          R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"solver": {"start_history": -1}}})")
+          .find("integrator.solver.start_history"),
+      std::string::npos);
   // A static solve defaults to the projected tangent (Newton's quadratic convergence).
   const SceneDescription statics = parse_scene(
       R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "corotational-fem"},
