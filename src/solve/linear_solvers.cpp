@@ -2,7 +2,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/partitioner.h>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/IterativeLinearSolvers>
@@ -32,38 +31,10 @@ void parallel_vertices(std::size_t n, const Body& body) {
                     });
 }
 
-/// Two sums over i < n at once, deterministic: body(begin, end, first, second) adds the rows
-/// begin <= i < end to both; each fixed chunk of `chunk` rows is summed by one thread, then
-/// the chunks in order.
-template <typename Body>
-std::pair<double, double> chunked_sums(std::size_t n, std::size_t chunk, const Body& body) {
-  const std::size_t chunks = (n + chunk - 1) / chunk;
-  std::vector<double> first(chunks, 0.0);
-  std::vector<double> second(chunks, 0.0);
-  // The static partitioner hands each thread the same chunks in every pass, so a CG
-  // iteration finds its vectors in the core's own cache.
-  tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, chunks, 1),
-      [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t c = range.begin(); c != range.end(); ++c) {
-          double sum_first = 0.0;
-          double sum_second = 0.0;
-          body(c * chunk, std::min(n, (c + 1) * chunk), sum_first, sum_second);
-          first[c] = sum_first;
-          second[c] = sum_second;
-        }
-      },
-      tbb::auto_partitioner());
-  std::pair<double, double> total{0.0, 0.0};
-  for (std::size_t c = 0; c < chunks; ++c) {
-    total.first += first[c];
-    total.second += second[c];
-  }
-  return total;
-}
-
-/// `count` sums over i < n at once, deterministic like chunked_sums: body(begin, end, sums)
-/// adds the rows begin <= i < end to sums[0..count).
+/// `count` sums over i < n at once, deterministic: body(begin, end, sums) sets sums[0..count)
+/// to the sums over rows begin <= i < end (accumulating in locals: neighbouring chunks'
+/// entries share cache lines across threads); each fixed chunk of `chunk` rows is summed by one
+/// thread, then the chunks in order, so the result does not depend on the thread count.
 template <typename Body>
 std::vector<double> chunked_sums(std::size_t n, std::size_t chunk, std::size_t count,
                                  const Body& body) {
@@ -82,6 +53,20 @@ std::vector<double> chunked_sums(std::size_t n, std::size_t chunk, std::size_t c
     }
   }
   return total;
+}
+
+/// Two sums at once (see above): body(begin, end, first, second).
+template <typename Body>
+std::pair<double, double> chunked_sums(std::size_t n, std::size_t chunk, const Body& body) {
+  const std::vector<double> sums =
+      chunked_sums(n, chunk, 2, [&](std::size_t begin, std::size_t end, double* out) {
+        double first = 0.0;
+        double second = 0.0;
+        body(begin, end, first, second);
+        out[0] = first;
+        out[1] = second;
+      });
+  return {sums[0], sums[1]};
 }
 
 /// sum_i term(i), deterministic (see chunked_sums).
@@ -290,13 +275,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
                         });
   };
   // Preconditioner and the initial residual (warm start from x).
-  bool warm = false;
-  if (start_from_x) {
-    for (std::size_t i = 0; i < n && !warm; ++i) {
-      warm = constrained_[i] == 0 && !x[i].isZero(0.0);
-    }
-  }
-  if (!warm) {
+  if (!start_from_x) {
     std::fill(x.begin(), x.end(), Vec3::Zero());
   }
   auto [rr, rz] =
@@ -363,10 +342,23 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   stats.iterations = iteration;
 }
 
+bool LinearizedSystemSolver::starts_from_x(std::span<const Vec3> x, bool basis_given) const {
+  if (!options_.warm_start && !basis_given) {
+    return false;
+  }
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (constrained_[i] == 0 && !x[i].isZero(0.0)) {
+      return true;
+    }
+  }
+  return false;  // all zero: the cold start saves the product of x
+}
+
 template <typename Product>
 void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3>> basis,
                                             std::span<const Vec3> rhs, std::span<Vec3> x,
-                                            const Product& product) {
+                                            const Product& product, LinearSolveStats& stats) {
+  const auto began = Clock::now();
   // x = V y with (V^T A V) y = V^T rhs: the best start in span(V) in the energy norm, so never
   // worse than any one basis field or the linear extrapolation of two. The small system is
   // solved by its eigenvectors, dropping directions the basis does not span (earlier
@@ -386,6 +378,7 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
   const std::size_t pairs = k * (k + 1) / 2;
   const std::vector<double> sums =
       chunked_sums(n, kChunk, pairs + k, [&](std::size_t begin, std::size_t end, double* out) {
+        std::vector<double> local(pairs + k, 0.0);
         for (std::size_t i = begin; i < end; ++i) {
           if (constrained_[i] != 0) {
             continue;
@@ -393,13 +386,14 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
           std::size_t entry = 0;
           for (std::size_t row = 0; row < k; ++row) {
             for (std::size_t column = 0; column <= row; ++column) {
-              out[entry++] += basis[row][i].dot(basis_products_[column][i]);
+              local[entry++] += basis[row][i].dot(basis_products_[column][i]);
             }
           }
           for (std::size_t row = 0; row < k; ++row) {
-            out[pairs + row] += basis[row][i].dot(rhs[i]);
+            local[pairs + row] += basis[row][i].dot(rhs[i]);
           }
         }
+        std::copy(local.begin(), local.end(), out);
       });
   Eigen::MatrixXd gram(k, k);
   Eigen::VectorXd load(k);
@@ -433,6 +427,7 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
     }
     x[i] = start;
   });
+  stats.seconds_start += seconds_since(began);
 }
 
 LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, double mass_scale,
@@ -529,14 +524,11 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     if (assemble(system, mass_scale, a, b)) {
       stats.seconds_preconditioner += seconds_since(build_start);
       if (!start_basis.empty()) {
-        const auto start_start = Clock::now();
-        galerkin_start(start_basis, rhs, x, [&](std::span<const Vec3> p, std::span<Vec3> y) {
-          assembled_.multiply(p, y);
-        });
-        stats.seconds_start += seconds_since(start_start);
+        galerkin_start(
+            start_basis, rhs, x,
+            [&](std::span<const Vec3> p, std::span<Vec3> y) { assembled_.multiply(p, y); }, stats);
       }
-      fused_conjugate_gradients(rhs, x, rhs_norm, options_.warm_start || !start_basis.empty(),
-                                stats);
+      fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats);
       stats.seconds_total = seconds_since(start);
       return stats;
     }
@@ -583,17 +575,13 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     stats.seconds_products += seconds_since(product_start);
   };
   if (!start_basis.empty()) {
-    const auto start_start = Clock::now();
-    galerkin_start(start_basis, rhs, x, timed_apply);
-    stats.seconds_start += seconds_since(start_start);
+    // Untimed products here: the start's products count in seconds_start.
+    galerkin_start(
+        start_basis, rhs, x,
+        [&](std::span<const Vec3> p, std::span<Vec3> y) { apply(system, mass_scale, a, b, p, y); },
+        stats);
   }
-  bool nonzero_start = false;
-  if (options_.warm_start || !start_basis.empty()) {
-    for (std::size_t i = 0; i < n && !nonzero_start; ++i) {
-      nonzero_start = constrained_[i] == 0 && !x[i].isZero(0.0);
-    }
-  }
-  if (nonzero_start) {
+  if (starts_from_x(x, !start_basis.empty())) {
     timed_apply(x, product_);
     parallel_vertices(n, [&](std::size_t i) {
       residual_[i] = constrained_[i] != 0 ? Vec3::Zero() : Vec3(rhs[i] - product_[i]);

@@ -79,13 +79,18 @@ class LinearizedSystemSolver {
   /// The (block-)Jacobi preconditioner's block for a diagonal block of the system matrix
   /// (identity without preconditioning).
   [[nodiscard]] Mat3 preconditioner_block(const Mat3& diagonal_block) const;
-  /// PCG over the assembled matrix with fused passes (Jacobi, block-Jacobi or none).
+  /// PCG over the assembled matrix with fused passes (Jacobi, block-Jacobi or none), from x
+  /// when start_from_x, else from zero.
   void fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
                                  bool start_from_x, LinearSolveStats& stats);
-  /// x = the Galerkin combination of `basis` (see solve()); `product` applies the matrix.
+  /// Whether CG starts from the caller's x: a warm start or a basis start was asked for and
+  /// x is nonzero on some free row.
+  [[nodiscard]] bool starts_from_x(std::span<const Vec3> x, bool basis_given) const;
+  /// x = the Galerkin combination of `basis` (see solve()); `product` applies the matrix. Its
+  /// time goes to stats.seconds_start.
   template <typename Product>
   void galerkin_start(std::span<const std::span<const Vec3>> basis, std::span<const Vec3> rhs,
-                      std::span<Vec3> x, const Product& product);
+                      std::span<Vec3> x, const Product& product, LinearSolveStats& stats);
   void build_scalar_pattern();
   void fill_scalar_values();
 
