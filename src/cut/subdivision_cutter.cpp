@@ -5,12 +5,15 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
+#include <unordered_set>
 #include <numeric>
 
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
+#include "triangle_index.hpp"
 
 namespace incise {
 namespace {
@@ -40,27 +43,38 @@ SubdivisionCutter::SubdivisionCutter(TetMesh& mesh, const CutterOptions& options
       options_(options),
       positions_(positions),
       grid_(mesh, positions),
+      marks_(mesh),
       on_cut_(mesh, 0, VertexRule::kDefault),
+      cut_offset_(mesh, 0.0, VertexRule::kDefault),
       ancestry_(mesh, Ancestry{}, TetRule::kCopy) {
+  swept_ = std::make_unique<detail::TriangleIndex>(grid_.cell_size() / 64.0);
   if (!(options_.snap_fraction > 0.0 && options_.snap_fraction < 0.5)) {
     throw InputError("snap fraction must lie in (0, 0.5)");
   }
   if (positions_ != nullptr && positions_->size() != mesh.vertex_count()) {
     throw InputError("the cutter's positions do not belong to its mesh");
   }
-  swept_.set_cell(grid_.cell_size());
-  cut_faces_.set_cell(grid_.cell_size());
   // A copy of a vertex on the cut is on the cut too.
   on_cut_.set_hook([](VertexData<char>& data, VertexId vertex, const VertexOrigin& origin) {
     if (origin.kind == VertexOrigin::Kind::kDuplicate) {
       data[vertex] = data[origin.parents[0]];
     }
   });
+  // A point between vertices lies no farther from a plane than the farthest of them.
+  cut_offset_.set_hook([](VertexData<double>& data, VertexId vertex, const VertexOrigin& origin) {
+    double offset = 0.0;
+    for (int p = 0; p < origin.parent_count; ++p) {
+      offset = std::max(offset, data[origin.parents[static_cast<std::size_t>(p)]]);
+    }
+    data[vertex] = offset;
+  });
   // Every tetrahedron there is now is an original; children copy their parent's ancestry.
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
     (void)ancestry(static_cast<TetId>(t));
   }
 }
+
+SubdivisionCutter::~SubdivisionCutter() = default;
 
 const Ancestry& SubdivisionCutter::ancestry(TetId tet) {
   Ancestry& entry = ancestry_[tet];
@@ -213,121 +227,6 @@ void SubdivisionCutter::update_active_tets() {
   }
 }
 
-bool SubdivisionCutter::known_cut_face(const std::array<Vec3, 3>& rest, double size) const {
-  // In material space, exact up to round-off: children and copies of a cut face lie inside it
-  // at rest.
-  return cut_faces_.near((rest[0] + rest[1] + rest[2]) / 3.0, 1e-9 * size);
-}
-
-bool SubdivisionCutter::is_cut_face(TetId tet, int local_face) const {
-  const Tet& v = mesh_.tet(tet);
-  const auto& face = tet_local::kFaces[local_face];
-  const VertexId a = v[face[0]];
-  const VertexId b = v[face[1]];
-  const VertexId c = v[face[2]];
-  if (on_cut_[a] == 0 || on_cut_[b] == 0 || on_cut_[c] == 0) {
-    return false;
-  }
-  const std::array<Vec3, 3> rest{mesh_.rest_position(a), mesh_.rest_position(b),
-                                 mesh_.rest_position(c)};
-  const double rest_size = longest_edge(rest);
-  if (known_cut_face(rest, rest_size)) {
-    return true;
-  }
-  // On the blade's swept surface (at rest): vertices on the cut lie on it or within the snap
-  // distance of it, so a face between them belongs to the cut when its centroid does too, and
-  // when the two tetrahedra sharing it lie on opposite sides (a flat tetrahedron whose four
-  // vertices are all on the cut belongs to one side: without this rule all its faces would
-  // count and it would fall out as a piece of its own).
-  const TetId neighbor = mesh_.tet_neighbors(tet)[local_face];
-  if (neighbor < 0) {
-    return false;
-  }
-  const Vec3& apex = mesh_.rest_position(v[local_face]);
-  VertexId other = kInvalidId;
-  for (VertexId x : mesh_.tet(neighbor)) {
-    if (x != a && x != b && x != c) {
-      other = x;
-    }
-  }
-  INCISE_ASSERT(other != kInvalidId, "neighbours do not share a face");
-  const Vec3& other_apex = mesh_.rest_position(other);
-  return swept_.any_near(
-      (rest[0] + rest[1] + rest[2]) / 3.0, options_.snap_fraction * rest_size * 1.01,
-      [&](const std::array<Vec3, 3>& t) {
-        const Vec3 normal = (t[1] - t[0]).cross(t[2] - t[0]).normalized();
-        const double zero = 1e-12 * rest_size;
-        const double side = normal.dot(apex - t[0]);
-        const double other_side = normal.dot(other_apex - t[0]);
-        return (side > zero && other_side < -zero) || (side < -zero && other_side > zero);
-      });
-}
-
-template <typename Accept>
-bool SubdivisionCutter::TriangleIndex::any_near(const Vec3& point, double tolerance,
-                                                Accept accept) const {
-  if (triangles_.empty()) {
-    return false;
-  }
-  const Eigen::Array<long, 3, 1> low = ((point.array() - tolerance) / cell_).floor().cast<long>();
-  const Eigen::Array<long, 3, 1> high = ((point.array() + tolerance) / cell_).floor().cast<long>();
-  for (long k = low[2]; k <= high[2]; ++k) {
-    for (long j = low[1]; j <= high[1]; ++j) {
-      for (long i = low[0]; i <= high[0]; ++i) {
-        const auto it = cells_.find(key(i, j, k));
-        if (it == cells_.end()) {
-          continue;
-        }
-        for (std::uint32_t index : it->second) {
-          const auto& t = triangles_[index];
-          if (squared_distance_to_triangle(point, t[0], t[1], t[2]) <= tolerance * tolerance &&
-              accept(t)) {
-            return true;
-          }
-        }
-      }
-    }
-  }
-  return false;
-}
-
-bool SubdivisionCutter::TriangleIndex::near(const Vec3& point, double tolerance) const {
-  return any_near(point, tolerance, [](const std::array<Vec3, 3>&) { return true; });
-}
-
-std::uint64_t SubdivisionCutter::TriangleIndex::key(long i, long j, long k) {
-  // 21 bits per axis, offset so negative cells hash too.
-  const auto part = [](long value) {
-    return static_cast<std::uint64_t>(value + (1L << 20)) & 0x1fffffU;
-  };
-  return part(i) << 42U | part(j) << 21U | part(k);
-}
-
-void SubdivisionCutter::TriangleIndex::add(const std::array<Vec3, 3>& t) {
-  add(t, Vec3::Constant(-std::numeric_limits<double>::max()),
-      Vec3::Constant(std::numeric_limits<double>::max()));
-}
-
-void SubdivisionCutter::TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low,
-                                           const Vec3& box_high) {
-  const Vec3 t_low = t[0].cwiseMin(t[1]).cwiseMin(t[2]).cwiseMax(box_low);
-  const Vec3 t_high = t[0].cwiseMax(t[1]).cwiseMax(t[2]).cwiseMin(box_high);
-  if ((t_low.array() > t_high.array()).any()) {
-    return;
-  }
-  const auto index = static_cast<std::uint32_t>(triangles_.size());
-  triangles_.push_back(t);
-  const Eigen::Array<long, 3, 1> low = (t_low.array() / cell_).floor().cast<long>();
-  const Eigen::Array<long, 3, 1> high = (t_high.array() / cell_).floor().cast<long>();
-  for (long k = low[2]; k <= high[2]; ++k) {
-    for (long j = low[1]; j <= high[1]; ++j) {
-      for (long i = low[0]; i <= high[0]; ++i) {
-        cells_[key(i, j, k)].push_back(index);
-      }
-    }
-  }
-}
-
 std::size_t SubdivisionCutter::separate(VertexId vertex) {
   // Group the tetrahedra around the vertex: two are joined when they share a face through the
   // vertex that is not a cut face.
@@ -360,7 +259,7 @@ std::size_t SubdivisionCutter::separate(VertexId vertex) {
       if (neighbor < 0 || neighbor < t) {
         continue;
       }
-      if (is_cut_face(t, f)) {
+      if (marks_.is_cut(t, f)) {
         continue;
       }
       const auto it = index.find(neighbor);
@@ -449,6 +348,14 @@ void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
       on_cut_[middle] = on_cut_[a] != 0 && on_cut_[b] != 0 ? 1 : 0;
       ++stats_.edges_split;
       stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, 0.5);
+      if (on_cut_[middle] != 0) {
+        // The split moved the centroids of the tetrahedra around the edge: decide the faces
+        // around the middle vertex again.
+        fresh_.assign(1, middle);
+        for (VertexId corner : mark_cut_faces()) {
+          vertices.push_back(corner);
+        }
+      }
       stats_.vertices_duplicated += separate(middle);
       for (VertexId v : {a, b}) {
         vertices.push_back(v);
@@ -534,9 +441,11 @@ SubdivisionCutter::Contact SubdivisionCutter::detect(
 
 void SubdivisionCutter::record_swept(const std::vector<std::array<Vec3, 3>>& triangles,
                                      const Contact& contact) {
+  move_rest_triangles_.clear();
   if (positions_ == nullptr) {
     for (const auto& triangle : triangles) {
-      swept_.add(triangle);
+      swept_->add(triangle);
+      move_rest_triangles_.push_back(triangle);
     }
     return;
   }
@@ -566,7 +475,8 @@ void SubdivisionCutter::record_swept(const std::vector<std::array<Vec3, 3>>& tri
       for (int k = 0; k < 3; ++k) {
         image[k] = mesh_.rest_position(v[0]) + to_rest * (triangle[k] - position(v[0]));
       }
-      swept_.add(image, low - margin, high + margin);
+      swept_->add(image, low - margin, high + margin);
+      move_rest_triangles_.push_back(image);
     }
   }
 }
@@ -598,8 +508,10 @@ void SubdivisionCutter::classify(const Contact& contact, const BladePose& pose) 
   }
 }
 
-void SubdivisionCutter::mark_on_cut(VertexId vertex) {
+void SubdivisionCutter::mark_on_cut(VertexId vertex, double offset) {
   on_cut_[vertex] = 1;
+  cut_offset_[vertex] = offset;
+  fresh_.push_back(vertex);
   // The seed's cut-edge codes, accumulated on the originals: a vertex on the cut inside an
   // edge of an original tetrahedron (at rest, where the original's corners are) cuts that edge,
   // whichever move or operation put it there.
@@ -708,6 +620,12 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   if (std::abs(normal.dot(moved - point)) > round_off * size) {
     return;
   }
+  // Snapping within the plane may move the point ahead of the blade (by less than the snap
+  // distance): remember how far, so faces through it are taken as on the cut.
+  double offset = round_off * size;
+  for (const auto& t : move_triangles_) {
+    offset = std::max(offset, std::sqrt(squared_distance_to_triangle(moved, t[0], t[1], t[2])));
+  }
   weights = snapped;
   int count = 0;
   double smallest = 1.0;
@@ -729,7 +647,7 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   }
   VertexId inserted = kInvalidId;
   if (count == 1) {
-    mark_on_cut(v[largest]);  // not on the cut yet: that case returned above
+    mark_on_cut(v[largest], offset);  // not on the cut yet: returned above
     ++stats_.vertices_snapped;
     return;
   }
@@ -754,7 +672,7 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   } else {
     inserted = split_tet(mesh_, holder, weights);
   }
-  mark_on_cut(inserted);
+  mark_on_cut(inserted, offset);
   ++stats_.blade_vertices;
   stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, smallest);
 }
@@ -798,7 +716,7 @@ void SubdivisionCutter::presplit_generic(const Contact& contact) {
       const VertexId middle = split_edge(mesh_, edge, t);
       node[key] = middle;
       if (crossing != crossing_at.end()) {
-        mark_on_cut(middle);
+        mark_on_cut(middle, 0.0);
       }
       ++stats_.edges_split;
       stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
@@ -854,6 +772,199 @@ void SubdivisionCutter::presplit_generic(const Contact& contact) {
   }
 }
 
+double SubdivisionCutter::distance_to_move(const Vec3& rest_point) const {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& t : move_rest_triangles_) {
+    best = std::min(best, squared_distance_to_triangle(rest_point, t[0], t[1], t[2]));
+  }
+  return std::sqrt(best);
+}
+
+bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId neighbor) const {
+  const Tet& v = mesh_.tet(tet);
+  const auto& face = tet_local::kFaces[local_face];
+  const std::array<VertexId, 3> corners{v[face[0]], v[face[1]], v[face[2]]};
+  const std::array<Vec3, 3> p{mesh_.rest_position(corners[0]), mesh_.rest_position(corners[1]),
+                              mesh_.rest_position(corners[2])};
+  // Round-off allowance: points computed on the surface lie on it only up to this (m).
+  const double round_off = 1e-9 * longest_edge(p);
+  // On the surface: every corner as close to it as when it was put on the cut, and the
+  // centroid too (so a face bridging two separate sheets of the surface is not taken).
+  double allowed = 0.0;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const double offset = cut_offset_[corners[k]];
+    if (!swept_->any_within(p[k], offset * (1.0 + 1e-9) + round_off)) {
+          return false;
+    }
+    allowed = std::max(allowed, offset);
+  }
+  double distance = 0.0;
+  const std::int64_t nearest =
+      swept_->nearest((p[0] + p[1] + p[2]) / 3.0, allowed * (1.0 + 1e-9) + round_off, &distance);
+  if (nearest < 0) {
+    return false;
+  }
+  // Sides: each tetrahedron is on the side of its centroid (one side per tetrahedron, so a flat
+  // one whose corners all lie on the cut joins one side and is not cut out of both; a thin
+  // region that still falls between cut faces is given back to one side by keep_no_shards).
+  const auto& plane = swept_->triangle(static_cast<std::size_t>(nearest));
+  const Vec3 normal = (plane[1] - plane[0]).cross(plane[2] - plane[0]);
+  const auto centroid_side = [&](TetId t) {
+    const Tet& w = mesh_.tet(t);
+    const Vec3 centroid = (mesh_.rest_position(w[0]) + mesh_.rest_position(w[1]) +
+                           mesh_.rest_position(w[2]) + mesh_.rest_position(w[3])) /
+                          4.0;
+    return normal.dot(centroid - plane[0]) < 0.0 ? -1 : 1;
+  };
+  const auto side = centroid_side;
+  return side(tet) != side(neighbor);
+}
+
+std::vector<VertexId> SubdivisionCutter::mark_cut_faces() {
+  std::sort(fresh_.begin(), fresh_.end());
+  fresh_.erase(std::unique(fresh_.begin(), fresh_.end()), fresh_.end());
+  std::vector<VertexId> corners;
+  marked_.clear();
+  std::set<std::array<VertexId, 3>> seen;
+  for (VertexId x : fresh_) {
+    for (TetId t : mesh_.vertex_tets(x)) {
+      const Tet& v = mesh_.tet(t);
+      for (int f = 0; f < 4; ++f) {
+        const TetId neighbor = mesh_.tet_neighbors(t)[f];
+        // Every interior face of the tetrahedra around x, the face opposite x too: x may be a
+        // new corner that moved the tetrahedron's centroid to the other side. The neighbour
+        // across need not contain x, so a face is taken from whichever side sees it first.
+        if (neighbor < 0 || marks_.is_cut(t, f)) {
+          continue;
+        }
+        const auto& face = tet_local::kFaces[f];
+        if (on_cut_[v[face[0]]] == 0 || on_cut_[v[face[1]]] == 0 || on_cut_[v[face[2]]] == 0 ||
+            !seen.insert(face_key(v, f)).second || !parts_across_surface(t, f, neighbor)) {
+          continue;
+        }
+        marks_.mark(t, f);
+        marked_.emplace_back(t, f);
+        ++stats_.cut_faces;
+        const Vec3& a = mesh_.rest_position(v[face[0]]);
+        stats_.cut_area +=
+            0.5 * (mesh_.rest_position(v[face[1]]) - a).cross(mesh_.rest_position(v[face[2]]) - a).norm();
+        corners.insert(corners.end(), {v[face[0]], v[face[1]], v[face[2]]});
+      }
+    }
+  }
+  keep_no_shards();
+  return corners;
+}
+
+void SubdivisionCutter::keep_no_shards() {
+  // Regions closed off by cut faces are found by a bounded walk across faces that are not cut:
+  // a walk that grows past the budget is in a large piece (and so is every tetrahedron it saw).
+  constexpr std::size_t kBudget = 256;
+  std::unordered_set<TetId> large;
+  std::unordered_set<TetId> checked;
+  std::vector<TetId> region;
+  std::unordered_set<TetId> inside;
+  for (const auto& [tet, face] : marked_) {
+    const TetId across = mesh_.tet_neighbors(tet)[face];
+    for (TetId start : {tet, across}) {
+      if (start < 0 || large.contains(start) || checked.contains(start)) {
+        continue;
+      }
+      region.assign(1, start);
+      inside = {start};
+      bool closed = true;
+      for (std::size_t k = 0; k < region.size() && closed; ++k) {
+        for (int g = 0; g < 4 && closed; ++g) {
+          const TetId other = mesh_.tet_neighbors(region[k])[g];
+          if (other < 0 || marks_.is_cut(region[k], g) || inside.contains(other)) {
+            continue;
+          }
+          if (large.contains(other) || region.size() >= kBudget) {
+            closed = false;
+          } else {
+            inside.insert(other);
+            region.push_back(other);
+          }
+        }
+      }
+      if (!closed) {
+        large.insert(region.begin(), region.end());
+        continue;
+      }
+      checked.insert(region.begin(), region.end());
+      // Its thickness across the cut, against the snap distance of its tetrahedra.
+      double volume = 0.0;
+      double cut_area = 0.0;
+      double longest = 0.0;
+      std::array<double, 2> shared_area{0.0, 0.0};  // still joined to the - and + side
+      for (TetId r : region) {
+        const Tet& w = mesh_.tet(r);
+        volume += std::abs(signed_volume(mesh_, r));
+        for (const auto& e : tet_local::kEdges) {
+          longest = std::max(longest, (mesh_.rest_position(w[e[0]]) - mesh_.rest_position(w[e[1]])).norm());
+        }
+        for (int g = 0; g < 4; ++g) {
+          if (!marks_.is_cut(r, g)) {
+            continue;
+          }
+          const auto& local = tet_local::kFaces[g];
+          const Vec3& a = mesh_.rest_position(w[local[0]]);
+          const Vec3& b = mesh_.rest_position(w[local[1]]);
+          const Vec3& c = mesh_.rest_position(w[local[2]]);
+          const double area = 0.5 * (b - a).cross(c - a).norm();
+          cut_area += area;
+          const TetId other = mesh_.tet_neighbors(r)[g];
+          if (other >= 0) {
+            shared_area[swept_side(other, (a + b + c) / 3.0) < 0 ? 0 : 1] += area;
+          }
+        }
+      }
+      if (cut_area == 0.0 || volume >= options_.snap_fraction * longest * cut_area) {
+        continue;
+      }
+      const int join = shared_area[0] >= shared_area[1] ? -1 : 1;
+      if (shared_area[join < 0 ? 0 : 1] == 0.0) {
+        continue;  // no longer joined to either side: nothing to give back
+      }
+      for (TetId r : region) {
+        for (int g = 0; g < 4; ++g) {
+          const TetId other = mesh_.tet_neighbors(r)[g];
+          if (other >= 0 && marks_.is_cut(r, g) && !inside.contains(other)) {
+            const auto& local = tet_local::kFaces[g];
+            const Tet& w = mesh_.tet(r);
+            const Vec3 centre = (mesh_.rest_position(w[local[0]]) + mesh_.rest_position(w[local[1]]) +
+                                 mesh_.rest_position(w[local[2]])) /
+                                3.0;
+            if (swept_side(other, centre) == join) {
+              marks_.unmark(r, g);
+              ++stats_.shards_kept;
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+int SubdivisionCutter::swept_side(TetId tet, const Vec3& near_point) const {
+  const Tet& w = mesh_.tet(tet);
+  double size = 0.0;
+  for (const auto& e : tet_local::kEdges) {
+    size = std::max(size, (mesh_.rest_position(w[e[0]]) - mesh_.rest_position(w[e[1]])).norm());
+  }
+  double distance = 0.0;
+  const std::int64_t nearest = swept_->nearest(near_point, 2.0 * size, &distance);
+  if (nearest < 0) {
+    return 0;
+  }
+  const auto& plane = swept_->triangle(static_cast<std::size_t>(nearest));
+  const Vec3 normal = (plane[1] - plane[0]).cross(plane[2] - plane[0]);
+  const Vec3 centroid = (mesh_.rest_position(w[0]) + mesh_.rest_position(w[1]) +
+                         mesh_.rest_position(w[2]) + mesh_.rest_position(w[3])) /
+                        4.0;
+  return normal.dot(centroid - plane[0]) < 0.0 ? -1 : 1;
+}
+
 void SubdivisionCutter::move_to(const BladePose& pose) {
   if (!started_) {
     start(pose);
@@ -870,20 +981,25 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   for (const auto& triangle : triangles) {
     stats_.swept_area += 0.5 * (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]).norm();
   }
+  fresh_.clear();
+  move_triangles_ = triangles;
 
   // ---- the blade line: vertices where it crosses faces, and at its tip ---------------------
   auto start = Clock::now();
+  const bool body_moved = positions_moved_;
   if (positions_moved_) {
     grid_.refit();  // the body moved since the last cut
     positions_moved_ = false;
   }
   if (options_.open_under_blade && !triangles.empty()) {
-    // Both ends of the swept surface: the previous blade line was inserted by the previous
-    // move already (unless the body moved since or this is the first move).
     const auto unit_normal = [](const std::array<Vec3, 3>& t) {
       return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
     };
-    insert_blade_points(from, unit_normal(triangles.front()));
+    // The previous blade line was inserted by the previous move already, unless this is the
+    // first move or the body moved since.
+    if (options_.from_pass || stats_.moves == 1 || body_moved) {
+      insert_blade_points(from, unit_normal(triangles.front()));
+    }
     insert_blade_points(pose, unit_normal(triangles.back()));
   }
   double gc_seconds = seconds_since(start);
@@ -908,9 +1024,10 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   start = Clock::now();
   for (VertexId v : contact.snapped) {
     if (on_cut_[v] == 0) {
-      mark_on_cut(v);
+      mark_on_cut(v, distance_to_move(mesh_.rest_position(v)));
       ++stats_.vertices_snapped;
     }
+    fresh_.push_back(v);  // met by this move: faces through it are decided again
   }
   for (const Crossing& crossing : contact.crossings) {
     if (on_cut_[crossing.a] != 0 && on_cut_[crossing.b] != 0) {
@@ -920,16 +1037,15 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     INCISE_ASSERT(edge != kInvalidId, "a crossed edge vanished before it was split");
     const double t = mesh_.edge(edge)[0] == crossing.a ? crossing.t : 1.0 - crossing.t;
     const VertexId middle = split_edge(mesh_, edge, t);
-    mark_on_cut(middle);
+    mark_on_cut(middle, 0.0);
     ++stats_.edges_split;
     stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
   }
   surface_.insert(surface_.end(), triangles.begin(), triangles.end());
 
-  // Open the cut: vertices on it near this move's surface, separated where cut faces part
-  // their tetrahedra. Faces found on the cut are recorded at rest, each once.
-  std::vector<VertexId> candidates;
-  std::vector<std::array<VertexId, 3>> found;
+  // Open the cut: decide the faces this move puts on it, then separate their corners where
+  // cut faces part the tetrahedra around them. Faces through vertices put on the cut earlier
+  // are decided again where this move swept: the surface may only now reach past them.
   for (const auto& triangle : triangles) {
     Vec3 low;
     Vec3 high;
@@ -939,30 +1055,14 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     for (TetId t : scratch_) {
       for (VertexId v : mesh_.tet(t)) {
         if (on_cut_[v] != 0) {
-          candidates.push_back(v);
-        }
-      }
-      const Tet& tet = mesh_.tet(t);
-      for (int f = 0; f < 4; ++f) {
-        const TetId neighbor = mesh_.tet_neighbors(t)[f];
-        if (neighbor > t && is_cut_face(t, f)) {
-          found.push_back(face_key(tet, f));
+          fresh_.push_back(v);
         }
       }
     }
   }
-  std::sort(found.begin(), found.end());
-  found.erase(std::unique(found.begin(), found.end()), found.end());
-  for (const auto& face : found) {
-    const std::array<Vec3, 3> rest{mesh_.rest_position(face[0]), mesh_.rest_position(face[1]),
-                                   mesh_.rest_position(face[2])};
-    if (known_cut_face(rest, longest_edge(rest))) {
-      continue;  // known already (a face at the crack front, or a child of one)
-    }
-    cut_faces_.add(rest);
-    ++stats_.cut_faces;
-    stats_.cut_area += 0.5 * (rest[1] - rest[0]).cross(rest[2] - rest[0]).norm();
-  }
+  std::vector<VertexId> candidates = mark_cut_faces();
+  // Vertices on the cut where this move swept may be pinched or separable too.
+  candidates.insert(candidates.end(), fresh_.begin(), fresh_.end());
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   const auto first_copy = static_cast<VertexId>(mesh_.vertex_count());
@@ -977,6 +1077,8 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   stats_.gc_seconds = gc_seconds + seconds_since(start);
   stats_.total_cd_seconds += stats_.cd_seconds;
   stats_.total_gc_seconds += stats_.gc_seconds;
+  stats_.max_move_seconds =
+      std::max(stats_.max_move_seconds, stats_.cd_seconds + stats_.gc_seconds);
 
   track_point_tet();
   update_active_tets();

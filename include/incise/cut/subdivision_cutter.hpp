@@ -2,23 +2,36 @@
 // Progressive cutting by subdivision (after Bielser et al., seed 000, sections 3-4), without
 // the seed's cracks: every mesh edge the blade's swept surface crosses is split where it
 // crosses, conformingly (every tetrahedron around the edge is split, so no hanging node is
-// left); faces that then lie on the swept surface are cut faces; and every vertex on the cut is
-// duplicated once for each group of tetrahedra that cut faces separate around it. Vertices on
-// the crack front keep their tetrahedra together, so a partial cut opens as a slit that follows
-// the blade frame by frame. Intersections use exact predicates; crossings closer to an edge end
-// than a fraction of the edge snap to the vertex, which bounds how thin a child can get.
+// left); faces that then lie on the swept surface between tetrahedra on its two sides are cut
+// faces; and every vertex on the cut is duplicated once for each group of tetrahedra that cut
+// faces separate around it. Vertices on the crack front keep their tetrahedra together, so a
+// partial cut opens as a slit that follows the blade frame by frame. Intersections use exact
+// predicates; crossings closer to an edge end than a fraction of the edge snap to the vertex,
+// which bounds how thin a child can get.
+//
+// Which faces are cut is decided once, in the move that sweeps them, and remembered
+// topologically (CutFaceMarks): later splits of a cut face pass the mark on exactly, so no
+// later decision depends on whether a point computed in floating point lies on a plane.
+// Each tetrahedron next to a candidate face takes one side of the swept surface (that of its
+// centroid), so a flat tetrahedron whose corners all lie on the cut joins one side instead of
+// falling out as a shard.
 //
 // The cutter only edits the mesh: physics attached through attribute containers follows.
 
-#include <unordered_map>
+#include <memory>
 #include <vector>
 
 #include "incise/cut/blade.hpp"
 #include "incise/cut/cut_cases.hpp"
+#include "incise/cut/cut_face_marks.hpp"
 #include "incise/cut/tet_grid.hpp"
 #include "incise/mesh/attributes.hpp"
 
 namespace incise {
+
+namespace detail {
+class TriangleIndex;
+}
 
 /// How a tetrahedron the blade crosses is split.
 enum class SplitMode {
@@ -41,6 +54,7 @@ struct CutterOptions {
   /// Insert vertices on the blade line (face crossings and the tip), so the tetrahedra holding
   /// the blade open up to it during the move rather than after the blade has left them.
   bool open_under_blade = true;
+  bool from_pass = true;
 };
 
 struct CutStats {
@@ -55,7 +69,8 @@ struct CutStats {
   std::size_t vertices_duplicated = 0;
   std::size_t blade_vertices = 0;  ///< vertices inserted on the blade line
   std::size_t generic_splits = 0;  ///< tetrahedra given the generic split (SplitMode::kGeneric)
-  std::size_t cut_faces = 0;       ///< faces opened (each counted once)
+  std::size_t cut_faces = 0;       ///< faces found on the cut (each counted once)
+  std::size_t shards_kept = 0;     ///< cut faces given back so a thin sliver is not cut out
   double cut_area = 0.0;    ///< rest area of the faces found on the cut, each once, one side (m^2)
   double swept_area = 0.0;  ///< area swept by the blade (m^2)
   double min_volume_ratio = 1.0;  ///< smallest child / parent volume ratio of any split
@@ -66,6 +81,7 @@ struct CutStats {
   std::size_t point_outside = 0;   ///< tip outside the mesh
   double total_cd_seconds = 0.0;
   double total_gc_seconds = 0.0;
+  double max_move_seconds = 0.0;  ///< the most expensive move, cd + gc (s)
   /// Tetrahedra cut per move, by the seed's case (index: CutCase): the cut-edge code of the
   /// edges the move crossed, partial while the blade is still inside the tetrahedron.
   std::array<std::size_t, 7> case_counts{};
@@ -87,6 +103,7 @@ class SubdivisionCutter {
   /// given: a VertexData of the same mesh that outlives the cutter.
   explicit SubdivisionCutter(TetMesh& mesh, const CutterOptions& options = {},
                              const VertexData<Vec3>* positions = nullptr);
+  ~SubdivisionCutter();
   SubdivisionCutter(const SubdivisionCutter&) = delete;
   SubdivisionCutter& operator=(const SubdivisionCutter&) = delete;
 
@@ -111,6 +128,8 @@ class SubdivisionCutter {
   /// Whether a vertex lies on the cut surface.
   [[nodiscard]] bool on_cut(VertexId vertex) const { return on_cut_[vertex] != 0; }
   [[nodiscard]] const std::vector<std::array<Vec3, 3>>& swept_surface() const { return surface_; }
+  /// The faces found on the cut (opened, or still joined at the crack front).
+  [[nodiscard]] const CutFaceMarks& cut_faces() const { return marks_; }
   [[nodiscard]] bool started() const { return started_; }
   [[nodiscard]] const BladePose& pose() const { return pose_; }
   /// Cut-edge code (bit k: the original's local edge k was crossed) accumulated over all
@@ -136,47 +155,39 @@ class SubdivisionCutter {
     std::vector<Crossing> crossings;
     std::vector<VertexId> snapped;
   };
-  /// Triangles indexed by the spatial-hash cells of their bounding boxes, so a query looks only
-  /// at nearby ones however many there are.
-  class TriangleIndex {
-   public:
-    void set_cell(double cell) { cell_ = cell; }
-    void add(const std::array<Vec3, 3>& triangle);
-    /// Adds a triangle that is only valid inside the box [low, high] (m): queries outside it do
-    /// not see it.
-    void add(const std::array<Vec3, 3>& triangle, const Vec3& low, const Vec3& high);
-    /// Whether `point` lies within `tolerance` (m) of a stored triangle.
-    [[nodiscard]] bool near(const Vec3& point, double tolerance) const;
-    /// Whether `point` lies within `tolerance` (m) of a stored triangle for which
-    /// `accept(triangle)` holds.
-    template <typename Accept>
-    [[nodiscard]] bool any_near(const Vec3& point, double tolerance, Accept accept) const;
-
-   private:
-    [[nodiscard]] static std::uint64_t key(long i, long j, long k);
-    double cell_ = 1.0;
-    std::vector<std::array<Vec3, 3>> triangles_;
-    std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells_;
-  };
-
   [[nodiscard]] Contact detect(const std::vector<std::array<Vec3, 3>>& triangles);
-  /// Records this move's swept triangles at rest, through the tetrahedra they touch.
-  void record_swept(const std::vector<std::array<Vec3, 3>>& triangles, const Contact& contact);
   void classify(const Contact& contact, const BladePose& pose);
   /// Inserts vertices on the blade line of `pose`; `normal` (unit) is that of the swept surface
   /// there.
   void insert_blade_points(const BladePose& pose, const Vec3& normal);
   void insert_point(const Vec3& point, const Vec3& normal);
   void presplit_generic(const Contact& contact);
-  /// Puts a vertex on the cut and records the original edge it lies in, if any.
-  void mark_on_cut(VertexId vertex);
+  /// Puts a vertex on the cut (remembering how far it lies from the swept surface) and records
+  /// the original edge it lies in, if any.
+  /// `offset` (m, at rest): its distance from the swept surface.
+  void mark_on_cut(VertexId vertex, double offset);
+  /// Distance (m) at rest from a point to this move's swept triangles.
+  [[nodiscard]] double distance_to_move(const Vec3& rest_point) const;
+  /// Records this move's swept triangles at rest (through the tetrahedra they touch when
+  /// cutting in the deformed configuration).
+  void record_swept(const std::vector<std::array<Vec3, 3>>& triangles, const Contact& contact);
+  /// Marks the faces that this move puts on the cut: faces through vertices put on it (or met)
+  /// this move, with all corners on the cut, lying on the swept surface (all of it, at rest:
+  /// a large face can span many moves), between tetrahedra on its two sides. Returns the
+  /// corners of the faces marked.
+  std::vector<VertexId> mark_cut_faces();
+  /// Whether an interior face with all corners on the cut lies on the swept surface and parts
+  /// the tetrahedra on its two sides (decided at rest).
+  [[nodiscard]] bool parts_across_surface(TetId tet, int local_face, TetId neighbor) const;
+  /// Thin regions that this move's cut faces would cut out (volume over cut area below the snap
+  /// distance: slivers along the cut, not pieces the blade enclosed) are given back to the
+  /// side they share most cut area with, by taking back the marks between them.
+  void keep_no_shards();
+  /// The side (-1, +1) of the swept surface nearest `near_point` (m, at rest) that a
+  /// tetrahedron's centroid is on; 0 when no swept triangle is near.
+  [[nodiscard]] int swept_side(TetId tet, const Vec3& near_point) const;
   void track_point_tet();
   void update_active_tets();
-  /// Whether face `local_face` of `tet` (an interior face) lies on the cut and parts the two
-  /// tetrahedra sharing it.
-  [[nodiscard]] bool is_cut_face(TetId tet, int local_face) const;
-  /// Whether a face with these rest corners (longest edge `size`, m) was found on the cut before.
-  [[nodiscard]] bool known_cut_face(const std::array<Vec3, 3>& rest, double size) const;
   std::size_t separate(VertexId vertex);
   /// The ancestry of a tetrahedron, assigning a new original to one added afresh.
   const Ancestry& ancestry(TetId tet);
@@ -205,16 +216,25 @@ class SubdivisionCutter {
   /// surface starts at the crack front rather than where the front was.
   MaterialPoint tip_material_;
   MaterialPoint base_material_;
+  /// The faces on the cut, following every edit.
+  CutFaceMarks marks_;
   /// Where the blade went, at rest (in material space): the swept triangles themselves when
   /// cutting at rest; in the deformed configuration, their images under the affine map from
   /// current to rest positions of each tetrahedron they touched, valid inside its rest bounds
   /// (exact there, since the deformation is linear on each tetrahedron).
-  TriangleIndex swept_;
-  /// Rest triangles of every face found on the cut: the cut in material space, which stays
-  /// valid however the body moves (children of a cut face lie inside it; copies of its
-  /// vertices keep their rest positions).
-  TriangleIndex cut_faces_;
+  std::unique_ptr<detail::TriangleIndex> swept_;
+  /// This move's swept triangles, where the cutter intersects.
+  std::vector<std::array<Vec3, 3>> move_triangles_;
+  /// This move's part of it (unbounded images).
+  std::vector<std::array<Vec3, 3>> move_rest_triangles_;
+  /// Vertices put on the cut (or found on it) during this move.
+  std::vector<VertexId> fresh_;
+  /// Faces marked by the last mark_cut_faces(): (tetrahedron, local face).
+  std::vector<std::pair<TetId, int>> marked_;
   VertexData<char> on_cut_;
+  /// How far (m) a vertex on the cut lay from the swept surface when it was put there: 0 up to
+  /// round-off for crossings, up to the snap distance for snapped vertices.
+  VertexData<double> cut_offset_;
   TetData<Ancestry> ancestry_;
   std::vector<std::uint8_t> ancestor_codes_;
   std::vector<char> ancestor_presplit_;       ///< per original: given the generic split already

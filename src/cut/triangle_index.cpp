@@ -1,0 +1,108 @@
+#include "triangle_index.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "incise/mesh/predicates.hpp"
+
+namespace incise::detail {
+namespace {
+constexpr int kLevels = 24;  // the coarsest cell is 2^23 times the finest
+}
+
+double TriangleIndex::cell_size(int level) const { return std::ldexp(finest_, level); }
+
+std::uint64_t TriangleIndex::key(int level, const Cell& cell) {
+  // 19 bits per axis, offset so negative cells hash too, and the level in the top bits.
+  const auto part = [](long value) {
+    return static_cast<std::uint64_t>(value + (1L << 18)) & 0x7ffffU;
+  };
+  return static_cast<std::uint64_t>(level) << 57U | part(cell[0]) << 38U | part(cell[1]) << 19U |
+         part(cell[2]);
+}
+
+void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const Vec3& box_high) {
+  const Vec3 low = t[0].cwiseMin(t[1]).cwiseMin(t[2]).cwiseMax(box_low);
+  const Vec3 high = t[0].cwiseMax(t[1]).cwiseMax(t[2]).cwiseMin(box_high);
+  if ((low.array() > high.array()).any()) {
+    return;
+  }
+  // The level whose cells are at least as large as the triangle's box: it spans at most two
+  // cells per axis there.
+  const double extent = (high - low).maxCoeff();
+  int level = 0;
+  while (level + 1 < kLevels && cell_size(level) < extent) {
+    ++level;
+  }
+  if (std::find(levels_.begin(), levels_.end(), level) == levels_.end()) {
+    levels_.push_back(level);
+  }
+  const auto index = static_cast<std::uint32_t>(triangles_.size());
+  triangles_.push_back({t, box_low, box_high});
+  const double size = cell_size(level);
+  const Cell first = (low.array() / size).floor().cast<long>();
+  const Cell last = (high.array() / size).floor().cast<long>();
+  for (long k = first[2]; k <= last[2]; ++k) {
+    for (long j = first[1]; j <= last[1]; ++j) {
+      for (long i = first[0]; i <= last[0]; ++i) {
+        cells_[key(level, Cell(i, j, k))].push_back(index);
+      }
+    }
+  }
+}
+
+template <typename Visit>
+void TriangleIndex::within(const Vec3& point, double radius, Visit visit) const {
+  const double radius2 = radius * radius;
+  for (int level : levels_) {
+    const double size = cell_size(level);
+    const Cell first = ((point.array() - radius) / size).floor().cast<long>();
+    const Cell last = ((point.array() + radius) / size).floor().cast<long>();
+    for (long k = first[2]; k <= last[2]; ++k) {
+      for (long j = first[1]; j <= last[1]; ++j) {
+        for (long i = first[0]; i <= last[0]; ++i) {
+          const auto it = cells_.find(key(level, Cell(i, j, k)));
+          if (it == cells_.end()) {
+            continue;
+          }
+          for (std::uint32_t index : it->second) {
+            const Stored& s = triangles_[index];
+            if ((point.array() < s.low.array() - radius).any() ||
+                (point.array() > s.high.array() + radius).any()) {
+              continue;
+            }
+            const double d2 =
+                squared_distance_to_triangle(point, s.corners[0], s.corners[1], s.corners[2]);
+            if (d2 <= radius2 && visit(index, d2)) {
+              return;
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+std::int64_t TriangleIndex::nearest(const Vec3& point, double radius, double* distance) const {
+  std::int64_t best = -1;
+  double best2 = std::numeric_limits<double>::infinity();
+  within(point, radius, [&](std::uint32_t index, double d2) {
+    if (d2 < best2) {
+      best2 = d2;
+      best = index;
+    }
+    return false;
+  });
+  if (distance != nullptr) {
+    *distance = std::sqrt(best2);
+  }
+  return best;
+}
+
+bool TriangleIndex::any_within(const Vec3& point, double radius) const {
+  bool found = false;
+  within(point, radius, [&](std::uint32_t, double) { return found = true; });
+  return found;
+}
+
+}  // namespace incise::detail

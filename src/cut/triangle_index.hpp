@@ -1,0 +1,59 @@
+#pragma once
+// Triangles in a hierarchical spatial hash: each triangle is filed at the level whose cell
+// size matches its own size, so a query looks at the triangles near it whether they are few
+// and large or many and small (a fixed cell size made a query near thousands of small
+// triangles scan all of them). Internal to the cut module.
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <unordered_map>
+#include <vector>
+
+#include "incise/core/types.hpp"
+
+namespace incise::detail {
+
+class TriangleIndex {
+ public:
+  /// `finest` (m): the smallest cell size used; larger triangles go to levels of twice, four
+  /// times... that size.
+  explicit TriangleIndex(double finest = 1.0) : finest_(finest) {}
+  void set_finest_cell(double finest) { finest_ = finest; }
+
+  /// Adds a triangle, visible to queries only inside the box [low, high] (m).
+  void add(const std::array<Vec3, 3>& triangle,
+           const Vec3& low = Vec3::Constant(-std::numeric_limits<double>::max()),
+           const Vec3& high = Vec3::Constant(std::numeric_limits<double>::max()));
+  [[nodiscard]] std::size_t size() const { return triangles_.size(); }
+  [[nodiscard]] const std::array<Vec3, 3>& triangle(std::size_t index) const {
+    return triangles_[index].corners;
+  }
+
+  /// The stored triangle nearest to `point` among those within `radius` (m), or -1; its
+  /// distance in `distance`.
+  [[nodiscard]] std::int64_t nearest(const Vec3& point, double radius, double* distance) const;
+  /// Whether a stored triangle lies within `radius` (m) of `point`.
+  [[nodiscard]] bool any_within(const Vec3& point, double radius) const;
+
+ private:
+  struct Stored {
+    std::array<Vec3, 3> corners;
+    Vec3 low;  ///< where it is valid (m)
+    Vec3 high;
+  };
+  using Cell = Eigen::Array<long, 3, 1>;
+  [[nodiscard]] static std::uint64_t key(int level, const Cell& cell);
+  [[nodiscard]] double cell_size(int level) const;
+  /// Calls visit(index, squared distance) for stored triangles within `radius`; stops when it
+  /// returns true.
+  template <typename Visit>
+  void within(const Vec3& point, double radius, Visit visit) const;
+
+  double finest_;
+  std::vector<Stored> triangles_;
+  std::vector<int> levels_;  ///< levels holding at least one triangle
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells_;
+};
+
+}  // namespace incise::detail
