@@ -5,9 +5,9 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <set>
 #include <unordered_set>
-#include <numeric>
 
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
@@ -593,6 +593,23 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
     return;  // outside the body, or in the gap of an opened cut
   }
   const Tet v = mesh_.tet(holder);
+  // Growth that does not depend on how finely the path is sampled: where a vertex already on
+  // the cut lies within the snap distance of the original tetrahedron (not of the ever smaller
+  // children the blade leaves behind), the wound reaches the blade to within that distance
+  // already and no vertex is added.
+  if (options_.merge_blade_points) {
+    const Ancestry& origin = ancestry(holder);
+    double original_size = 0.0;
+    for (const auto& e : tet_local::kEdges) {
+      original_size = std::max(original_size, (origin.corners[e[0]] - origin.corners[e[1]]).norm());
+    }
+    for (VertexId x : v) {
+      if (on_cut_[x] != 0 &&
+          (position(x) - point).norm() <= options_.snap_fraction * original_size) {
+        return;
+      }
+    }
+  }
   std::array<double, 4> weights = weights_in(point, holder);
   // A point close to a face, edge or vertex of its tetrahedron (relative to the element) snaps
   // onto it, so no child is thinner than the snap fraction of its parent, but only where that
@@ -794,7 +811,7 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
   for (std::size_t k = 0; k < 3; ++k) {
     const double offset = cut_offset_[corners[k]];
     if (!swept_->any_within(p[k], offset * (1.0 + 1e-9) + round_off)) {
-          return false;
+      return false;
     }
     allowed = std::max(allowed, offset);
   }
@@ -847,7 +864,8 @@ std::vector<VertexId> SubdivisionCutter::mark_cut_faces() {
         ++stats_.cut_faces;
         const Vec3& a = mesh_.rest_position(v[face[0]]);
         stats_.cut_area +=
-            0.5 * (mesh_.rest_position(v[face[1]]) - a).cross(mesh_.rest_position(v[face[2]]) - a).norm();
+            0.5 *
+            (mesh_.rest_position(v[face[1]]) - a).cross(mesh_.rest_position(v[face[2]]) - a).norm();
         corners.insert(corners.end(), {v[face[0]], v[face[1]], v[face[2]]});
       }
     }
@@ -901,7 +919,8 @@ void SubdivisionCutter::keep_no_shards() {
         const Tet& w = mesh_.tet(r);
         volume += std::abs(signed_volume(mesh_, r));
         for (const auto& e : tet_local::kEdges) {
-          longest = std::max(longest, (mesh_.rest_position(w[e[0]]) - mesh_.rest_position(w[e[1]])).norm());
+          longest = std::max(longest,
+                             (mesh_.rest_position(w[e[0]]) - mesh_.rest_position(w[e[1]])).norm());
         }
         for (int g = 0; g < 4; ++g) {
           if (!marks_.is_cut(r, g)) {
@@ -932,9 +951,10 @@ void SubdivisionCutter::keep_no_shards() {
           if (other >= 0 && marks_.is_cut(r, g) && !inside.contains(other)) {
             const auto& local = tet_local::kFaces[g];
             const Tet& w = mesh_.tet(r);
-            const Vec3 centre = (mesh_.rest_position(w[local[0]]) + mesh_.rest_position(w[local[1]]) +
-                                 mesh_.rest_position(w[local[2]])) /
-                                3.0;
+            const Vec3 centre =
+                (mesh_.rest_position(w[local[0]]) + mesh_.rest_position(w[local[1]]) +
+                 mesh_.rest_position(w[local[2]])) /
+                3.0;
             if (swept_side(other, centre) == join) {
               marks_.unmark(r, g);
               ++stats_.shards_kept;

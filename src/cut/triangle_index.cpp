@@ -10,7 +10,9 @@ namespace {
 constexpr int kLevels = 24;  // the coarsest cell is 2^23 times the finest
 }
 
-double TriangleIndex::cell_size(int level) const { return std::ldexp(finest_, level); }
+double TriangleIndex::cell_size(int level) const {
+  return std::ldexp(finest_, level);
+}
 
 std::uint64_t TriangleIndex::key(int level, const Cell& cell) {
   // 19 bits per axis, offset so negative cells hash too, and the level in the top bits.

@@ -96,4 +96,41 @@ std::vector<int> tet_components(const TetMesh& mesh, int* count) {
   return component;
 }
 
+int pieces_by_vertices(const TetMesh& mesh) {
+  // Union-find over vertices: the corners of every tetrahedron are joined.
+  std::vector<VertexId> parent(mesh.vertex_count());
+  for (std::size_t v = 0; v < parent.size(); ++v) {
+    parent[v] = static_cast<VertexId>(v);
+  }
+  const auto find = [&](VertexId v) {
+    while (parent[static_cast<std::size_t>(v)] != v) {
+      parent[static_cast<std::size_t>(v)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
+      v = parent[static_cast<std::size_t>(v)];
+    }
+    return v;
+  };
+  std::vector<char> used(mesh.vertex_count(), 0);
+  for (const Tet& tet : mesh.tets()) {
+    for (int k = 0; k < 4; ++k) {
+      used[static_cast<std::size_t>(tet[k])] = 1;
+      parent[static_cast<std::size_t>(find(tet[k]))] = find(tet[0]);
+    }
+  }
+  int pieces = 0;
+  for (std::size_t v = 0; v < parent.size(); ++v) {
+    if (used[v] != 0 && find(static_cast<VertexId>(v)) == static_cast<VertexId>(v)) {
+      ++pieces;
+    }
+  }
+  return pieces;
+}
+
+bool cut_kept_boundary(const SurfaceEdgeCheck& before, const SurfaceEdgeCheck& after) {
+  return after.open_edges <= before.open_edges &&
+         after.nonmanifold_edges <= before.nonmanifold_edges &&
+         after.misoriented_edges <= before.misoriented_edges &&
+         after.degenerate_triangles <= before.degenerate_triangles;
+}
+
 }  // namespace incise

@@ -38,4 +38,13 @@ struct SurfaceEdgeCheck {
 /// numbered in order of first appearance) and sets `count`.
 [[nodiscard]] std::vector<int> tet_components(const TetMesh& mesh, int* count = nullptr);
 
+/// Pieces that share no vertex (tetrahedra joined through any shared corner): a cut has
+/// separated two parts only when they are apart in this sense too, not only face by face.
+[[nodiscard]] int pieces_by_vertices(const TetMesh& mesh);
+
+/// Whether an edit added no open, non-manifold or misoriented boundary edge and no degenerate
+/// boundary triangle, counted against the surface before it (an input mesh need not be
+/// watertight: meshes from real pipelines have tetrahedra meeting only at an edge or vertex).
+[[nodiscard]] bool cut_kept_boundary(const SurfaceEdgeCheck& before, const SurfaceEdgeCheck& after);
+
 }  // namespace incise
