@@ -34,20 +34,19 @@ CutFaceMarks::~CutFaceMarks() {
 }
 
 void CutFaceMarks::mark(TetId tet, int local_face) {
-  bits_[static_cast<std::size_t>(tet)] |= static_cast<std::uint8_t>(1U << local_face);
-  const TetId neighbor = mesh_->tet_neighbors(tet)[local_face];
-  if (neighbor < 0) {
-    return;
-  }
-  const Tet& v = mesh_->tet(tet);
-  const auto& face = tet_local::kFaces[local_face];
-  const int across = local_face_of(mesh_->tet(neighbor), v[face[0]], v[face[1]], v[face[2]]);
-  INCISE_ASSERT(across >= 0, "face neighbours do not share the face");
-  bits_[static_cast<std::size_t>(neighbor)] |= static_cast<std::uint8_t>(1U << across);
+  set(tet, local_face, true);
 }
 
 void CutFaceMarks::unmark(TetId tet, int local_face) {
-  bits_[static_cast<std::size_t>(tet)] &= static_cast<std::uint8_t>(~(1U << local_face));
+  set(tet, local_face, false);
+}
+
+void CutFaceMarks::set(TetId tet, int local_face, bool on) {
+  const auto apply = [on](std::uint8_t& bits, int face) {
+    const auto bit = static_cast<std::uint8_t>(1U << face);
+    bits = on ? static_cast<std::uint8_t>(bits | bit) : static_cast<std::uint8_t>(bits & ~bit);
+  };
+  apply(bits_[static_cast<std::size_t>(tet)], local_face);
   const TetId neighbor = mesh_->tet_neighbors(tet)[local_face];
   if (neighbor < 0) {
     return;
@@ -56,7 +55,7 @@ void CutFaceMarks::unmark(TetId tet, int local_face) {
   const auto& face = tet_local::kFaces[local_face];
   const int across = local_face_of(mesh_->tet(neighbor), v[face[0]], v[face[1]], v[face[2]]);
   INCISE_ASSERT(across >= 0, "face neighbours do not share the face");
-  bits_[static_cast<std::size_t>(neighbor)] &= static_cast<std::uint8_t>(~(1U << across));
+  apply(bits_[static_cast<std::size_t>(neighbor)], across);
 }
 
 void CutFaceMarks::on_tet_added(const TetMesh& /*mesh*/, TetId tet) {

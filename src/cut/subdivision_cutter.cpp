@@ -30,6 +30,39 @@ std::array<VertexId, 3> face_key(const Tet& tet, int local_face) {
   return key;
 }
 
+double longest_edge(const std::array<Vec3, 4>& corners) {
+  double longest = 0.0;
+  for (const auto& e : tet_local::kEdges) {
+    longest = std::max(longest, (corners[e[0]] - corners[e[1]]).norm());
+  }
+  return longest;
+}
+
+std::array<Vec3, 4> rest_corners(const TetMesh& mesh, TetId tet) {
+  const Tet& v = mesh.tet(tet);
+  return {mesh.rest_position(v[0]), mesh.rest_position(v[1]), mesh.rest_position(v[2]),
+          mesh.rest_position(v[3])};
+}
+
+Vec3 centroid(const std::array<Vec3, 4>& corners) {
+  return (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
+}
+
+/// Which side (-1, +1) of the plane of `triangle` a point is on (+1 on the plane).
+int side_of(const Vec3& point, const std::array<Vec3, 3>& triangle) {
+  const Vec3 normal = (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]);
+  return normal.dot(point - triangle[0]) < 0.0 ? -1 : 1;
+}
+
+/// Distance (m) from a point to the nearest of some triangles (infinity when there are none).
+double distance_to(const std::vector<std::array<Vec3, 3>>& triangles, const Vec3& point) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& t : triangles) {
+    best = std::min(best, squared_distance_to_triangle(point, t[0], t[1], t[2]));
+  }
+  return std::sqrt(best);
+}
+
 void triangle_bounds(const std::array<Vec3, 3>& triangle, Vec3& low, Vec3& high) {
   low = triangle[0].cwiseMin(triangle[1]).cwiseMin(triangle[2]);
   high = triangle[0].cwiseMax(triangle[1]).cwiseMax(triangle[2]);
@@ -598,11 +631,7 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   // children the blade leaves behind), the wound reaches the blade to within that distance
   // already and no vertex is added.
   if (options_.merge_blade_points) {
-    const Ancestry& origin = ancestry(holder);
-    double original_size = 0.0;
-    for (const auto& e : tet_local::kEdges) {
-      original_size = std::max(original_size, (origin.corners[e[0]] - origin.corners[e[1]]).norm());
-    }
+    const double original_size = longest_edge(ancestry(holder).corners);
     for (VertexId x : v) {
       if (on_cut_[x] != 0 &&
           (position(x) - point).norm() <= options_.snap_fraction * original_size) {
@@ -639,10 +668,7 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   }
   // Snapping within the plane may move the point ahead of the blade (by less than the snap
   // distance): remember how far, so faces through it are taken as on the cut.
-  double offset = round_off * size;
-  for (const auto& t : move_triangles_) {
-    offset = std::max(offset, std::sqrt(squared_distance_to_triangle(moved, t[0], t[1], t[2])));
-  }
+  const double offset = std::max(round_off * size, distance_to(move_triangles_, moved));
   weights = snapped;
   int count = 0;
   double smallest = 1.0;
@@ -790,11 +816,7 @@ void SubdivisionCutter::presplit_generic(const Contact& contact) {
 }
 
 double SubdivisionCutter::distance_to_move(const Vec3& rest_point) const {
-  double best = std::numeric_limits<double>::infinity();
-  for (const auto& t : move_rest_triangles_) {
-    best = std::min(best, squared_distance_to_triangle(rest_point, t[0], t[1], t[2]));
-  }
-  return std::sqrt(best);
+  return distance_to(move_rest_triangles_, rest_point);
 }
 
 bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId neighbor) const {
@@ -815,9 +837,8 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
     }
     allowed = std::max(allowed, offset);
   }
-  double distance = 0.0;
   const std::int64_t nearest =
-      swept_->nearest((p[0] + p[1] + p[2]) / 3.0, allowed * (1.0 + 1e-9) + round_off, &distance);
+      swept_->nearest((p[0] + p[1] + p[2]) / 3.0, allowed * (1.0 + 1e-9) + round_off, nullptr);
   if (nearest < 0) {
     return false;
   }
@@ -825,16 +846,8 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
   // one whose corners all lie on the cut joins one side and is not cut out of both; a thin
   // region that still falls between cut faces is given back to one side by keep_no_shards).
   const auto& plane = swept_->triangle(static_cast<std::size_t>(nearest));
-  const Vec3 normal = (plane[1] - plane[0]).cross(plane[2] - plane[0]);
-  const auto centroid_side = [&](TetId t) {
-    const Tet& w = mesh_.tet(t);
-    const Vec3 centroid = (mesh_.rest_position(w[0]) + mesh_.rest_position(w[1]) +
-                           mesh_.rest_position(w[2]) + mesh_.rest_position(w[3])) /
-                          4.0;
-    return normal.dot(centroid - plane[0]) < 0.0 ? -1 : 1;
-  };
-  const auto side = centroid_side;
-  return side(tet) != side(neighbor);
+  return side_of(centroid(rest_corners(mesh_, tet)), plane) !=
+         side_of(centroid(rest_corners(mesh_, neighbor)), plane);
 }
 
 std::vector<VertexId> SubdivisionCutter::mark_cut_faces() {
@@ -918,10 +931,7 @@ void SubdivisionCutter::keep_no_shards() {
       for (TetId r : region) {
         const Tet& w = mesh_.tet(r);
         volume += std::abs(signed_volume(mesh_, r));
-        for (const auto& e : tet_local::kEdges) {
-          longest = std::max(longest,
-                             (mesh_.rest_position(w[e[0]]) - mesh_.rest_position(w[e[1]])).norm());
-        }
+        longest = std::max(longest, longest_edge(rest_corners(mesh_, r)));
         for (int g = 0; g < 4; ++g) {
           if (!marks_.is_cut(r, g)) {
             continue;
@@ -967,22 +977,12 @@ void SubdivisionCutter::keep_no_shards() {
 }
 
 int SubdivisionCutter::swept_side(TetId tet, const Vec3& near_point) const {
-  const Tet& w = mesh_.tet(tet);
-  double size = 0.0;
-  for (const auto& e : tet_local::kEdges) {
-    size = std::max(size, (mesh_.rest_position(w[e[0]]) - mesh_.rest_position(w[e[1]])).norm());
-  }
-  double distance = 0.0;
-  const std::int64_t nearest = swept_->nearest(near_point, 2.0 * size, &distance);
+  const std::array<Vec3, 4> corners = rest_corners(mesh_, tet);
+  const std::int64_t nearest = swept_->nearest(near_point, 2.0 * longest_edge(corners), nullptr);
   if (nearest < 0) {
     return 0;
   }
-  const auto& plane = swept_->triangle(static_cast<std::size_t>(nearest));
-  const Vec3 normal = (plane[1] - plane[0]).cross(plane[2] - plane[0]);
-  const Vec3 centroid = (mesh_.rest_position(w[0]) + mesh_.rest_position(w[1]) +
-                         mesh_.rest_position(w[2]) + mesh_.rest_position(w[3])) /
-                        4.0;
-  return normal.dot(centroid - plane[0]) < 0.0 ? -1 : 1;
+  return side_of(centroid(corners), swept_->triangle(static_cast<std::size_t>(nearest)));
 }
 
 void SubdivisionCutter::move_to(const BladePose& pose) {
@@ -1006,20 +1006,17 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
 
   // ---- the blade line: vertices where it crosses faces, and at its tip ---------------------
   auto start = Clock::now();
-  const bool body_moved = positions_moved_;
   if (positions_moved_) {
     grid_.refit();  // the body moved since the last cut
     positions_moved_ = false;
   }
   if (options_.open_under_blade && !triangles.empty()) {
+    // Both ends of the swept surface: the previous blade line was inserted by the previous
+    // move already (unless the body moved since or this is the first move).
     const auto unit_normal = [](const std::array<Vec3, 3>& t) {
       return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
     };
-    // The previous blade line was inserted by the previous move already, unless this is the
-    // first move or the body moved since.
-    if (options_.from_pass || stats_.moves == 1 || body_moved) {
-      insert_blade_points(from, unit_normal(triangles.front()));
-    }
+    insert_blade_points(from, unit_normal(triangles.front()));
     insert_blade_points(pose, unit_normal(triangles.back()));
   }
   double gc_seconds = seconds_since(start);

@@ -41,6 +41,9 @@ class CutFaceMarks final : public MeshObserver {
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
 
  private:
+  /// Sets or clears a face's bit on both tetrahedra sharing it.
+  void set(TetId tet, int local_face, bool on);
+
   TetMesh* mesh_;
   std::vector<std::uint8_t> bits_;
 };

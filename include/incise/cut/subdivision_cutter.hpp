@@ -54,9 +54,6 @@ struct CutterOptions {
   /// Insert vertices on the blade line (face crossings and the tip), so the tetrahedra holding
   /// the blade open up to it during the move rather than after the blade has left them.
   bool open_under_blade = true;
-  /// Insert the blade line of the previous pose again on every move (it is always inserted on
-  /// the first move and after the body moved).
-  bool from_pass = true;
   /// Leave out a blade point within the snap distance (of the original tetrahedron) of a
   /// vertex already on the cut, so tiny steps do not keep adding vertices (fewer tetrahedra,
   /// but the wound may then trail the blade by up to about twice the snap distance).
