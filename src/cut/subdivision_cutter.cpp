@@ -944,7 +944,7 @@ void SubdivisionCutter::keep_no_shards() {
           cut_area += area;
           const TetId other = mesh_.tet_neighbors(r)[g];
           if (other >= 0) {
-            shared_area[swept_side(other, (a + b + c) / 3.0) < 0 ? 0 : 1] += area;
+            shared_area[swept_side(other, (a + b + c) / 3.0, face_reach(r, g)) < 0 ? 0 : 1] += area;
           }
         }
       }
@@ -965,7 +965,7 @@ void SubdivisionCutter::keep_no_shards() {
                 (mesh_.rest_position(w[local[0]]) + mesh_.rest_position(w[local[1]]) +
                  mesh_.rest_position(w[local[2]])) /
                 3.0;
-            if (swept_side(other, centre) == join) {
+            if (swept_side(other, centre, face_reach(r, g)) == join) {
               marks_.unmark(r, g);
               ++stats_.shards_kept;
             }
@@ -976,9 +976,21 @@ void SubdivisionCutter::keep_no_shards() {
   }
 }
 
-int SubdivisionCutter::swept_side(TetId tet, const Vec3& near_point) const {
+double SubdivisionCutter::face_reach(TetId tet, int local_face) const {
+  const Tet& v = mesh_.tet(tet);
+  const auto& face = tet_local::kFaces[local_face];
+  double offset = 0.0;
+  std::array<Vec3, 3> p;
+  for (int k = 0; k < 3; ++k) {
+    offset = std::max(offset, cut_offset_[v[face[k]]]);
+    p[k] = mesh_.rest_position(v[face[k]]);
+  }
+  return offset * (1.0 + 1e-9) + 1e-9 * longest_edge(p);
+}
+
+int SubdivisionCutter::swept_side(TetId tet, const Vec3& near_point, double radius) const {
   const std::array<Vec3, 4> corners = rest_corners(mesh_, tet);
-  const std::int64_t nearest = swept_->nearest(near_point, 2.0 * longest_edge(corners), nullptr);
+  const std::int64_t nearest = swept_->nearest(near_point, radius, nullptr);
   if (nearest < 0) {
     return 0;
   }

@@ -29,11 +29,27 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
   if ((low.array() > high.array()).any()) {
     return;
   }
-  // The level whose cells are at least as large as the triangle's box: it spans at most two
-  // cells per axis there.
-  const double extent = (high - low).maxCoeff();
+  // Degenerate triangles (a blade that did not move) add nothing the neighbouring moves'
+  // triangles do not already hold, and only slow queries down.
+  const double longest2 = std::max(
+      {(t[1] - t[0]).squaredNorm(), (t[2] - t[1]).squaredNorm(), (t[0] - t[2]).squaredNorm()});
+  const double area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).norm();
+  if (!(area > 1e-12 * longest2)) {
+    return;
+  }
+  // Cells about as large as the triangle is wide, but few enough per triangle: a long thin
+  // swept triangle (a blade across the whole body, moved a little) is filed in the cells along
+  // it, not in one cell as large as its box, where every query nearby would test it.
+  const double width = 2.0 * area / std::sqrt(longest2);
+  const double wanted = std::max(width, std::sqrt(area / 16.0));
+  const Vec3 extent = high - low;
   int level = 0;
-  while (level + 1 < kLevels && cell_size(level) < extent) {
+  while (level + 1 < kLevels && cell_size(level) < wanted) {
+    ++level;
+  }
+  constexpr double kMaxBoxCells = 4096.0;
+  while (level + 1 < kLevels &&
+         ((extent.array() / cell_size(level)).floor() + 1.0).prod() > kMaxBoxCells) {
     ++level;
   }
   if (std::find(levels_.begin(), levels_.end(), level) == levels_.end()) {
@@ -42,12 +58,17 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
   const auto index = static_cast<std::uint32_t>(triangles_.size());
   triangles_.push_back({t, box_low, box_high});
   const double size = cell_size(level);
+  // A cell meets the triangle only if its centre is within half its diagonal of it.
+  const double reach2 = 0.75 * size * size * (1.0 + 1e-9);
   const Cell first = (low.array() / size).floor().cast<long>();
   const Cell last = (high.array() / size).floor().cast<long>();
   for (long k = first[2]; k <= last[2]; ++k) {
     for (long j = first[1]; j <= last[1]; ++j) {
       for (long i = first[0]; i <= last[0]; ++i) {
-        cells_[key(level, Cell(i, j, k))].push_back(index);
+        const Vec3 centre = (Vec3(double(i), double(j), double(k)).array() + 0.5) * size;
+        if (squared_distance_to_triangle(centre, t[0], t[1], t[2]) <= reach2) {
+          cells_[key(level, Cell(i, j, k))].push_back(index);
+        }
       }
     }
   }

@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <random>
 
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
@@ -42,6 +45,41 @@ TEST(Predicates, SegmentTriangle) {
   EXPECT_TRUE(segment_intersects_triangle(Vec3(-1, 0, 0), Vec3(2, 0, 0), a, b, c));
   EXPECT_FALSE(segment_intersects_triangle(Vec3(0.2, 0.2, 0.1), Vec3(0.2, 0.2, 1), a, b, c));
   EXPECT_TRUE(triangles_intersect(a, b, c, Vec3(0.1, 0.1, -1), Vec3(0.1, 0.1, 1), Vec3(2, 2, 0.5)));
+}
+
+TEST(Predicates, DistanceToTriangleMatchesBruteForce) {
+  // Against the minimum over a fine sampling of the triangle, for random points and triangles,
+  // slivers and collinear (degenerate) ones included.
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
+  const auto random_point = [&] {
+    return Vec3(coordinate(random), coordinate(random), coordinate(random));
+  };
+  for (int trial = 0; trial < 300; ++trial) {
+    const Vec3 a = random_point();
+    const Vec3 b = random_point();
+    Vec3 c = random_point();
+    if (trial % 3 == 1) {
+      c = a + 0.37 * (b - a);  // collinear
+    } else if (trial % 3 == 2) {
+      c = a + 0.5 * (b - a) + 1e-9 * random_point();  // a sliver
+    }
+    const Vec3 p = random_point();
+    double brute = std::numeric_limits<double>::infinity();
+    const int steps = 200;
+    for (int i = 0; i <= steps; ++i) {
+      for (int j = 0; i + j <= steps; ++j) {
+        const double u = double(i) / steps;
+        const double v = double(j) / steps;
+        brute = std::min(brute, (a + u * (b - a) + v * (c - a) - p).squaredNorm());
+      }
+    }
+    const double fast = std::sqrt(incise::squared_distance_to_triangle(p, a, b, c));
+    // The sampling is at most half a sample step (of the longest edge) off.
+    const double step = std::max({(b - a).norm(), (c - a).norm(), (c - b).norm()}) / steps;
+    EXPECT_LE(fast, std::sqrt(brute) + 1e-12) << "trial " << trial;
+    EXPECT_GE(fast, std::sqrt(brute) - step) << "trial " << trial;
+  }
 }
 
 TEST(Predicates, LocateInTet) {

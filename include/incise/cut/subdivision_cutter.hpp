@@ -187,8 +187,11 @@ class SubdivisionCutter {
   /// side they share most cut area with, by taking back the marks between them.
   void keep_no_shards();
   /// The side (-1, +1) of the swept surface nearest `near_point` (m, at rest) that a
-  /// tetrahedron's centroid is on; 0 when no swept triangle is near.
-  [[nodiscard]] int swept_side(TetId tet, const Vec3& near_point) const;
+  /// tetrahedron's centroid is on; 0 when no swept triangle is within `radius` (m).
+  [[nodiscard]] int swept_side(TetId tet, const Vec3& near_point, double radius) const;
+  /// How far (m, at rest) a point of a cut face may lie from the swept surface: its corners'
+  /// offsets, plus round-off.
+  [[nodiscard]] double face_reach(TetId tet, int local_face) const;
   void track_point_tet();
   void update_active_tets();
   std::size_t separate(VertexId vertex);
