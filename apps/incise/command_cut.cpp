@@ -122,6 +122,7 @@ Runner add_cut_command(CLI::App& app) {
       json["cut_area"] = stats.cut_area;
       json["split"] = *split;
       json["blade_vertices"] = stats.blade_vertices;
+      json["blade_slides"] = stats.blade_slides;
       json["swept_area"] = stats.swept_area;
       json["edges_split"] = stats.edges_split;
       json["vertices_duplicated"] = stats.vertices_duplicated;

@@ -13,6 +13,7 @@
 #include "incise/core/timing.hpp"
 #include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
+#include "incise/mesh/validate.hpp"
 #include "triangle_index.hpp"
 
 namespace incise {
@@ -317,6 +318,7 @@ std::size_t SubdivisionCutter::separate(VertexId vertex) {
       continue;
     }
     (void)mesh_.duplicate_vertex(vertex, tets);
+    separated_.push_back(vertex);
     ++copies;
   }
   return copies;
@@ -716,8 +718,129 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
     inserted = split_tet(mesh_, holder, weights);
   }
   mark_on_cut(inserted, offset);
+  if (sliding_ && count >= 3) {
+    // On a face or inside a tetrahedron: it may slide along with the blade next pose.
+    Provisional slider{inserted, {}, count};
+    if (count == 3) {
+      const int opposite =
+          static_cast<int>(std::find(weights.begin(), weights.end(), 0.0) - weights.begin());
+      for (int k = 0; k < 3; ++k) {
+        slider.corners[k] = v[tet_local::kFaces[opposite][k]];
+      }
+    } else {
+      slider.corners = v;
+    }
+    next_provisional_.push_back(slider);
+  }
   ++stats_.blade_vertices;
   stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, smallest);
+}
+
+double SubdivisionCutter::cut_area_around(VertexId vertex) const {
+  // Each cut face through the vertex is seen from two tetrahedra around it (its two sides, or
+  // the two copies of a face the cut opened while the vertex itself stayed joined).
+  double area = 0.0;
+  for (TetId t : mesh_.vertex_tets(vertex)) {
+    const Tet& v = mesh_.tet(t);
+    const int local = mesh_.local_index(t, vertex);
+    for (int f = 0; f < 4; ++f) {
+      if (f == local || !marks_.is_cut(t, f)) {
+        continue;
+      }
+      const auto& face = tet_local::kFaces[f];
+      const Vec3& a = mesh_.rest_position(v[face[0]]);
+      area +=
+          0.25 *
+          (mesh_.rest_position(v[face[1]]) - a).cross(mesh_.rest_position(v[face[2]]) - a).norm();
+    }
+  }
+  return area;
+}
+
+void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
+  const Vec3 direction = pose.base - pose.tip;
+  constexpr double kQualityFloor = 0.05;  // normalized volume (1: regular)
+  for (const Provisional& point : provisional_) {
+    // Where the new blade line meets the feature the vertex was put in: the plane of its face,
+    // or the tetrahedron holding the tip (at the positions the cutter intersects).
+    std::array<double, 4> weights{};
+    std::array<Vec3, 4> feature;
+    for (int k = 0; k < point.count; ++k) {
+      feature[k] = position(point.corners[k]);
+    }
+    if (point.count == 3) {
+      const Vec3 normal = (feature[1] - feature[0]).cross(feature[2] - feature[0]);
+      const double rate = normal.dot(direction);
+      if (rate == 0.0) {
+        continue;
+      }
+      const double s = normal.dot(feature[0] - pose.tip) / rate;
+      if (!(s >= 0.0 && s <= 1.0)) {
+        continue;
+      }
+      const Vec3 q = pose.tip + s * direction;
+      const double area = normal.norm();
+      const double wa = normal.dot((feature[1] - q).cross(feature[2] - q)) / (area * area);
+      const double wb = normal.dot((feature[2] - q).cross(feature[0] - q)) / (area * area);
+      weights = {wa, wb, 1.0 - wa - wb, 0.0};
+    } else {
+      weights = barycentric_coordinates(pose.tip, feature[0], feature[1], feature[2], feature[3]);
+    }
+    // Not closer to the feature's boundary than the snap fraction: there the blade is about to
+    // leave it, and the crossing of its edge is split next.
+    bool inside = true;
+    for (int k = 0; k < point.count; ++k) {
+      inside = inside && weights[k] >= options_.snap_fraction;
+    }
+    if (!inside) {
+      continue;  // the blade left the face or tetrahedron: the vertex stays behind
+    }
+    Vec3 rest = Vec3::Zero();
+    Vec3 now = Vec3::Zero();
+    for (int k = 0; k < point.count; ++k) {
+      rest += weights[k] * mesh_.rest_position(point.corners[k]);
+      now += weights[k] * feature[k];
+    }
+    // Every tetrahedron around it stays positive and no thinner than the floor (or than it
+    // was), at rest and where the cutter intersects.
+    const VertexId vertex = point.vertex;
+    bool ok = true;
+    for (TetId t : mesh_.vertex_tets(vertex)) {
+      const Tet& v = mesh_.tet(t);
+      const int local = mesh_.local_index(t, vertex);
+      const std::array<Vec3, 4> before = rest_corners(mesh_, t);
+      std::array<Vec3, 4> after = before;
+      after[local] = rest;
+      ok = orient3d(after[0], after[1], after[2], after[3]) == Sign::kPositive &&
+           normalized_volume(after[0], after[1], after[2], after[3]) >=
+               std::min(kQualityFloor,
+                        0.5 * normalized_volume(before[0], before[1], before[2], before[3]));
+      if (ok && positions_ != nullptr) {
+        std::array<Vec3, 4> current{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
+        current[local] = now;
+        ok = orient3d(current[0], current[1], current[2], current[3]) == Sign::kPositive;
+      }
+      if (!ok) {
+        break;
+      }
+    }
+    if (!ok) {
+      continue;
+    }
+    // Inside its face or tetrahedron, the tetrahedra around it fill the same star wherever it
+    // moves (all stay positive), so volume and boundary are kept.
+    stats_.cut_area -= cut_area_around(vertex);
+    mesh_.relocate_vertex(vertex, std::span(point.corners.data(), point.count),
+                          std::span(weights.data(), point.count));
+    stats_.cut_area += cut_area_around(vertex);
+    double size = 0.0;
+    for (TetId t : mesh_.vertex_tets(vertex)) {
+      size = std::max(size, longest_edge(rest_corners(mesh_, t)));
+    }
+    mark_on_cut(vertex, 1e-9 * size);
+    next_provisional_.push_back(point);
+    ++stats_.blade_slides;
+  }
 }
 
 void SubdivisionCutter::presplit_generic(const Contact& contact) {
@@ -1028,9 +1151,18 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     const auto unit_normal = [](const std::array<Vec3, 3>& t) {
       return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
     };
-    insert_blade_points(from, unit_normal(triangles.front()));
+    if (provisional_.empty()) {
+      insert_blade_points(from, unit_normal(triangles.front()));
+    }
+    next_provisional_.clear();
+    sliding_ = options_.slide_blade_points;
+    if (sliding_) {
+      slide_blade_points(pose);
+    }
     insert_blade_points(pose, unit_normal(triangles.back()));
+    sliding_ = false;
   }
+  provisional_.clear();
   double gc_seconds = seconds_since(start);
 
   // ---- collision detection: tets the swept surface touches, edges it crosses ---------------
@@ -1103,6 +1235,14 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     candidates.push_back(v);
   }
   resolve_pinched_edges(candidates);
+  // Blade-line vertices the cut has opened at stay where they are.
+  std::sort(separated_.begin(), separated_.end());
+  for (const Provisional& point : next_provisional_) {
+    if (!std::binary_search(separated_.begin(), separated_.end(), point.vertex)) {
+      provisional_.push_back(point);
+    }
+  }
+  separated_.clear();
   stats_.gc_seconds = gc_seconds + seconds_since(start);
   stats_.total_cd_seconds += stats_.cd_seconds;
   stats_.total_gc_seconds += stats_.gc_seconds;

@@ -41,6 +41,7 @@ TetGrid::TetGrid(TetMesh& mesh, const VertexData<Vec3>* positions, double cell_s
 }
 
 void TetGrid::refit() {
+  pending_.clear();
   for (auto& cell : cells_) {
     cell.clear();
   }
@@ -94,14 +95,14 @@ void TetGrid::for_each_cell_in_box(const Vec3& low, const Vec3& high, Visit visi
 }
 
 template <typename Visit>
-void TetGrid::for_each_cell(const Tet& vertices, Visit visit) {
+void TetGrid::for_each_cell(const Tet& vertices, Visit visit) const {
   Vec3 low;
   Vec3 high;
   bounds(vertices, low, high);
   for_each_cell_in_box(low, high, [&](std::size_t cell) { visit(cells_[cell]); });
 }
 
-void TetGrid::insert(TetId tet, const Tet& vertices) {
+void TetGrid::insert(TetId tet, const Tet& vertices) const {
   for_each_cell(vertices, [tet](std::vector<TetId>& cell) { cell.push_back(tet); });
 }
 
@@ -120,12 +121,29 @@ void TetGrid::rename(TetId from, TetId to, const Tet& vertices) {
   });
 }
 
+void TetGrid::file_pending() const {
+  for (TetId tet : pending_) {
+    insert(tet, mesh_->tet(tet));
+  }
+  pending_.clear();
+}
+
+void TetGrid::on_vertex_relocating(const TetMesh& mesh, VertexId vertex) {
+  file_pending();
+  for (TetId tet : mesh.vertex_tets(vertex)) {
+    erase(tet, mesh.tet(tet));
+    pending_.push_back(tet);
+  }
+}
+
 void TetGrid::on_tet_added(const TetMesh& mesh, TetId tet) {
+  file_pending();
   insert(tet, mesh.tet(tet));
 }
 
 void TetGrid::on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
                               const Tet& parent_vertices) {
+  file_pending();
   erase(parent, parent_vertices);
   for (TetId child : children) {
     insert(child, mesh.tet(child));
@@ -134,6 +152,7 @@ void TetGrid::on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const
 
 void TetGrid::on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                              const Tet& removed_vertices) {
+  file_pending();
   erase(removed, removed_vertices);
   if (removed != moved_from) {
     rename(moved_from, removed, mesh.tet(removed));
@@ -141,6 +160,7 @@ void TetGrid::on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_fro
 }
 
 void TetGrid::query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) const {
+  file_pending();
   out.clear();
   if (seen_.size() < mesh_->tet_count()) {
     seen_.resize(mesh_->tet_count() + mesh_->tet_count() / 2 + 16, 0);

@@ -471,22 +471,23 @@ VertexId TetMesh::add_vertex(const Vec3& rest_position) {
   return static_cast<VertexId>(rest_positions_.size() - 1);
 }
 
-VertexId TetMesh::add_vertex(std::span<const VertexId> parents, std::span<const double> weights) {
+VertexOrigin TetMesh::combination(const char* operation, std::span<const VertexId> parents,
+                                  std::span<const double> weights, Vec3& position) const {
   if (parents.empty() || parents.size() > 4 || parents.size() != weights.size()) {
-    throw InputError("add_vertex needs 1 to 4 parents with one weight each");
+    throw InputError(std::string(operation) + " needs 1 to 4 parents with one weight each");
   }
   VertexOrigin origin;
   origin.kind = VertexOrigin::Kind::kCombination;
   origin.parent_count = static_cast<std::uint8_t>(parents.size());
-  Vec3 position = Vec3::Zero();
+  position = Vec3::Zero();
   double weight_sum = 0.0;
   for (std::size_t i = 0; i < parents.size(); ++i) {
     if (parents[i] < 0 || static_cast<std::size_t>(parents[i]) >= rest_positions_.size()) {
-      throw InputError("add_vertex: parent vertex " + std::to_string(parents[i]) +
+      throw InputError(std::string(operation) + ": parent vertex " + std::to_string(parents[i]) +
                        " does not exist");
     }
     if (!(weights[i] >= 0.0) || !std::isfinite(weights[i])) {
-      throw InputError("add_vertex: weight " + std::to_string(weights[i]) +
+      throw InputError(std::string(operation) + ": weight " + std::to_string(weights[i]) +
                        " is negative or not finite");
     }
     origin.parents[i] = parents[i];
@@ -495,11 +496,36 @@ VertexId TetMesh::add_vertex(std::span<const VertexId> parents, std::span<const 
     weight_sum += weights[i];
   }
   if (std::abs(weight_sum - 1.0) > 1e-9) {
-    throw InputError("add_vertex: weights sum to " + std::to_string(weight_sum) + ", not 1");
+    throw InputError(std::string(operation) + ": weights sum to " + std::to_string(weight_sum) +
+                     ", not 1");
   }
+  return origin;
+}
+
+VertexId TetMesh::add_vertex(std::span<const VertexId> parents, std::span<const double> weights) {
+  Vec3 position;
+  const VertexOrigin origin = combination("add_vertex", parents, weights, position);
   append_vertex(position, origin);
   ++revision_;
   return static_cast<VertexId>(rest_positions_.size() - 1);
+}
+
+void TetMesh::relocate_vertex(VertexId vertex, std::span<const VertexId> parents,
+                              std::span<const double> weights) {
+  if (vertex < 0 || static_cast<std::size_t>(vertex) >= rest_positions_.size()) {
+    throw InputError("relocate_vertex: vertex " + std::to_string(vertex) + " does not exist");
+  }
+  Vec3 position;
+  const VertexOrigin origin = combination("relocate_vertex", parents, weights, position);
+  for (MeshObserver* observer : observers_) {
+    observer->on_vertex_relocating(*this, vertex);
+  }
+  rest_positions_[vertex] = position;
+  vertex_origins_[vertex] = origin;
+  ++revision_;
+  for (MeshObserver* observer : observers_) {
+    observer->on_vertex_relocated(*this, vertex, origin);
+  }
 }
 
 VertexId TetMesh::duplicate_vertex(VertexId original, std::span<const TetId> tets_to_move) {

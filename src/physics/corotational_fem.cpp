@@ -78,6 +78,13 @@ double CorotationalFemModel::total_mass() const {
 
 // ---- following edits ------------------------------------------------------------------------
 
+void CorotationalFemModel::on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
+                                               const VertexOrigin&) {
+  for (TetId t : mesh.vertex_tets(vertex)) {
+    elements_[t].valid = false;
+  }
+}
+
 void CorotationalFemModel::update_rest_data() {
   const TetMesh& mesh = *mesh_;
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {

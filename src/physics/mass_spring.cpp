@@ -87,6 +87,14 @@ void MassSpringModel::on_tet_reconnected(const TetMesh& mesh, TetId tet, const T
   mark(mesh.tet(tet));
 }
 
+void MassSpringModel::on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
+                                          const VertexOrigin&) {
+  // Rest lengths at the vertex and stiffnesses of every edge of its tetrahedra changed.
+  for (TetId t : mesh.vertex_tets(vertex)) {
+    mark(mesh.tet(t));
+  }
+}
+
 void MassSpringModel::rebuild_adjacency() {
   graph_ = vertex_graph(*mesh_);
   adjacency_revision_ = mesh_->revision();

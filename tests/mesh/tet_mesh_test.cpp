@@ -120,6 +120,50 @@ TEST(TetMesh, AddVertexChecksWeights) {
   EXPECT_EQ(mesh.vertex_count(), 5u);
 }
 
+TEST(TetMesh, RelocatedVertexKeepsItsTetsAndValuesFollow) {
+  // A vertex on the shared face (as a cutter puts one on the blade line) slides within it:
+  // the tetrahedra stay, the total volume stays, and interpolated values are taken again.
+  TetMesh mesh = two_tets();
+  VertexData<Vec3> position(mesh, Vec3::Zero());
+  VertexData<double> label(mesh, 0.0);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    position[static_cast<VertexId>(v)] = 2.0 * mesh.rest_position(static_cast<VertexId>(v));
+    label[static_cast<VertexId>(v)] = static_cast<double>(v);
+  }
+  const double volume = total_volume(mesh);
+  const std::array<VertexId, 3> face{1, 2, 3};
+  const std::array<double, 3> centre{1.0 / 3, 1.0 / 3, 1.0 / 3};
+  const VertexId slider = mesh.add_vertex(face, centre);
+  const std::array<double, 3> towards_1{0.6, 0.2, 0.2};
+  // Each tetrahedron's face (1, 2, 3) fanned around the new vertex.
+  for (TetId t : {0, 1}) {
+    const Tet tet = mesh.tet(t);
+    const auto& f = tet_local::kFaces[0];
+    const std::array<Tet, 3> parts{Tet{tet[0], tet[f[0]], tet[f[1]], slider},
+                                   Tet{tet[0], tet[f[1]], tet[f[2]], slider},
+                                   Tet{tet[0], tet[f[2]], tet[f[0]], slider}};
+    (void)mesh.replace_tet(t, parts);
+  }
+  ASSERT_TRUE(validate(mesh).ok());
+  const std::vector<TetId> around(mesh.vertex_tets(slider).begin(), mesh.vertex_tets(slider).end());
+  const std::uint64_t revision = mesh.revision();
+  mesh.relocate_vertex(slider, face, towards_1);
+  EXPECT_GT(mesh.revision(), revision);
+  EXPECT_TRUE(mesh.rest_position(slider).isApprox(Vec3(0.6, 0.2, 0.2)));
+  std::vector<TetId> after(mesh.vertex_tets(slider).begin(), mesh.vertex_tets(slider).end());
+  std::sort(after.begin(), after.end());
+  std::vector<TetId> before = around;
+  std::sort(before.begin(), before.end());
+  EXPECT_EQ(after, before);
+  EXPECT_TRUE(validate(mesh).ok());
+  EXPECT_NEAR(total_volume(mesh), volume, 1e-15);
+  EXPECT_TRUE(position[slider].isApprox(2.0 * mesh.rest_position(slider)));
+  EXPECT_NEAR(label[slider], 0.6 * 1 + 0.2 * 2 + 0.2 * 3, 1e-12);
+  EXPECT_EQ(mesh.compare_with_rebuilt_adjacency(), "");
+  const std::array<double, 3> bad{0.7, 0.7, -0.4};
+  EXPECT_THROW(mesh.relocate_vertex(slider, face, bad), InputError);
+}
+
 TEST(TetMesh, RemoveTetSwapsLastIntoHole) {
   TetMesh mesh = two_tets();
   TetData<int> label(mesh, -1);

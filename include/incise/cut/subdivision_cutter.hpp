@@ -58,6 +58,12 @@ struct CutterOptions {
   /// vertex already on the cut, so tiny steps do not keep adding vertices (fewer tetrahedra,
   /// but the wound may then trail the blade by up to about twice the snap distance).
   bool merge_blade_points = false;
+  /// Slide the blade-line vertices of the previous pose along with the blade (moving them in
+  /// the material, with their tetrahedra) instead of adding new ones every pose, so the number
+  /// of tetrahedra does not grow with how finely the blade's path is sampled. A vertex stays
+  /// where it is (and a new one is added) when sliding would invert or flatten a tetrahedron
+  /// around it, change the body's boundary, or once the cut has opened at it.
+  bool slide_blade_points = true;
 };
 
 struct CutStats {
@@ -71,12 +77,15 @@ struct CutStats {
   std::size_t vertices_snapped = 0;
   std::size_t vertices_duplicated = 0;
   std::size_t blade_vertices = 0;  ///< vertices inserted on the blade line
+  std::size_t blade_slides = 0;    ///< blade-line vertices slid along with the blade
   std::size_t generic_splits = 0;  ///< tetrahedra given the generic split (SplitMode::kGeneric)
   std::size_t cut_faces = 0;       ///< faces found on the cut (each counted once)
   std::size_t shards_kept = 0;     ///< cut faces given back so a thin sliver is not cut out
   double cut_area = 0.0;    ///< rest area of the faces found on the cut, each once, one side (m^2)
   double swept_area = 0.0;  ///< area swept by the blade (m^2)
-  double min_volume_ratio = 1.0;  ///< smallest child / parent volume ratio of any split
+  /// Smallest child / parent volume ratio of any split (at the split: a blade-line vertex
+  /// sliding later reshapes the tetrahedra around it).
+  double min_volume_ratio = 1.0;
   // The active point tetrahedron (the one holding the blade tip), as the seed tracks it.
   std::size_t point_same = 0;      ///< tip still in the previous tetrahedron
   std::size_t point_neighbor = 0;  ///< found among its face neighbours
@@ -164,6 +173,12 @@ class SubdivisionCutter {
   /// there.
   void insert_blade_points(const BladePose& pose, const Vec3& normal);
   void insert_point(const Vec3& point, const Vec3& normal);
+  /// Moves each blade-line vertex of the previous pose to where the blade line of `pose`
+  /// meets the face (or tetrahedron, for the tip) it was put in, if every tetrahedron around
+  /// it stays positive and no thinner than it was (or than a floor).
+  void slide_blade_points(const BladePose& pose);
+  /// Rest area (m^2) of the cut faces through a vertex that the cut has not opened at.
+  [[nodiscard]] double cut_area_around(VertexId vertex) const;
   void presplit_generic(const Contact& contact);
   /// Puts a vertex on the cut (remembering how far it lies from the swept surface) and records
   /// the original edge it lies in, if any.
@@ -233,6 +248,19 @@ class SubdivisionCutter {
   std::vector<std::array<Vec3, 3>> move_triangles_;
   /// This move's part of it (unbounded images).
   std::vector<std::array<Vec3, 3>> move_rest_triangles_;
+  /// A blade-line vertex that may still slide with the blade (not separated): the corners of
+  /// the face (count 3) or tetrahedron (count 4) it was put in, where it stays.
+  struct Provisional {
+    VertexId vertex = kInvalidId;
+    std::array<VertexId, 4> corners{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
+    int count = 0;
+  };
+  /// Those of the last pose, and of this one (while insert_point records them).
+  std::vector<Provisional> provisional_;
+  std::vector<Provisional> next_provisional_;
+  bool sliding_ = false;
+  /// Vertices separate() duplicated during this move.
+  std::vector<VertexId> separated_;
   /// Vertices put on the cut (or found on it) during this move.
   std::vector<VertexId> fresh_;
   /// Faces marked by the last mark_cut_faces(): (tetrahedron, local face).

@@ -36,6 +36,7 @@ class TetGrid final : public MeshObserver {
                        const Tet& parent_vertices) override;
   void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                       const Tet& removed_vertices) override;
+  void on_vertex_relocating(const TetMesh& mesh, VertexId vertex) override;
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
 
  private:
@@ -47,18 +48,22 @@ class TetGrid final : public MeshObserver {
   void for_each_cell_in_box(const Vec3& low, const Vec3& high, Visit visit) const;
   /// Calls visit(cell) for every cell the tetrahedron's bounding box overlaps.
   template <typename Visit>
-  void for_each_cell(const Tet& vertices, Visit visit);
-  void insert(TetId tet, const Tet& vertices);
+  void for_each_cell(const Tet& vertices, Visit visit) const;
+  void insert(TetId tet, const Tet& vertices) const;
   void erase(TetId tet, const Tet& vertices);
   void rename(TetId from, TetId to, const Tet& vertices);
   std::size_t cell_index(long i, long j, long k) const;
+  /// Files the tetrahedra taken out while a vertex moved, at their new bounds. Done lazily (at
+  /// the next query or edit), when every observer, current positions included, has followed.
+  void file_pending() const;
 
   TetMesh* mesh_;
   const VertexData<Vec3>* positions_;
   Vec3 origin_;
   double cell_ = 1.0;
   std::array<long, 3> dims_{1, 1, 1};
-  std::vector<std::vector<TetId>> cells_;
+  mutable std::vector<std::vector<TetId>> cells_;
+  mutable std::vector<TetId> pending_;  ///< around a relocated vertex, not filed yet
   mutable std::vector<std::uint32_t> seen_;
   mutable std::uint32_t stamp_ = 0;
 };

@@ -4,7 +4,7 @@
 // springs) and never needs to know which cutter changed the mesh.
 //
 // Rules for new entries (the "specification" the tests check):
-//   vertices  fresh: the default value.
+//   vertices  fresh: the default value. A relocated vertex is taken again like a new one.
 //             combination of parents with weights w: kInterpolate gives sum w_i * value(p_i),
 //             kCopy the value of the heaviest parent, kDefault the default.
 //             duplicate of v: kInterpolate and kCopy give value(v), kDefault the default.
@@ -114,6 +114,14 @@ class VertexData final : public detail::AttributeBase<T> {
     INCISE_ASSERT(static_cast<std::size_t>(vertex) == this->values_.size(),
                   "vertex attribute out of step with its mesh");
     this->values_.push_back(initial_value(origin));
+    if (hook_) {
+      hook_(*this, vertex, origin);
+    }
+  }
+
+  void on_vertex_relocated(const TetMesh& /*mesh*/, VertexId vertex,
+                           const VertexOrigin& origin) override {
+    this->values_[vertex] = initial_value(origin);
     if (hook_) {
       hook_(*this, vertex, origin);
     }

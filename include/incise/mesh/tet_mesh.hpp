@@ -84,6 +84,13 @@ class MeshObserver {
   /// Edges appended by one edit, in id order. Edges that the same edit makes unused are still
   /// present (with no tetrahedra) until their on_edge_removed event follows.
   virtual void on_edges_created(const TetMesh& /*mesh*/, std::span<const EdgeOrigin> /*edges*/) {}
+  /// `vertex` is about to move (relocate_vertex); the mesh and observers are still as before.
+  virtual void on_vertex_relocating(const TetMesh& /*mesh*/, VertexId /*vertex*/) {}
+  /// `vertex` now lies at a combination of other vertices (`origin`, as for a vertex added
+  /// there; its old value may be among the parents): values that follow vertices are taken
+  /// again as for a new vertex. Its tetrahedra are the same, their rest shapes are not.
+  virtual void on_vertex_relocated(const TetMesh& /*mesh*/, VertexId /*vertex*/,
+                                   const VertexOrigin& /*origin*/) {}
   /// Same swap-with-last convention as on_tet_removed.
   virtual void on_edge_removed(const TetMesh& /*mesh*/, EdgeId /*removed*/, EdgeId /*moved_from*/) {
   }
@@ -160,6 +167,13 @@ class TetMesh {
   std::vector<TetId> replace_tet(TetId parent, std::span<const Tet> children);
   /// Removes a tetrahedron; the last one takes its id (observers are told).
   void remove_tet(TetId tet);
+  /// Moves a vertex to sum(weights[i] * rest_position(parents[i])) (the vertex may be among
+  /// its parents), keeping its tetrahedra: values that follow vertices (positions, velocities)
+  /// are interpolated again from the parents, as for a new vertex. The caller keeps every
+  /// tetrahedron around it positive. The cutter slides a vertex on the blade line along with
+  /// the blade instead of leaving one behind every frame.
+  void relocate_vertex(VertexId vertex, std::span<const VertexId> parents,
+                       std::span<const double> weights);
   /// Moves a vertex's rest position (m), e.g. snapping; adjacency is unchanged.
   void set_rest_position(VertexId vertex, const Vec3& rest_position);
 
@@ -182,6 +196,9 @@ class TetMesh {
   EdgeId find_or_create_edge(VertexId a, VertexId b);
   EdgeOrigin edge_parent(EdgeId edge) const;
   void append_vertex(const Vec3& rest_position, const VertexOrigin& origin);
+  /// Checks parents and weights and returns the origin and `position` they give.
+  VertexOrigin combination(const char* operation, std::span<const VertexId> parents,
+                           std::span<const double> weights, Vec3& position) const;
   /// Emits edge events and drops unused edges at the end of an edit.
   void finish_edit();
   void notify_relocated();

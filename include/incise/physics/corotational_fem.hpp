@@ -81,6 +81,9 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  /// The rest shapes of the vertex's tetrahedra changed: taken again at the next refresh.
+  void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
+                           const VertexOrigin& origin) override;
 
  private:
   void rebuild_topology();

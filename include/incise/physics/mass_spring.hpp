@@ -59,6 +59,8 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
   void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                       const Tet& removed_vertices) override;
   void on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
+  void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
+                           const VertexOrigin& origin) override;
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
 
  private:
