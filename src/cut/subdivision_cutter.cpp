@@ -64,6 +64,42 @@ double distance_to(const std::vector<std::array<Vec3, 3>>& triangles, const Vec3
   return std::sqrt(best);
 }
 
+/// A cheap, conservative filter before the exact segment-tetrahedron test: false only when
+/// an axis (the segment's direction or two perpendiculars) separates them by more than
+/// round-off. Most tetrahedra near a long blade fail it, and the exact test is the costly part.
+bool segment_may_meet_tet(const Vec3& tip, const Vec3& base, const Vec3& p0, const Vec3& p1,
+                          const Vec3& p2, const Vec3& p3) {
+  const Vec3 d = base - tip;
+  const double length = d.norm();
+  if (length == 0.0) {
+    return true;
+  }
+  const Vec3 axis = d / length;
+  const Vec3 u = axis.unitOrthogonal();
+  const Vec3 w = axis.cross(u);
+  const std::array<Vec3, 4> corners{p0 - tip, p1 - tip, p2 - tip, p3 - tip};
+  double scale = length;
+  for (const Vec3& c : corners) {
+    scale = std::max(scale, c.cwiseAbs().maxCoeff());
+  }
+  const double slack = 1e-9 * scale;
+  const std::array<std::pair<Vec3, std::pair<double, double>>, 3> axes{
+      {{axis, {0.0, length}}, {u, {0.0, 0.0}}, {w, {0.0, 0.0}}}};
+  for (const auto& [direction, range] : axes) {
+    double low = std::numeric_limits<double>::infinity();
+    double high = -low;
+    for (const Vec3& c : corners) {
+      const double x = c.dot(direction);
+      low = std::min(low, x);
+      high = std::max(high, x);
+    }
+    if (low > range.second + slack || high < range.first - slack) {
+      return false;
+    }
+  }
+  return true;
+}
+
 void triangle_bounds(const std::array<Vec3, 3>& triangle, Vec3& low, Vec3& high) {
   low = triangle[0].cwiseMin(triangle[1]).cwiseMin(triangle[2]);
   high = triangle[0].cwiseMax(triangle[1]).cwiseMax(triangle[2]);
@@ -177,6 +213,14 @@ TetId SubdivisionCutter::locate(const Vec3& point) {
   grid_.query(point, point, scratch_);
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
+    // The tetrahedron's box first (the grid's cells hold many): the exact test is the cost.
+    const Vec3 low =
+        position(v[0]).cwiseMin(position(v[1])).cwiseMin(position(v[2])).cwiseMin(position(v[3]));
+    const Vec3 high =
+        position(v[0]).cwiseMax(position(v[1])).cwiseMax(position(v[2])).cwiseMax(position(v[3]));
+    if ((point.array() < low.array()).any() || (point.array() > high.array()).any()) {
+      continue;
+    }
     if (locate_in_tet(point, position(v[0]), position(v[1]), position(v[2]), position(v[3])) !=
         TetLocation::kOutside) {
       return t;
@@ -254,7 +298,9 @@ void SubdivisionCutter::update_active_tets() {
   grid_.query(pose_.tip.cwiseMin(pose_.base), pose_.tip.cwiseMax(pose_.base), scratch_);
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
-    if (segment_intersects_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]),
+    if (segment_may_meet_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]), position(v[2]),
+                             position(v[3])) &&
+        segment_intersects_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]),
                                position(v[2]), position(v[3]))) {
       active_.push_back(t);
     }
@@ -589,7 +635,8 @@ void SubdivisionCutter::insert_blade_points(const BladePose& pose, const Vec3& n
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
     const std::array<Vec3, 4> p{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
-    if (!segment_intersects_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3])) {
+    if (!segment_may_meet_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3]) ||
+        !segment_intersects_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3])) {
       continue;
     }
     double enter = 0.0;
