@@ -806,7 +806,15 @@ double SubdivisionCutter::cut_area_around(VertexId vertex) const {
 
 void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
   const Vec3 direction = pose.base - pose.tip;
-  constexpr double kQualityFloor = 0.05;  // normalized volume (1: regular)
+  // Normalized volumes (1: regular). A slide may thin a tetrahedron around the vertex by at
+  // most half per pose below 0.05, and never below a floor far above degenerate (1e-6): many
+  // tiny steps would otherwise thin it without bound.
+  const auto quality_threshold = [](double before) {
+    constexpr double kFloor = 1e-4;
+    constexpr double kGood = 0.05;
+    return std::max(std::min(kGood, 0.5 * before), std::min(before, kFloor));
+  };
+
   for (const Provisional& point : provisional_) {
     // Where the new blade line meets the feature the vertex was put in: the plane of its face,
     // or the tetrahedron holding the tip (at the positions the cutter intersects).
@@ -860,8 +868,7 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
       after[local] = rest;
       ok = orient3d(after[0], after[1], after[2], after[3]) == Sign::kPositive &&
            normalized_volume(after[0], after[1], after[2], after[3]) >=
-               std::min(kQualityFloor,
-                        0.5 * normalized_volume(before[0], before[1], before[2], before[3]));
+               quality_threshold(normalized_volume(before[0], before[1], before[2], before[3]));
       if (ok && positions_ != nullptr) {
         std::array<Vec3, 4> current{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
         current[local] = now;
