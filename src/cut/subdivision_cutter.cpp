@@ -249,6 +249,7 @@ Vec3 SubdivisionCutter::current(const MaterialPoint& point, const Vec3& fallback
 void SubdivisionCutter::start(const BladePose& pose) {
   pose_ = pose;
   started_ = true;
+  provisional_.clear();  // a new stroke: the last one's blade-line vertices stay where they are
   track_point_tet();
   update_active_tets();
   if (positions_ != nullptr) {
