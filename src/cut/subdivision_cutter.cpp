@@ -45,6 +45,22 @@ std::array<Vec3, 4> rest_corners(const TetMesh& mesh, TetId tet) {
           mesh.rest_position(v[3])};
 }
 
+/// A face's corners at rest, in tet_local::kFaces order.
+std::array<Vec3, 3> rest_face(const TetMesh& mesh, TetId tet, int local_face) {
+  const Tet& v = mesh.tet(tet);
+  const auto& face = tet_local::kFaces[local_face];
+  return {mesh.rest_position(v[face[0]]), mesh.rest_position(v[face[1]]),
+          mesh.rest_position(v[face[2]])};
+}
+
+double area(const std::array<Vec3, 3>& t) {
+  return 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).norm();
+}
+
+Vec3 centroid(const std::array<Vec3, 3>& corners) {
+  return (corners[0] + corners[1] + corners[2]) / 3.0;
+}
+
 Vec3 centroid(const std::array<Vec3, 4>& corners) {
   return (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
 }
@@ -62,42 +78,6 @@ double distance_to(const std::vector<std::array<Vec3, 3>>& triangles, const Vec3
     best = std::min(best, squared_distance_to_triangle(point, t[0], t[1], t[2]));
   }
   return std::sqrt(best);
-}
-
-/// A cheap, conservative filter before the exact segment-tetrahedron test: false only when
-/// an axis (the segment's direction or two perpendiculars) separates them by more than
-/// round-off. Most tetrahedra near a long blade fail it, and the exact test is the costly part.
-bool segment_may_meet_tet(const Vec3& tip, const Vec3& base, const Vec3& p0, const Vec3& p1,
-                          const Vec3& p2, const Vec3& p3) {
-  const Vec3 d = base - tip;
-  const double length = d.norm();
-  if (length == 0.0) {
-    return true;
-  }
-  const Vec3 axis = d / length;
-  const Vec3 u = axis.unitOrthogonal();
-  const Vec3 w = axis.cross(u);
-  const std::array<Vec3, 4> corners{p0 - tip, p1 - tip, p2 - tip, p3 - tip};
-  double scale = length;
-  for (const Vec3& c : corners) {
-    scale = std::max(scale, c.cwiseAbs().maxCoeff());
-  }
-  const double slack = 1e-9 * scale;
-  const std::array<std::pair<Vec3, std::pair<double, double>>, 3> axes{
-      {{axis, {0.0, length}}, {u, {0.0, 0.0}}, {w, {0.0, 0.0}}}};
-  for (const auto& [direction, range] : axes) {
-    double low = std::numeric_limits<double>::infinity();
-    double high = -low;
-    for (const Vec3& c : corners) {
-      const double x = c.dot(direction);
-      low = std::min(low, x);
-      high = std::max(high, x);
-    }
-    if (low > range.second + slack || high < range.first - slack) {
-      return false;
-    }
-  }
-  return true;
 }
 
 void triangle_bounds(const std::array<Vec3, 3>& triangle, Vec3& low, Vec3& high) {
@@ -213,14 +193,6 @@ TetId SubdivisionCutter::locate(const Vec3& point) {
   grid_.query(point, point, scratch_);
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
-    // The tetrahedron's box first (the grid's cells hold many): the exact test is the cost.
-    const Vec3 low =
-        position(v[0]).cwiseMin(position(v[1])).cwiseMin(position(v[2])).cwiseMin(position(v[3]));
-    const Vec3 high =
-        position(v[0]).cwiseMax(position(v[1])).cwiseMax(position(v[2])).cwiseMax(position(v[3]));
-    if ((point.array() < low.array()).any() || (point.array() > high.array()).any()) {
-      continue;
-    }
     if (locate_in_tet(point, position(v[0]), position(v[1]), position(v[2]), position(v[3])) !=
         TetLocation::kOutside) {
       return t;
@@ -299,9 +271,7 @@ void SubdivisionCutter::update_active_tets() {
   grid_.query(pose_.tip.cwiseMin(pose_.base), pose_.tip.cwiseMax(pose_.base), scratch_);
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
-    if (segment_may_meet_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]), position(v[2]),
-                             position(v[3])) &&
-        segment_intersects_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]),
+    if (segment_intersects_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]),
                                position(v[2]), position(v[3]))) {
       active_.push_back(t);
     }
@@ -636,8 +606,7 @@ void SubdivisionCutter::insert_blade_points(const BladePose& pose, const Vec3& n
   for (TetId t : scratch_) {
     const Tet& v = mesh_.tet(t);
     const std::array<Vec3, 4> p{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
-    if (!segment_may_meet_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3]) ||
-        !segment_intersects_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3])) {
+    if (!segment_intersects_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3])) {
       continue;
     }
     double enter = 0.0;
@@ -787,22 +756,16 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
 double SubdivisionCutter::cut_area_around(VertexId vertex) const {
   // Each cut face through the vertex is seen from two tetrahedra around it (its two sides, or
   // the two copies of a face the cut opened while the vertex itself stayed joined).
-  double area = 0.0;
+  double total = 0.0;
   for (TetId t : mesh_.vertex_tets(vertex)) {
-    const Tet& v = mesh_.tet(t);
     const int local = mesh_.local_index(t, vertex);
     for (int f = 0; f < 4; ++f) {
-      if (f == local || !marks_.is_cut(t, f)) {
-        continue;
+      if (f != local && marks_.is_cut(t, f)) {
+        total += 0.5 * area(rest_face(mesh_, t, f));
       }
-      const auto& face = tet_local::kFaces[f];
-      const Vec3& a = mesh_.rest_position(v[face[0]]);
-      area +=
-          0.25 *
-          (mesh_.rest_position(v[face[1]]) - a).cross(mesh_.rest_position(v[face[2]]) - a).norm();
     }
   }
-  return area;
+  return total;
 }
 
 void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
@@ -1001,8 +964,7 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
   const Tet& v = mesh_.tet(tet);
   const auto& face = tet_local::kFaces[local_face];
   const std::array<VertexId, 3> corners{v[face[0]], v[face[1]], v[face[2]]};
-  const std::array<Vec3, 3> p{mesh_.rest_position(corners[0]), mesh_.rest_position(corners[1]),
-                              mesh_.rest_position(corners[2])};
+  const std::array<Vec3, 3> p = rest_face(mesh_, tet, local_face);
   // Round-off allowance: points computed on the surface lie on it only up to this (m).
   const double round_off = 1e-9 * longest_edge(p);
   // On the surface: every corner as close to it as when it was put on the cut, and the
@@ -1016,7 +978,7 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
     allowed = std::max(allowed, offset);
   }
   const std::int64_t nearest =
-      swept_->nearest((p[0] + p[1] + p[2]) / 3.0, allowed * (1.0 + 1e-9) + round_off, nullptr);
+      swept_->nearest(centroid(p), allowed * (1.0 + 1e-9) + round_off, nullptr);
   if (nearest < 0) {
     return false;
   }
@@ -1053,10 +1015,7 @@ std::vector<VertexId> SubdivisionCutter::mark_cut_faces() {
         marks_.mark(t, f);
         marked_.emplace_back(t, f);
         ++stats_.cut_faces;
-        const Vec3& a = mesh_.rest_position(v[face[0]]);
-        stats_.cut_area +=
-            0.5 *
-            (mesh_.rest_position(v[face[1]]) - a).cross(mesh_.rest_position(v[face[2]]) - a).norm();
+        stats_.cut_area += area(rest_face(mesh_, t, f));
         corners.insert(corners.end(), {v[face[0]], v[face[1]], v[face[2]]});
       }
     }
@@ -1107,22 +1066,19 @@ void SubdivisionCutter::keep_no_shards() {
       double longest = 0.0;
       std::array<double, 2> shared_area{0.0, 0.0};  // still joined to the - and + side
       for (TetId r : region) {
-        const Tet& w = mesh_.tet(r);
         volume += std::abs(signed_volume(mesh_, r));
         longest = std::max(longest, longest_edge(rest_corners(mesh_, r)));
         for (int g = 0; g < 4; ++g) {
           if (!marks_.is_cut(r, g)) {
             continue;
           }
-          const auto& local = tet_local::kFaces[g];
-          const Vec3& a = mesh_.rest_position(w[local[0]]);
-          const Vec3& b = mesh_.rest_position(w[local[1]]);
-          const Vec3& c = mesh_.rest_position(w[local[2]]);
-          const double area = 0.5 * (b - a).cross(c - a).norm();
-          cut_area += area;
+          const std::array<Vec3, 3> corners = rest_face(mesh_, r, g);
+          const double face_area = area(corners);
+          cut_area += face_area;
           const TetId other = mesh_.tet_neighbors(r)[g];
           if (other >= 0) {
-            shared_area[swept_side(other, (a + b + c) / 3.0, face_reach(r, g)) < 0 ? 0 : 1] += area;
+            shared_area[swept_side(other, centroid(corners), face_reach(r, g)) < 0 ? 0 : 1] +=
+                face_area;
           }
         }
       }
@@ -1137,13 +1093,7 @@ void SubdivisionCutter::keep_no_shards() {
         for (int g = 0; g < 4; ++g) {
           const TetId other = mesh_.tet_neighbors(r)[g];
           if (other >= 0 && marks_.is_cut(r, g) && !inside.contains(other)) {
-            const auto& local = tet_local::kFaces[g];
-            const Tet& w = mesh_.tet(r);
-            const Vec3 centre =
-                (mesh_.rest_position(w[local[0]]) + mesh_.rest_position(w[local[1]]) +
-                 mesh_.rest_position(w[local[2]])) /
-                3.0;
-            if (swept_side(other, centre, face_reach(r, g)) == join) {
+            if (swept_side(other, centroid(rest_face(mesh_, r, g)), face_reach(r, g)) == join) {
               marks_.unmark(r, g);
               ++stats_.shards_kept;
             }
@@ -1158,12 +1108,10 @@ double SubdivisionCutter::face_reach(TetId tet, int local_face) const {
   const Tet& v = mesh_.tet(tet);
   const auto& face = tet_local::kFaces[local_face];
   double offset = 0.0;
-  std::array<Vec3, 3> p;
   for (int k = 0; k < 3; ++k) {
     offset = std::max(offset, cut_offset_[v[face[k]]]);
-    p[k] = mesh_.rest_position(v[face[k]]);
   }
-  return offset * (1.0 + 1e-9) + 1e-9 * longest_edge(p);
+  return offset * (1.0 + 1e-9) + 1e-9 * longest_edge(rest_face(mesh_, tet, local_face));
 }
 
 int SubdivisionCutter::swept_side(TetId tet, const Vec3& near_point, double radius) const {
@@ -1189,7 +1137,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   ++stats_.moves;
   const auto triangles = swept_triangles(from, pose);
   for (const auto& triangle : triangles) {
-    stats_.swept_area += 0.5 * (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]).norm();
+    stats_.swept_area += area(triangle);
   }
   fresh_.clear();
   move_triangles_ = triangles;

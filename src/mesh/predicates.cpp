@@ -5,6 +5,7 @@
 #include <CGAL/squared_distance_3.h>
 
 #include <algorithm>
+#include <array>
 #include <limits>
 
 namespace incise {
@@ -67,8 +68,48 @@ bool triangle_intersects_tet(const Vec3& a, const Vec3& b, const Vec3& c, const 
   return CGAL::do_intersect(triangle, tet);
 }
 
+namespace {
+
+/// A cheap, conservative filter before the exact segment-tetrahedron test: false only when an
+/// axis (the segment's direction or two perpendiculars) separates them by more than round-off.
+/// Most tetrahedra near a long segment fail it, and CGAL's exact test is the costly part.
+bool segment_may_meet_tet(const Vec3& p, const Vec3& q, const std::array<Vec3, 4>& tet) {
+  const Vec3 d = q - p;
+  const double length = d.norm();
+  const Vec3 axis = d / length;
+  const Vec3 u = axis.unitOrthogonal();
+  const Vec3 w = axis.cross(u);
+  std::array<Vec3, 4> corners;
+  double scale = length;
+  for (std::size_t k = 0; k < 4; ++k) {
+    corners[k] = tet[k] - p;
+    scale = std::max(scale, corners[k].cwiseAbs().maxCoeff());
+  }
+  const double slack = 1e-9 * scale;
+  // The segment projects to [0, length] on its axis and to the point 0 on the perpendiculars.
+  const std::array<std::pair<Vec3, double>, 3> axes{{{axis, length}, {u, 0.0}, {w, 0.0}}};
+  for (const auto& [direction, high_end] : axes) {
+    double low = std::numeric_limits<double>::infinity();
+    double high = -low;
+    for (const Vec3& c : corners) {
+      const double x = c.dot(direction);
+      low = std::min(low, x);
+      high = std::max(high, x);
+    }
+    if (low > high_end + slack || high < -slack) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 bool segment_intersects_tet(const Vec3& p, const Vec3& q, const Vec3& p0, const Vec3& p1,
                             const Vec3& p2, const Vec3& p3) {
+  if (p != q && !segment_may_meet_tet(p, q, {p0, p1, p2, p3})) {
+    return false;
+  }
   const Kernel::Tetrahedron_3 tet(to_cgal(p0), to_cgal(p1), to_cgal(p2), to_cgal(p3));
   if (tet.is_degenerate()) {
     return false;
@@ -142,6 +183,12 @@ double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
 
 TetLocation locate_in_tet(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
                           const Vec3& d) {
+  // Outside the box is outside (the comparisons are exact), and far cheaper to find.
+  const Vec3 low = a.cwiseMin(b).cwiseMin(c).cwiseMin(d);
+  const Vec3 high = a.cwiseMax(b).cwiseMax(c).cwiseMax(d);
+  if ((p.array() < low.array()).any() || (p.array() > high.array()).any()) {
+    return TetLocation::kOutside;
+  }
   // p is inside when it is on the inner side of all four faces (each replacing one vertex).
   const Sign signs[4] = {orient3d(p, b, c, d), orient3d(a, p, c, d), orient3d(a, b, p, d),
                          orient3d(a, b, c, p)};
