@@ -66,6 +66,22 @@ Vec3 centroid(const std::array<Vec3, 4>& corners) {
 }
 
 /// Which side (-1, +1) of the plane of `triangle` a point is on (+1 on the plane).
+// Normalized volumes (1: regular). Blade-line vertices are optional (the crossings of the
+// swept surface open the cut without them), so one that would thin the tetrahedra around it
+// towards degenerate (1e-6) is left out: no child or slid tetrahedron goes below this floor
+// unless it was there already, however many tiny steps the blade takes.
+constexpr double kQualityFloor = 1e-4;
+
+// A slide may also thin a tetrahedron by at most half per pose below 0.05.
+double slide_floor(double before) {
+  constexpr double kGood = 0.05;
+  return std::max(std::min(kGood, 0.5 * before), std::min(before, kQualityFloor));
+}
+
+double quality(const std::array<Vec3, 4>& corners) {
+  return normalized_volume(corners[0], corners[1], corners[2], corners[3]);
+}
+
 int side_of(const Vec3& point, const std::array<Vec3, 3>& triangle) {
   const Vec3 normal = (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]);
   return normal.dot(point - triangle[0]) < 0.0 ? -1 : 1;
@@ -639,6 +655,44 @@ void SubdivisionCutter::insert_blade_points(const BladePose& pose, const Vec3& n
   }
 }
 
+bool SubdivisionCutter::splits_well(TetId holder, const std::array<double, 4>& weights) const {
+  // The tetrahedra the split replaces: the holder, and those sharing the face or edge the
+  // point lies on. Each child takes the point in place of one corner of that feature.
+  const Tet& v = mesh_.tet(holder);
+  std::vector<VertexId> feature;
+  Vec3 point = Vec3::Zero();
+  for (int k = 0; k < 4; ++k) {
+    if (weights[k] > 0.0) {
+      feature.push_back(v[k]);
+      point += weights[k] * mesh_.rest_position(v[k]);
+    }
+  }
+  std::vector<TetId> around{holder};
+  if (feature.size() == 3) {
+    const int opposite =
+        static_cast<int>(std::find(weights.begin(), weights.end(), 0.0) - weights.begin());
+    const TetId neighbor = mesh_.tet_neighbors(holder)[opposite];
+    if (neighbor >= 0) {
+      around.push_back(neighbor);
+    }
+  } else if (feature.size() == 2) {
+    const EdgeId edge = mesh_.find_edge(feature[0], feature[1]);
+    around.assign(mesh_.edge_tets(edge).begin(), mesh_.edge_tets(edge).end());
+  }
+  for (TetId t : around) {
+    const std::array<Vec3, 4> corners = rest_corners(mesh_, t);
+    const double floor = std::min(kQualityFloor, quality(corners));
+    for (VertexId x : feature) {
+      std::array<Vec3, 4> child = corners;
+      child[mesh_.local_index(t, x)] = point;
+      if (quality(child) < floor) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
 void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   const TetId holder = locate(point);
   if (holder == kInvalidId) {
@@ -713,6 +767,10 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
     ++stats_.vertices_snapped;
     return;
   }
+  if (!splits_well(holder, weights)) {
+    ++stats_.blade_points_left_out;
+    return;
+  }
   if (count == 2) {
     int ends[2] = {-1, -1};
     for (int k = 0, n = 0; k < 4; ++k) {
@@ -770,14 +828,6 @@ double SubdivisionCutter::cut_area_around(VertexId vertex) const {
 
 void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
   const Vec3 direction = pose.base - pose.tip;
-  // Normalized volumes (1: regular). A slide may thin a tetrahedron around the vertex by at
-  // most half per pose below 0.05, and never below a floor far above degenerate (1e-6): many
-  // tiny steps would otherwise thin it without bound.
-  const auto quality_threshold = [](double before) {
-    constexpr double kFloor = 1e-4;
-    constexpr double kGood = 0.05;
-    return std::max(std::min(kGood, 0.5 * before), std::min(before, kFloor));
-  };
 
   for (const Provisional& point : provisional_) {
     // Where the new blade line meets the feature the vertex was put in: the plane of its face,
@@ -831,8 +881,7 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
       std::array<Vec3, 4> after = before;
       after[local] = rest;
       ok = orient3d(after[0], after[1], after[2], after[3]) == Sign::kPositive &&
-           normalized_volume(after[0], after[1], after[2], after[3]) >=
-               quality_threshold(normalized_volume(before[0], before[1], before[2], before[3]));
+           quality(after) >= slide_floor(quality(before));
       if (ok && positions_ != nullptr) {
         std::array<Vec3, 4> current{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
         current[local] = now;

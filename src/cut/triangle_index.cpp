@@ -76,27 +76,58 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
 
 template <typename Visit>
 void TriangleIndex::within(const Vec3& point, double radius, Visit visit) const {
-  const double radius2 = radius * radius;
+  // Cells in shells of growing distance around the point's cell, so a nearest-triangle query
+  // among thousands of thin swept strips (a finely sampled path) stops once the shells lie
+  // farther than the nearest triangle found: the box of the whole radius held up to a million
+  // cells at the finest level.
+  double radius2 = radius * radius;
   for (int level : levels_) {
     const double size = cell_size(level);
+    const Cell centre = (point.array() / size).floor().cast<long>();
     const Cell first = ((point.array() - radius) / size).floor().cast<long>();
     const Cell last = ((point.array() + radius) / size).floor().cast<long>();
-    for (long k = first[2]; k <= last[2]; ++k) {
-      for (long j = first[1]; j <= last[1]; ++j) {
-        for (long i = first[0]; i <= last[0]; ++i) {
-          const auto it = cells_.find(key(level, Cell(i, j, k)));
-          if (it == cells_.end()) {
-            continue;
+    const long shells = std::max({centre[0] - first[0], last[0] - centre[0], centre[1] - first[1],
+                                  last[1] - centre[1], centre[2] - first[2], last[2] - centre[2]});
+    const auto visit_cell = [&](long i, long j, long k) {
+      if (i < first[0] || i > last[0] || j < first[1] || j > last[1] || k < first[2] ||
+          k > last[2]) {
+        return false;
+      }
+      const auto it = cells_.find(key(level, Cell(i, j, k)));
+      if (it == cells_.end()) {
+        return false;
+      }
+      const double reach = std::sqrt(radius2);
+      for (std::uint32_t index : it->second) {
+        const Stored& stored = triangles_[index];
+        if ((point.array() < stored.low.array() - reach).any() ||
+            (point.array() > stored.high.array() + reach).any()) {
+          continue;
+        }
+        const double d2 = squared_distance_to_triangle(point, stored.corners[0], stored.corners[1],
+                                                       stored.corners[2]);
+        if (d2 <= radius2) {
+          const double next = visit(index, d2);
+          if (next < 0.0) {
+            return true;
           }
-          for (std::uint32_t index : it->second) {
-            const Stored& s = triangles_[index];
-            if ((point.array() < s.low.array() - radius).any() ||
-                (point.array() > s.high.array() + radius).any()) {
-              continue;
-            }
-            const double d2 =
-                squared_distance_to_triangle(point, s.corners[0], s.corners[1], s.corners[2]);
-            if (d2 <= radius2 && visit(index, d2)) {
+          radius2 = std::min(radius2, next);
+        }
+      }
+      return false;
+    };
+    for (long shell = 0; shell <= shells; ++shell) {
+      // Every point of a cell in this shell is at least (shell - 1) cells away.
+      const double gap = static_cast<double>(shell - 1) * size;
+      if (gap > 0.0 && gap * gap > radius2) {
+        break;
+      }
+      for (long k = -shell; k <= shell; ++k) {
+        for (long j = -shell; j <= shell; ++j) {
+          const bool face = std::abs(k) == shell || std::abs(j) == shell;
+          const long step = face || shell == 0 ? 1 : 2 * shell;
+          for (long i = -shell; i <= shell; i += step) {
+            if (visit_cell(centre[0] + i, centre[1] + j, centre[2] + k)) {
               return;
             }
           }
@@ -110,11 +141,11 @@ std::int64_t TriangleIndex::nearest(const Vec3& point, double radius, double* di
   std::int64_t best = -1;
   double best2 = std::numeric_limits<double>::infinity();
   within(point, radius, [&](std::uint32_t index, double d2) {
-    if (d2 < best2) {
+    if (d2 < best2 || (d2 == best2 && static_cast<std::int64_t>(index) < best)) {
       best2 = d2;
       best = index;
     }
-    return false;
+    return best2;  // only nearer triangles matter from here on
   });
   if (distance != nullptr) {
     *distance = std::sqrt(best2);
@@ -124,7 +155,10 @@ std::int64_t TriangleIndex::nearest(const Vec3& point, double radius, double* di
 
 bool TriangleIndex::any_within(const Vec3& point, double radius) const {
   bool found = false;
-  within(point, radius, [&](std::uint32_t, double) { return found = true; });
+  within(point, radius, [&](std::uint32_t, double) {
+    found = true;
+    return -1.0;
+  });
   return found;
 }
 

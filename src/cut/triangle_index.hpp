@@ -45,8 +45,9 @@ class TriangleIndex {
   using Cell = Eigen::Array<long, 3, 1>;
   [[nodiscard]] static std::uint64_t key(int level, const Cell& cell);
   [[nodiscard]] double cell_size(int level) const;
-  /// Calls visit(index, squared distance) for stored triangles within `radius`; stops when it
-  /// returns true.
+  /// Calls visit(index, squared distance) for stored triangles within `radius`, nearer cells
+  /// first; visit returns the squared radius still of interest (only triangles at most that
+  /// far are visited from then on), or a negative number to stop.
   template <typename Visit>
   void within(const Vec3& point, double radius, Visit visit) const;
 

@@ -76,8 +76,9 @@ struct CutStats {
   std::size_t edges_split = 0;
   std::size_t vertices_snapped = 0;
   std::size_t vertices_duplicated = 0;
-  std::size_t blade_vertices = 0;  ///< vertices inserted on the blade line
-  std::size_t blade_slides = 0;    ///< blade-line vertices slid along with the blade
+  std::size_t blade_vertices = 0;         ///< vertices inserted on the blade line
+  std::size_t blade_slides = 0;           ///< blade-line vertices slid along with the blade
+  std::size_t blade_points_left_out = 0;  ///< not inserted: they would thin a tet below 1e-4
   std::size_t generic_splits = 0;  ///< tetrahedra given the generic split (SplitMode::kGeneric)
   std::size_t cut_faces = 0;       ///< faces found on the cut (each counted once)
   std::size_t shards_kept = 0;     ///< cut faces given back so a thin sliver is not cut out
@@ -173,6 +174,9 @@ class SubdivisionCutter {
   /// there.
   void insert_blade_points(const BladePose& pose, const Vec3& normal);
   void insert_point(const Vec3& point, const Vec3& normal);
+  /// Whether putting a point with these weights into `holder` (on its face or edge where
+  /// weights are 0) leaves every child above the quality floor.
+  [[nodiscard]] bool splits_well(TetId holder, const std::array<double, 4>& weights) const;
   /// Moves each blade-line vertex of the previous pose to where the blade line of `pose`
   /// meets the face (or tetrahedron, for the tip) it was put in, if every tetrahedron around
   /// it stays positive and no thinner than it was (or than a floor).
