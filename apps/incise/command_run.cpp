@@ -1,5 +1,5 @@
-// incise run [SCENE] [--frames N] [--out DIR] [--report FILE] [--threads N]: runs a scene
-// headless.
+// incise run [SCENE] [--frames N] [--out DIR] [--report FILE] [--threads N] [--tool CSV]
+// [--record-tool CSV]: runs a scene headless, a short loop over the engine.
 
 #include <fmt/format.h>
 #include <tbb/global_control.h>
@@ -11,11 +11,13 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "commands.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
-#include "incise/scene/simulation.hpp"
+#include "incise/engine/engine.hpp"
+#include "incise/solve/integrators.hpp"
 
 namespace incise::app {
 namespace {
@@ -69,6 +71,15 @@ Runner add_run_command(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   command->add_option("--out", *out, "Output folder (overrides the scene's output.dir)");
   command->add_option("--report", *report_path, "Write a JSON report of per-stage timings here");
+  auto tool_path = std::make_shared<std::string>();
+  command
+      ->add_option("--tool", *tool_path,
+                   "Blade path CSV (t,tip_x,tip_y,tip_z,base_x,base_y,base_z; s, m) replacing the "
+                   "scene's tool path, e.g. one recorded with --record-tool")
+      ->check(CLI::ExistingFile);
+  auto record_path = std::make_shared<std::string>();
+  command->add_option("--record-tool", *record_path,
+                      "Write the blade pose of every frame to this CSV (replay with --tool)");
   auto threads = std::make_shared<int>(0);
   command
       ->add_option("--threads", *threads,
@@ -81,28 +92,40 @@ Runner add_run_command(CLI::App& app) {
       thread_limit = std::make_unique<tbb::global_control>(
           tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(*threads));
     }
-    const SceneDescription scene = scene_path->empty() ? default_scene() : load_scene(*scene_path);
+    SceneDescription scene = scene_path->empty() ? default_scene() : load_scene(*scene_path);
+    if (!tool_path->empty() && scene.tool.cutter == CutterKind::kNone) {
+      scene.tool.cutter = CutterKind::kSubdivision;  // a blade path given to cut with
+    }
     const std::string name =
         scene_path->empty() ? "default" : std::filesystem::path(*scene_path).stem().string();
     const int frame_count = *frames >= 0 ? *frames : scene.frames;
     const std::filesystem::path output =
         out->empty() ? scene.output_dir : std::filesystem::path(*out);
 
-    Simulation simulation(scene);
-    for (const std::string& warning : simulation.warnings()) {
+    Engine engine(scene);
+    if (!tool_path->empty()) {
+      engine.set_tool_source(ScriptedToolPath::from_csv(*tool_path));
+    }
+    for (const std::string& warning : engine.warnings()) {
       std::cerr << "warning: " << warning << "\n";
     }
     std::cerr << fmt::format(
         "{}: {} vertices, {} tetrahedra, {:.4g} kg, {} with dt = {:.4g} s, {} frames\n",
-        scene_path->empty() ? "default scene" : *scene_path, simulation.mesh().vertex_count(),
-        simulation.mesh().tet_count(), simulation.total_mass(), simulation.integrator().name(),
+        scene_path->empty() ? "default scene" : *scene_path, engine.mesh().vertex_count(),
+        engine.mesh().tet_count(), engine.total_mass(), engine.integrator().name(),
         scene.integrator.dt, frame_count);
+    VtuSeriesSink series(output, name, scene.vtu_every, frame_count);
+    engine.add_sink(series);
+    std::optional<ToolPathRecorder> recorder;
+    if (!record_path->empty()) {
+      engine.add_sink(recorder.emplace(*record_path));
+    }
     Progress progress(frame_count);
     const auto start = Clock::now();
     auto elapsed = [&start] { return seconds_since(start); };
-    const RunResult result =
-        simulation.run(frame_count, output, name, scene.vtu_every,
-                       [&](const FrameRecord& record) { progress.update(record, elapsed()); });
+    const RunResult result = run(engine, frame_count, [&](const FrameRecord& record) {
+      progress.update(record, elapsed());
+    });
     const double wall = elapsed();
     if (result.diverged) {
       progress.interrupt();
@@ -135,17 +158,17 @@ Runner add_run_command(CLI::App& app) {
           "final: t = {:.4g} s, kinetic energy {:.4g} J, max displacement {:.4g} m, {} tets\n",
           last.time, last.kinetic_energy, last.max_displacement, last.tets);
     }
-    std::cout << "ParaView series: " << result.pvd.string() << "\n";
+    std::cout << "ParaView series: " << series.pvd().string() << "\n";
 
     if (!report_path->empty()) {
       nlohmann::ordered_json report;
       report["scene"] = scene_path->empty() ? "default" : *scene_path;
-      report["integrator"] = simulation.integrator().name();
+      report["integrator"] = engine.integrator().name();
       report["dt"] = scene.integrator.dt;
       report["frame_dt"] = scene.frame_dt;
       report["frames_run"] = result.frames.size();
-      report["vertices"] = simulation.mesh().vertex_count();
-      report["tets"] = simulation.mesh().tet_count();
+      report["vertices"] = engine.mesh().vertex_count();
+      report["tets"] = engine.mesh().tet_count();
       report["kinetic_energy"] = result.frames.empty() ? 0.0 : result.frames.back().kinetic_energy;
       report["max_displacement"] =
           result.frames.empty() ? 0.0 : result.frames.back().max_displacement;
@@ -160,7 +183,7 @@ Runner add_run_command(CLI::App& app) {
                            {"rd", 1e3 * sums[3] / count},
                            {"total", 1e3 * total / count}};
       report["frames_per_second"] = total > 0.0 ? count / total : 0.0;
-      report["pvd"] = result.pvd.string();
+      report["pvd"] = series.pvd().string();
       nlohmann::ordered_json per_frame = nlohmann::ordered_json::array();
       for (const FrameRecord& record : result.frames) {
         per_frame.push_back({{"frame", record.frame},
@@ -173,6 +196,7 @@ Runner add_run_command(CLI::App& app) {
                              {"tets", record.tets},
                              {"kinetic_energy", record.kinetic_energy},
                              {"max_displacement", record.max_displacement},
+                             {"cut", record.cut},
                              {"written", record.written}});
       }
       report["per_frame_ms"] = per_frame;

@@ -1,8 +1,10 @@
 #include "incise/scene/scene.hpp"
 
 #include <algorithm>
+#include <array>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <sstream>
 
 #include "incise/core/error.hpp"
@@ -11,6 +13,39 @@ namespace incise {
 namespace {
 
 using Json = nlohmann::json;
+
+// The scene files' names of each kind: the only place they are spelled.
+constexpr std::array<std::pair<std::string_view, ModelKind>, 2> kModels{{
+    {"mass-spring", ModelKind::kMassSpring},
+    {"corotational-fem", ModelKind::kCorotationalFem},
+}};
+constexpr std::array<std::pair<std::string_view, IntegratorKind>, 6> kIntegrators{{
+    {"explicit-euler", IntegratorKind::kExplicitEuler},
+    {"symplectic-euler", IntegratorKind::kSymplecticEuler},
+    {"rk4", IntegratorKind::kRungeKutta4},
+    {"rk4-hierarchical", IntegratorKind::kHierarchicalRungeKutta4},
+    {"backward-euler", IntegratorKind::kBackwardEuler},
+    {"static", IntegratorKind::kStatic},
+}};
+constexpr std::array<std::pair<std::string_view, CutterKind>, 2> kCutters{{
+    {"subdivision", CutterKind::kSubdivision},
+    {"none", CutterKind::kNone},
+}};
+constexpr std::array<std::pair<std::string_view, SplitMode>, 2> kSplits{{
+    {"minimal", SplitMode::kMinimal},
+    {"generic", SplitMode::kGeneric},
+}};
+
+template <typename Kind, std::size_t N>
+std::string_view find_name(const std::array<std::pair<std::string_view, Kind>, N>& table,
+                           Kind kind) {
+  for (const auto& [name, value] : table) {
+    if (value == kind) {
+      return name;
+    }
+  }
+  return "?";
+}
 
 std::size_t edit_distance(const std::string& a, const std::string& b) {
   std::vector<std::size_t> row(b.size() + 1);
@@ -183,6 +218,24 @@ class ObjectReader {
       context_.fail(child(key), "must be a string, not " + type_name(value));
     }
     return value.get<std::string>();
+  }
+  /// One of the names in `table` (name, value); an unknown name is an error listing them.
+  template <typename Kind>
+  Kind choice(const std::string& key, Kind fallback,
+              std::span<const std::pair<std::string_view, Kind>> table,
+              const std::string& what) const {
+    if (!has(key)) {
+      return fallback;
+    }
+    const std::string name = string(key, "");
+    std::string known;
+    for (const auto& [candidate, kind] : table) {
+      if (candidate == name) {
+        return kind;
+      }
+      known += (known.empty() ? "" : ", ") + std::string(candidate);
+    }
+    context_.fail(child(key), "unknown " + what + " '" + name + "' (known: " + known + ")");
   }
   Vec3 vec3(const std::string& key, const Vec3& fallback) const {
     return has(key) ? parse_vec3(context_, at(key), child(key)) : fallback;
@@ -361,8 +414,8 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     const ObjectReader model(
         context, top.at("model"), "model",
         {"type", "spring_damping_ratio", "prestrain", "rayleigh", "tangent", "assemble"});
-    scene.model_type = model.string("type", "mass-spring");
-    if (scene.model_type == "mass-spring") {
+    scene.model_type = model.choice<ModelKind>("type", ModelKind::kMassSpring, kModels, "model");
+    if (scene.model_type == ModelKind::kMassSpring) {
       for (const char* key : {"rayleigh", "tangent", "assemble"}) {
         if (model.has(key)) {
           context.fail(std::string("model.") + key, "applies to corotational-fem only");
@@ -374,7 +427,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
       if (scene.mass_spring.prestrain >= 1.0) {
         context.fail("model.prestrain", "must be below 1");
       }
-    } else if (scene.model_type == "corotational-fem") {
+    } else {
       for (const char* key : {"spring_damping_ratio", "prestrain"}) {
         if (model.has(key)) {
           context.fail(std::string("model.") + key, "applies to mass-spring only");
@@ -404,9 +457,6 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
         fem_tangent_given = true;
       }
       scene.fem.assemble = model.boolean("assemble", scene.fem.assemble);
-    } else {
-      context.fail("model.type", "unknown model '" + scene.model_type +
-                                     "' (known: mass-spring, corotational-fem)");
     }
   }
 
@@ -423,16 +473,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
                                   {"type", "dt", "iterations", "max_depth", "focus", "newton_steps",
                                    "solver", "max_iterations", "tolerance"});
     IntegratorSpec& spec = scene.integrator;
-    spec.type = integrator.string("type", spec.type);
-    const std::vector<std::string> known{"explicit-euler",   "symplectic-euler", "rk4",
-                                         "rk4-hierarchical", "backward-euler",   "static"};
-    if (std::find(known.begin(), known.end(), spec.type) == known.end()) {
-      context.fail(
-          "integrator.type",
-          "unknown integrator '" + spec.type +
-              "' (known: explicit-euler, symplectic-euler, rk4, rk4-hierarchical, backward-euler, "
-              "static)");
-    }
+    spec.type = integrator.choice<IntegratorKind>("type", spec.type, kIntegrators, "integrator");
     spec.dt = integrator.positive("dt", spec.dt);
     spec.hierarchical.iterations =
         integrator.integer("iterations", spec.hierarchical.iterations, 1, 1 << 20);
@@ -476,8 +517,8 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   }
   // Newton's static solve converges quadratically with the projected tangent; dynamics use
   // the cheaper warped one unless the scene says otherwise.
-  if (scene.model_type == "corotational-fem" && !fem_tangent_given &&
-      scene.integrator.type == "static") {
+  if (scene.model_type == ModelKind::kCorotationalFem && !fem_tangent_given &&
+      scene.integrator.type == IntegratorKind::kStatic) {
     scene.fem.tangent = TangentKind::kProjected;
   }
 
@@ -548,27 +589,20 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
         scene.tool.poses.push_back(pose);
       }
     }
-    scene.tool.cutter = "subdivision";
+    scene.tool.cutter = CutterKind::kSubdivision;
   }
   if (top.has("cutter")) {
     const ObjectReader cutter(context, top.at("cutter"), "cutter",
                               {"type", "snap_fraction", "split"});
-    scene.tool.cutter = cutter.string("type", "subdivision");
-    if (scene.tool.cutter != "subdivision" && scene.tool.cutter != "none") {
-      context.fail("cutter.type",
-                   "unknown cutter '" + scene.tool.cutter + "' (known: subdivision, none)");
-    }
+    scene.tool.cutter =
+        cutter.choice<CutterKind>("type", CutterKind::kSubdivision, kCutters, "cutter");
     scene.tool.snap_fraction = cutter.positive("snap_fraction", 0.1);
     if (scene.tool.snap_fraction >= 0.5) {
       context.fail("cutter.snap_fraction", "must be below 0.5");
     }
-    scene.tool.split = cutter.string("split", "minimal");
-    if (scene.tool.split != "minimal" && scene.tool.split != "generic") {
-      context.fail("cutter.split",
-                   "unknown split '" + scene.tool.split + "' (known: minimal, generic)");
-    }
+    scene.tool.split = cutter.choice<SplitMode>("split", SplitMode::kMinimal, kSplits, "split");
   }
-  if (scene.tool.cutter != "none" && scene.tool.poses.empty()) {
+  if (scene.tool.cutter != CutterKind::kNone && scene.tool.poses.empty()) {
     context.fail("cutter", "a cutter needs a tool: add \"tool\": {\"blade_path\": CSV}");
   }
 
@@ -609,6 +643,19 @@ SceneDescription load_scene(const std::filesystem::path& file) {
 
 SceneDescription default_scene() {
   return parse_scene(default_scene_text(), {});
+}
+
+std::string_view name_of(ModelKind kind) {
+  return find_name(kModels, kind);
+}
+std::string_view name_of(IntegratorKind kind) {
+  return find_name(kIntegrators, kind);
+}
+std::string_view name_of(CutterKind kind) {
+  return find_name(kCutters, kind);
+}
+std::string_view name_of(SplitMode mode) {
+  return find_name(kSplits, mode);
 }
 
 }  // namespace incise

@@ -44,6 +44,22 @@ double explicit_stability_limit(const DynamicSystem& system, const std::string& 
   return (scheme == "rk4" || scheme == "rk4-hierarchical" ? 2.78 : 2.0) / omega;
 }
 
+double Integrator::stability_limit(const DynamicSystem& system) const {
+  return explicit_stability_limit(system, "explicit-euler");
+}
+double RungeKutta4::stability_limit(const DynamicSystem& system) const {
+  return explicit_stability_limit(system, "rk4");
+}
+double HierarchicalRungeKutta4::stability_limit(const DynamicSystem& /*system*/) const {
+  return std::numeric_limits<double>::infinity();
+}
+double BackwardEuler::stability_limit(const DynamicSystem& /*system*/) const {
+  return std::numeric_limits<double>::infinity();
+}
+double StaticEquilibrium::stability_limit(const DynamicSystem& /*system*/) const {
+  return std::numeric_limits<double>::infinity();
+}
+
 // ---- Euler ----------------------------------------------------------------------------------
 
 namespace {

@@ -6,9 +6,9 @@
 #include <sstream>
 
 #include "incise/core/error.hpp"
+#include "incise/engine/engine.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
-#include "incise/scene/simulation.hpp"
 #include "test_support.hpp"
 
 namespace incise {
@@ -30,11 +30,11 @@ TEST(SceneParsing, DefaultSceneIsTheSeedBlock) {
   EXPECT_FALSE(scene.mesh_file.has_value());
   EXPECT_EQ(scene.box.cells, (std::array<int, 3>{4, 6, 4}));
   EXPECT_EQ(scene.box.tets_per_cell, 6);
-  EXPECT_EQ(scene.integrator.type, "rk4-hierarchical");
+  EXPECT_EQ(scene.integrator.type, IntegratorKind::kHierarchicalRungeKutta4);
   EXPECT_EQ(scene.material_name, "liver");
   EXPECT_EQ(scene.fixed.size(), 2u);
   EXPECT_GT(scene.frames, 0);
-  EXPECT_EQ(scene.tool.cutter, "subdivision");
+  EXPECT_EQ(scene.tool.cutter, CutterKind::kSubdivision);
   EXPECT_EQ(scene.tool.poses.size(), 2u);
 }
 
@@ -98,7 +98,7 @@ TEST(SceneParsing, CorotationalFemKeys) {
           "integrator": {"type": "backward-euler", "dt": 0.01, "newton_steps": 2,
                          "solver": {"type": "direct", "start_history": 3}}})",
       "fem.json");
-  EXPECT_EQ(scene.model_type, "corotational-fem");
+  EXPECT_EQ(scene.model_type, ModelKind::kCorotationalFem);
   EXPECT_DOUBLE_EQ(scene.fem.rayleigh_mass, 0.1);
   EXPECT_DOUBLE_EQ(scene.fem.rayleigh_stiffness, 0.002);
   EXPECT_FALSE(scene.fem.assemble);
@@ -175,7 +175,7 @@ TEST(SceneParsing, RegionsThatSelectNothingAreErrors) {
       R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "fixed": [{"box": [[5, 5, 5], [6, 6, 6]]}]})",
       "r.json");
   try {
-    Simulation simulation(scene);
+    Engine engine(scene);
     FAIL();
   } catch (const InputError& error) {
     EXPECT_NE(std::string(error.what()).find("fixed[0] selects no vertex"), std::string::npos)
@@ -190,11 +190,22 @@ std::string slurp(const std::filesystem::path& path) {
   return buffer.str();
 }
 
+/// Runs `frames` frames into a ParaView series in `dir` (every `every`-th frame, first, last).
+RunResult run_to(Engine& engine, int frames, const std::filesystem::path& dir,
+                 const std::string& name, int every, std::filesystem::path* pvd = nullptr) {
+  VtuSeriesSink series(dir, name, every, frames);
+  engine.add_sink(series);
+  if (pvd != nullptr) {
+    *pvd = series.pvd();
+  }
+  return run(engine, frames);
+}
+
 TEST(Simulation, SameSceneSameBytes) {
   const auto dir = test::scratch_dir("deterministic");
   for (const char* run : {"a", "b"}) {
-    Simulation simulation(default_scene());
-    const RunResult result = simulation.run(40, dir / run, "default", 10);
+    Engine engine(default_scene());
+    const RunResult result = run_to(engine, 40, dir / run, "default", 10);
     ASSERT_FALSE(result.diverged);
   }
   std::size_t compared = 0;
@@ -214,16 +225,17 @@ TEST(Simulation, DivergenceStopsAndKeepsWrittenFrames) {
     "integrator": {"type": "symplectic-euler", "dt": 0.002},
     "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}], "gravity": [0, 0, -9.81], "frames": 200})",
                                        "diverging.json");
-  Simulation simulation(scene);
-  ASSERT_FALSE(simulation.warnings().empty());
-  EXPECT_NE(simulation.warnings().front().find("stability limit"), std::string::npos);
+  Engine engine(scene);
+  ASSERT_FALSE(engine.warnings().empty());
+  EXPECT_NE(engine.warnings().front().find("stability limit"), std::string::npos);
   const auto dir = test::scratch_dir("diverging");
-  const RunResult result = simulation.run(200, dir, "diverging", 1);
+  std::filesystem::path pvd_path;
+  const RunResult result = run_to(engine, 200, dir, "diverging", 1, &pvd_path);
   ASSERT_TRUE(result.diverged);
   EXPECT_NE(result.divergence.find("diverged in frame"), std::string::npos) << result.divergence;
   EXPECT_LT(result.frames.size(), 200u);
   // Every frame listed in the series exists and holds only finite numbers (read back).
-  const std::string pvd = slurp(result.pvd);
+  const std::string pvd = slurp(pvd_path);
   for (const FrameRecord& record : result.frames) {
     EXPECT_TRUE(std::isfinite(record.kinetic_energy));
   }
@@ -239,7 +251,7 @@ TEST(Simulation, DivergenceStopsAndKeepsWrittenFrames) {
 }
 
 /// The 576-tet block was cut, and stayed valid, watertight and of the same mass (kg).
-void expect_cut_and_intact(const Simulation& simulation, double mass) {
+void expect_cut_and_intact(const Engine& simulation, double mass) {
   const TetMesh& mesh = simulation.mesh();
   EXPECT_GT(mesh.tet_count(), 576u);
   EXPECT_TRUE(validate(mesh).ok()) << validate(mesh).describe();
@@ -248,7 +260,7 @@ void expect_cut_and_intact(const Simulation& simulation, double mass) {
 }
 
 /// How far apart (m) the copies a cut made have moved from their originals: the wound's opening.
-double widest_opening(const Simulation& simulation, std::size_t* copies = nullptr) {
+double widest_opening(const Engine& simulation, std::size_t* copies = nullptr) {
   const TetMesh& mesh = simulation.mesh();
   double widest = 0.0;
   std::size_t count = 0;
@@ -268,10 +280,10 @@ double widest_opening(const Simulation& simulation, std::size_t* copies = nullpt
 }
 
 TEST(Simulation, CorotationalFemFollowsTheCutAndTheWoundOpens) {
-  Simulation simulation(
+  Engine simulation(
       load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "fem_cut_pull.json"));
   const double mass = simulation.total_mass();
-  const RunResult result = simulation.run(160, test::scratch_dir("fem-cut"), "fem_cut", 80);
+  const RunResult result = run_to(simulation, 160, test::scratch_dir("fem-cut"), "fem_cut", 80);
   ASSERT_FALSE(result.diverged) << result.divergence;
   expect_cut_and_intact(simulation, mass);
   const double widest = widest_opening(simulation);
@@ -281,9 +293,9 @@ TEST(Simulation, CorotationalFemFollowsTheCutAndTheWoundOpens) {
 }
 
 TEST(Simulation, DefaultSceneCutsTheBlockAndTheWoundOpens) {
-  Simulation simulation(default_scene());
+  Engine simulation(default_scene());
   const double mass = simulation.total_mass();
-  const RunResult result = simulation.run(150, test::scratch_dir("fig10"), "default", 50);
+  const RunResult result = run_to(simulation, 150, test::scratch_dir("fig10"), "default", 50);
   ASSERT_FALSE(result.diverged) << result.divergence;
   expect_cut_and_intact(simulation, mass);
   const TetMesh& mesh = simulation.mesh();
@@ -300,11 +312,11 @@ TEST(Simulation, DefaultSceneCutsTheBlockAndTheWoundOpens) {
 }
 
 TEST(Simulation, MassIsConservedAndTheBlockSettles) {
-  Simulation simulation(
+  Engine simulation(
       load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "block_press.json"));
   const double mass = simulation.total_mass();
   EXPECT_NEAR(mass, 1060.0 * 0.04 * 0.06 * 0.04, 1e-12);  // kg: liver density times volume
-  const RunResult result = simulation.run(150, test::scratch_dir("settle"), "default", 50);
+  const RunResult result = run_to(simulation, 150, test::scratch_dir("settle"), "default", 50);
   ASSERT_FALSE(result.diverged);
   const FrameRecord& last = result.frames.back();
   EXPECT_LT(last.kinetic_energy, 1e-12);

@@ -6,10 +6,12 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
 #include "incise/cut/blade.hpp"
+#include "incise/cut/subdivision_cutter.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/physics/corotational_fem.hpp"
 #include "incise/physics/mass_spring.hpp"
@@ -18,6 +20,24 @@
 #include "incise/solve/integrators.hpp"
 
 namespace incise {
+
+enum class ModelKind { kMassSpring, kCorotationalFem };
+enum class IntegratorKind {
+  kExplicitEuler,
+  kSymplecticEuler,
+  kRungeKutta4,
+  kHierarchicalRungeKutta4,
+  kBackwardEuler,
+  kStatic
+};
+enum class CutterKind { kNone, kSubdivision };
+
+/// The names scene files use for each kind ("rk4-hierarchical", ...), in one table each so the
+/// parser, error messages and reports agree.
+[[nodiscard]] std::string_view name_of(ModelKind kind);
+[[nodiscard]] std::string_view name_of(IntegratorKind kind);
+[[nodiscard]] std::string_view name_of(CutterKind kind);
+[[nodiscard]] std::string_view name_of(SplitMode mode);
 
 /// A set of vertices: those whose rest position lies in a box, or explicit ids.
 struct RegionSpec {
@@ -38,7 +58,7 @@ struct ForceSpec {
 };
 
 struct IntegratorSpec {
-  std::string type = "rk4-hierarchical";
+  IntegratorKind type = IntegratorKind::kHierarchicalRungeKutta4;
   double dt = 1e-3;  ///< s
   HierarchicalOptions hierarchical;
   /// Focus of the hierarchical traversal: a vertex id or the vertex nearest a point (m).
@@ -50,9 +70,9 @@ struct IntegratorSpec {
 /// The scalpel: a path of poses, followed frame by frame (interpolated at frame times).
 struct ToolSpec {
   std::vector<BladePose> poses;  ///< empty: no tool
-  std::string cutter = "none";   ///< "subdivision" or "none"
+  CutterKind cutter = CutterKind::kNone;
   double snap_fraction = 0.1;
-  std::string split = "minimal";  ///< "minimal" or "generic" (the seed's 1:17 style)
+  SplitMode split = SplitMode::kMinimal;  ///< kGeneric: the seed's 1:17 style, for comparison
 };
 
 struct SceneDescription {
@@ -63,7 +83,7 @@ struct SceneDescription {
   BoxGridOptions box;         ///< used when mesh_file is empty
   std::string material_name;  ///< preset name, or "custom"
   Material material;
-  std::string model_type = "mass-spring";
+  ModelKind model_type = ModelKind::kMassSpring;
   MassSpringParameters mass_spring;
   CorotationalFemParameters fem;
   DampingParameters damping;

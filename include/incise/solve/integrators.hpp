@@ -39,6 +39,12 @@ class Integrator {
   /// Advances the state from time t to t + dt.
   virtual void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
                     double dt) = 0;
+  /// Implicit schemes are stable at any step; explicit ones only below stability_limit().
+  [[nodiscard]] virtual bool implicit() const { return false; }
+  /// The largest step (s) this scheme takes stably on the system (infinity: any step).
+  [[nodiscard]] virtual double stability_limit(const DynamicSystem& system) const;
+  /// Where the tool acts: schemes that relax locally start there (others ignore it).
+  virtual void focus_on(VertexId /*vertex*/) {}
   [[nodiscard]] const IntegratorStats& stats() const { return stats_; }
 
  protected:
@@ -74,6 +80,7 @@ class RungeKutta4 final : public Integrator {
   [[nodiscard]] std::string name() const override { return "rk4"; }
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
             double dt) override;
+  [[nodiscard]] double stability_limit(const DynamicSystem& system) const override;
 
  private:
   void accelerations(DynamicSystem& system, double t, std::span<const Vec3> x,
@@ -99,8 +106,11 @@ class HierarchicalRungeKutta4 final : public Integrator {
   [[nodiscard]] std::string name() const override { return "rk4-hierarchical"; }
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
             double dt) override;
+  /// Splits a step into sweeps within the RK4 limit itself: stable at any dt.
+  [[nodiscard]] double stability_limit(const DynamicSystem& system) const override;
   /// Focus of the traversal, or kInvalidId for full relaxation.
   void set_focus(VertexId focus) { focus_ = focus; }
+  void focus_on(VertexId vertex) override { focus_ = vertex; }
   [[nodiscard]] VertexId focus() const { return focus_; }
   /// Breadth-first depth of each vertex advanced by the last step (-1: not advanced).
   [[nodiscard]] const std::vector<int>& last_depths() const { return depth_; }
@@ -136,6 +146,8 @@ class BackwardEuler final : public Integrator {
  public:
   explicit BackwardEuler(const BackwardEulerOptions& options = {});
   [[nodiscard]] std::string name() const override { return "backward-euler"; }
+  [[nodiscard]] bool implicit() const override { return true; }
+  [[nodiscard]] double stability_limit(const DynamicSystem& system) const override;
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
             double dt) override;
 
@@ -164,6 +176,8 @@ class StaticEquilibrium final : public Integrator {
  public:
   explicit StaticEquilibrium(const StaticOptions& options = {});
   [[nodiscard]] std::string name() const override { return "static"; }
+  [[nodiscard]] bool implicit() const override { return true; }
+  [[nodiscard]] double stability_limit(const DynamicSystem& system) const override;
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
             double dt) override;
   /// Solves at time t; returns whether the tolerance was met.

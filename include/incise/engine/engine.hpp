@@ -1,0 +1,109 @@
+#pragma once
+// The engine: a scene you step one frame at a time (the seed's Fig. 1 loop: tool pose,
+// collision detection, topology and geometry changes, relaxation, output), fed by a
+// ToolPoseSource and watched through FrameSinks and published Snapshots.
+//
+// Thread rule: one thread owns the engine and calls every member function. Other threads (a
+// viewer, a 1 kHz device loop) touch only (a) snapshots(): take latest() at any time, never
+// blocking step(); (b) a LiveToolPose they were given, through set() and lift(). Nothing
+// else, mesh() and state() included, may be read while step() runs.
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "incise/engine/frame_sink.hpp"
+#include "incise/engine/snapshot.hpp"
+#include "incise/engine/tool_pose_source.hpp"
+#include "incise/physics/mechanical_system.hpp"
+#include "incise/scene/scene.hpp"
+
+namespace incise {
+
+class SubdivisionCutter;
+class Integrator;
+
+/// One frame: stage times (s) named after the seed's Table 1, and the state after it.
+struct FrameRecord {
+  int frame = 0;
+  double time = 0.0;  ///< simulated time at the end of the frame (s)
+  double cd = 0.0;    ///< collision detection (s)
+  double gc = 0.0;    ///< topology and geometry changes (s)
+  double rx = 0.0;    ///< relaxation (s)
+  double rd = 0.0;    ///< output: sinks and the published snapshot (s)
+  std::size_t vertices = 0;
+  std::size_t tets = 0;
+  double kinetic_energy = 0.0;    ///< J
+  double max_displacement = 0.0;  ///< m, from the rest position
+  bool written = false;           ///< a sink wrote output for this frame
+  bool cut = false;               ///< the blade moved through the body this frame
+};
+
+class Engine {
+ public:
+  explicit Engine(const SceneDescription& scene);
+  ~Engine();
+  Engine(const Engine&) = delete;
+  Engine& operator=(const Engine&) = delete;
+
+  /// Replaces the tool's pose source (the scene's scripted path by default; none without a
+  /// tool). A cutter is needed to cut: the scene's `cutter`.
+  void set_tool_source(std::unique_ptr<ToolPoseSource> source);
+  /// Adds an output; it sees the current state at once (begin) and every frame from now on.
+  /// The engine does not own it: it must outlive the engine or finish().
+  void add_sink(FrameSink& sink);
+  /// Publish a snapshot after every frame (and now) for other threads: off by default, as it
+  /// copies the positions every frame and the boundary after every cut.
+  void publish_snapshots(bool enabled);
+
+  /// Advances one frame. Returns false when it diverged: the state is then that frame's
+  /// (not handed to sinks), divergence() says what went wrong, and step() does nothing more.
+  bool step();
+  /// Ends the run: every sink's end() (a series writes its last frame).
+  void finish();
+
+  [[nodiscard]] int frame() const;
+  [[nodiscard]] double time() const;  ///< s
+  [[nodiscard]] const FrameRecord& last_frame() const;
+  [[nodiscard]] bool diverged() const;
+  [[nodiscard]] const std::string& divergence() const;
+
+  [[nodiscard]] const SceneDescription& scene() const;
+  [[nodiscard]] const TetMesh& mesh() const;
+  [[nodiscard]] const SimulationState& state() const;
+  [[nodiscard]] std::span<const Vec3> positions() const;  ///< current (m)
+  /// The cutter, or null when the scene has none: its cut faces are the cut surface.
+  [[nodiscard]] const SubdivisionCutter* cutter() const;
+  /// The boundary triangles that lie on a cut (outward, vertex ids), empty without a cutter.
+  [[nodiscard]] std::vector<Triangle> cut_surface() const;
+  /// The blade at the end of the last frame, if the tool was on.
+  [[nodiscard]] const std::optional<BladePose>& blade() const;
+  [[nodiscard]] const Integrator& integrator() const;
+  [[nodiscard]] double total_mass() const;  ///< kg
+  /// The integrator's largest stable step on this scene (s; infinity for implicit schemes).
+  [[nodiscard]] double stability_limit() const;
+  /// Warnings about the scene (e.g. a step beyond the stability limit).
+  [[nodiscard]] const std::vector<std::string>& warnings() const;
+  [[nodiscard]] const SnapshotChannel& snapshots() const;
+
+ private:
+  struct Parts;
+  std::unique_ptr<Parts> parts_;
+};
+
+/// Frames run by run(): each frame's record, and how it ended.
+struct RunResult {
+  std::vector<FrameRecord> frames;
+  bool diverged = false;
+  std::string divergence;
+};
+
+/// Steps `frames` frames (stopping at a divergence), calling `on_frame` after each, then
+/// finish().
+RunResult run(Engine& engine, int frames,
+              const std::function<void(const FrameRecord&)>& on_frame = {});
+
+}  // namespace incise

@@ -1,0 +1,73 @@
+#pragma once
+// Where frames go: the engine hands each finished frame to its sinks (the .pvd/.vtu series,
+// a recorder of the tool path; later a renderer, a network peer, a checkpoint writer).
+// Sinks run on the thread that steps the engine; their time is the frame's rd stage.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "incise/cut/blade.hpp"
+#include "incise/io/mesh_io.hpp"
+
+namespace incise {
+
+class Engine;
+struct FrameRecord;
+
+class FrameSink {
+ public:
+  FrameSink() = default;
+  FrameSink(const FrameSink&) = delete;
+  FrameSink& operator=(const FrameSink&) = delete;
+  virtual ~FrameSink() = default;
+
+  /// The engine's state before its next frame (frame 0 for a new engine) when the sink is added.
+  virtual void begin(const Engine& /*engine*/) {}
+  /// After each frame that did not diverge. Returns whether it wrote output for this frame.
+  virtual bool frame(const Engine& engine, const FrameRecord& record) = 0;
+  /// The run ends (Engine::finish): the engine holds the last frame, or the last good one
+  /// before a divergence.
+  virtual void end(const Engine& /*engine*/) {}
+};
+
+/// A ParaView series: `DIR/NAME.pvd` and `DIR/NAME_NNNNNN.vtu` with current positions,
+/// displacement (m) and velocity (m/s), every `every`-th frame, the first and the last.
+class VtuSeriesSink final : public FrameSink {
+ public:
+  /// `last_frame`: written even off the `every` grid (-1: unknown; end() writes it then).
+  VtuSeriesSink(const std::filesystem::path& dir, std::string name, int every = 1,
+                int last_frame = -1);
+  void begin(const Engine& engine) override;
+  bool frame(const Engine& engine, const FrameRecord& record) override;
+  void end(const Engine& engine) override;
+  [[nodiscard]] const std::filesystem::path& pvd() const { return series_.path(); }
+
+ private:
+  void write(const Engine& engine);
+  std::filesystem::path dir_;
+  std::string name_;
+  int every_;
+  int last_frame_;
+  int written_frame_ = -1;
+  PvdSeries series_;
+};
+
+/// Records the blade pose of every frame to a blade-path CSV at the end, so a live session
+/// (mouse, device) can be replayed with ScriptedToolPath::from_csv. Frames with the tool
+/// lifted are left out (the CSV format has no gaps: a replay moves straight across them).
+class ToolPathRecorder final : public FrameSink {
+ public:
+  explicit ToolPathRecorder(std::filesystem::path csv);
+  void begin(const Engine& engine) override;
+  bool frame(const Engine& engine, const FrameRecord& record) override;
+  void end(const Engine& engine) override;
+  [[nodiscard]] const std::vector<BladePose>& poses() const { return poses_; }
+
+ private:
+  std::filesystem::path csv_;
+  std::vector<BladePose> poses_;
+};
+
+}  // namespace incise

@@ -1,0 +1,52 @@
+#pragma once
+// What other threads see of a running engine: an immutable snapshot published once per frame.
+// A viewer or a 1 kHz device loop takes the latest with SnapshotChannel::latest() and keeps it
+// as long as it likes; the physics never waits for a reader and a reader never sees a
+// half-written frame.
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "incise/cut/blade.hpp"
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+/// The boundary surface's triangles (outward, vertex ids into the snapshot's positions), each
+/// marked when it lies on a cut. Shared by consecutive snapshots while the mesh is unchanged.
+struct SurfaceTopology {
+  std::uint64_t mesh_revision = 0;
+  std::vector<Triangle> triangles;
+  std::vector<std::uint8_t> on_cut;  ///< 1: a face the cut opened; 0: the exterior
+};
+
+struct Snapshot {
+  int frame = 0;
+  double time = 0.0;            ///< s
+  std::vector<Vec3> positions;  ///< current positions (m), one per mesh vertex
+  std::shared_ptr<const SurfaceTopology> surface;
+  std::optional<BladePose> blade;  ///< the blade at the end of the frame, if any
+  double cd = 0.0;                 ///< the frame's stage times (s)
+  double gc = 0.0;
+  double rx = 0.0;
+};
+
+/// One published snapshot at a time, swapped atomically.
+class SnapshotChannel {
+ public:
+  void publish(std::shared_ptr<const Snapshot> snapshot) {
+    latest_.store(std::move(snapshot), std::memory_order_release);
+  }
+  /// The newest snapshot (null before the first publish). Safe from any thread.
+  [[nodiscard]] std::shared_ptr<const Snapshot> latest() const {
+    return latest_.load(std::memory_order_acquire);
+  }
+
+ private:
+  std::atomic<std::shared_ptr<const Snapshot>> latest_;
+};
+
+}  // namespace incise

@@ -1,0 +1,445 @@
+#include "incise/engine/engine.hpp"
+
+#include <fmt/format.h>
+
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
+#include "incise/cut/subdivision_cutter.hpp"
+#include "incise/mesh/boundary.hpp"
+#include "incise/mesh/validate.hpp"
+#include "incise/physics/corotational_fem.hpp"
+#include "incise/physics/mass_spring.hpp"
+#include "incise/solve/integrators.hpp"
+
+namespace incise {
+namespace {
+
+std::vector<VertexId> select(const TetMesh& mesh, const RegionSpec& region,
+                             const std::string& scene) {
+  std::vector<VertexId> vertices;
+  if (region.box) {
+    vertices = vertices_in_box(mesh, region.box->first, region.box->second);
+  } else {
+    for (VertexId v : region.vertices) {
+      if (static_cast<std::size_t>(v) >= mesh.vertex_count()) {
+        throw InputError(scene, 0,
+                         region.where + " names vertex " + std::to_string(v) +
+                             ", but the mesh has " + std::to_string(mesh.vertex_count()));
+      }
+      vertices.push_back(v);
+    }
+  }
+  if (vertices.empty()) {
+    throw InputError(scene, 0, region.where + " selects no vertex of the mesh");
+  }
+  return vertices;
+}
+
+TetMesh build_mesh(const SceneDescription& scene) {
+  if (!scene.mesh_file) {
+    return make_box_grid(scene.box);
+  }
+  TetMesh mesh = read_tet_mesh(*scene.mesh_file).mesh;
+  if (scene.mesh_scale != 1.0) {
+    std::vector<Vec3> positions(mesh.rest_positions().begin(), mesh.rest_positions().end());
+    for (Vec3& position : positions) {
+      position *= scene.mesh_scale;
+    }
+    mesh = TetMesh(std::move(positions), std::vector<Tet>(mesh.tets().begin(), mesh.tets().end()));
+  }
+  const ValidationReport report = validate(mesh);
+  if (!report.ok()) {
+    throw InputError(scene.mesh_file->string(), 0,
+                     "the mesh is not valid for simulation:\n" + report.describe() +
+                         "(`incise convert --fix-orientation` repairs inverted tetrahedra)");
+  }
+  return mesh;
+}
+
+// ---- factory tables: each kind the scene names, built in one place ---------------------------
+
+using ModelFactory = std::unique_ptr<ForceModel> (*)(TetMesh&, const SceneDescription&);
+constexpr std::array<std::pair<ModelKind, ModelFactory>, 2> kModelFactories{{
+    {ModelKind::kMassSpring,
+     [](TetMesh& mesh, const SceneDescription& scene) -> std::unique_ptr<ForceModel> {
+       return std::make_unique<MassSpringModel>(mesh, scene.material, scene.mass_spring);
+     }},
+    {ModelKind::kCorotationalFem,
+     [](TetMesh& mesh, const SceneDescription& scene) -> std::unique_ptr<ForceModel> {
+       return std::make_unique<CorotationalFemModel>(mesh, scene.material, scene.fem);
+     }},
+}};
+
+using IntegratorFactory = std::unique_ptr<Integrator> (*)(const IntegratorSpec&);
+constexpr std::array<std::pair<IntegratorKind, IntegratorFactory>, 6> kIntegratorFactories{{
+    {IntegratorKind::kExplicitEuler,
+     [](const IntegratorSpec&) -> std::unique_ptr<Integrator> {
+       return std::make_unique<ExplicitEuler>();
+     }},
+    {IntegratorKind::kSymplecticEuler,
+     [](const IntegratorSpec&) -> std::unique_ptr<Integrator> {
+       return std::make_unique<SymplecticEuler>();
+     }},
+    {IntegratorKind::kRungeKutta4,
+     [](const IntegratorSpec&) -> std::unique_ptr<Integrator> {
+       return std::make_unique<RungeKutta4>();
+     }},
+    {IntegratorKind::kHierarchicalRungeKutta4,
+     [](const IntegratorSpec& spec) -> std::unique_ptr<Integrator> {
+       return std::make_unique<HierarchicalRungeKutta4>(spec.hierarchical);
+     }},
+    {IntegratorKind::kBackwardEuler,
+     [](const IntegratorSpec& spec) -> std::unique_ptr<Integrator> {
+       return std::make_unique<BackwardEuler>(spec.backward_euler);
+     }},
+    {IntegratorKind::kStatic,
+     [](const IntegratorSpec& spec) -> std::unique_ptr<Integrator> {
+       return std::make_unique<StaticEquilibrium>(spec.static_solve);
+     }},
+}};
+
+template <typename Kind, typename Factory, std::size_t N>
+Factory factory_for(const std::array<std::pair<Kind, Factory>, N>& table, Kind kind) {
+  for (const auto& [candidate, factory] : table) {
+    if (candidate == kind) {
+      return factory;
+    }
+  }
+  INCISE_ASSERT(false, "a scene kind has no factory");
+  return nullptr;
+}
+
+}  // namespace
+
+struct Engine::Parts {
+  explicit Parts(const SceneDescription& scene)
+      : description(scene),
+        mesh(build_mesh(scene)),
+        model(factory_for(kModelFactories, scene.model_type)(mesh, scene)),
+        conditions(mesh),
+        system(mesh, *model, conditions, scene.damping),
+        state(mesh),
+        integrator(factory_for(kIntegratorFactories, scene.integrator.type)(scene.integrator)) {}
+
+  SceneDescription description;
+  TetMesh mesh;
+  std::unique_ptr<ForceModel> model;
+  BoundaryConditions conditions;
+  MechanicalSystem system;
+  SimulationState state;
+  std::unique_ptr<Integrator> integrator;
+  std::unique_ptr<SubdivisionCutter> cutter;
+  std::unique_ptr<ToolPoseSource> tool;
+  std::optional<BladePose> blade;
+  std::vector<FrameSink*> sinks;
+  std::vector<std::string> warnings;
+  double limit = 0.0;
+  double body_size = 0.0;  ///< m: the rest bounding box's diagonal
+  int steps_per_frame = 1;
+  FrameRecord last;
+  bool diverged = false;
+  std::string divergence;
+  bool publishing = false;
+  SnapshotChannel channel;
+  std::shared_ptr<const SurfaceTopology> surface;
+
+  std::string measure(FrameRecord& record) const;
+  void publish();
+};
+
+Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(scene)) {
+  Parts& p = *parts_;
+  const std::string where = scene.file.empty() ? "<default scene>" : scene.file.string();
+  for (const RegionSpec& region : scene.fixed) {
+    p.conditions.fix(select(p.mesh, region, where));
+  }
+  for (const DisplacementSpec& spec : scene.displacements) {
+    p.conditions.prescribe_displacement(select(p.mesh, spec.region, where), spec.displacement,
+                                        spec.ramp_time);
+  }
+  for (const ForceSpec& spec : scene.forces) {
+    p.conditions.add_force(select(p.mesh, spec.region, where), spec.force);
+  }
+  p.conditions.set_gravity(scene.gravity);
+  apply_constraints(p.system, 0.0, p.state.x.values(), p.state.v.values());
+
+  const IntegratorSpec& spec = scene.integrator;
+  if (const auto* vertex = std::get_if<VertexId>(&spec.focus)) {
+    if (static_cast<std::size_t>(*vertex) >= p.mesh.vertex_count()) {
+      throw InputError(where, 0,
+                       "integrator.focus names vertex " + std::to_string(*vertex) +
+                           ", but the mesh has " + std::to_string(p.mesh.vertex_count()));
+    }
+    p.integrator->focus_on(*vertex);
+  } else if (const auto* point = std::get_if<Vec3>(&spec.focus)) {
+    VertexId nearest = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t v = 0; v < p.mesh.vertex_count(); ++v) {
+      const double distance =
+          (p.mesh.rest_position(static_cast<VertexId>(v)) - *point).squaredNorm();
+      if (distance < best) {
+        best = distance;
+        nearest = static_cast<VertexId>(v);
+      }
+    }
+    p.integrator->focus_on(nearest);
+  }
+  p.limit = p.integrator->stability_limit(p.system);
+  if (!p.integrator->implicit() && spec.dt > p.limit) {
+    p.warnings.push_back(fmt::format(
+        "integrator.dt = {:.3g} s exceeds the estimated stability limit {:.3g} s of {}; expect "
+        "divergence (use a smaller dt or backward-euler)",
+        spec.dt, p.limit, p.integrator->name()));
+  }
+  if (p.conditions.constrained_count() == 0 && scene.gravity.norm() > 0.0) {
+    p.warnings.push_back("nothing is fixed: the body falls freely under gravity");
+  }
+  if (scene.tool.cutter == CutterKind::kSubdivision) {
+    CutterOptions options;
+    options.snap_fraction = scene.tool.snap_fraction;
+    options.split = scene.tool.split;
+    // The blade path is given in the body's rest frame: cutting on the simulation's current
+    // positions (SubdivisionCutter's deformed configuration) does not yet carry the swept
+    // surface with a wound that opens non-affinely behind the blade.
+    p.cutter = std::make_unique<SubdivisionCutter>(p.mesh, options);
+  }
+  if (!scene.tool.poses.empty()) {
+    p.tool = std::make_unique<ScriptedToolPath>(scene.tool.poses);
+    p.blade = p.tool->pose(0, p.state.time);
+  }
+  p.steps_per_frame = static_cast<int>(std::lround(scene.frame_dt / spec.dt));
+  const auto [low, high] = bounding_box(p.mesh);
+  p.body_size = (high - low).norm();
+  p.last.time = p.state.time;
+  (void)p.measure(p.last);
+}
+
+Engine::~Engine() = default;
+
+void Engine::set_tool_source(std::unique_ptr<ToolPoseSource> source) {
+  Parts& p = *parts_;
+  p.tool = std::move(source);
+  p.blade = p.tool ? p.tool->pose(p.last.frame, p.state.time) : std::nullopt;
+}
+
+void Engine::add_sink(FrameSink& sink) {
+  parts_->sinks.push_back(&sink);
+  sink.begin(*this);
+}
+
+void Engine::publish_snapshots(bool enabled) {
+  parts_->publishing = enabled;
+  if (enabled) {
+    parts_->publish();
+  }
+}
+
+std::string Engine::Parts::measure(FrameRecord& record) const {
+  record.vertices = mesh.vertex_count();
+  record.tets = mesh.tet_count();
+  record.kinetic_energy = kinetic_energy(system.masses(), state.v.values());
+  record.max_displacement = 0.0;
+  for (std::size_t i = 0; i < mesh.vertex_count(); ++i) {
+    const Vec3& x = state.x.values()[i];
+    if (!x.allFinite() || !state.v.values()[i].allFinite()) {
+      return fmt::format("vertex {} reached a non-finite position or velocity", i);
+    }
+    record.max_displacement = std::max(record.max_displacement,
+                                       (x - mesh.rest_position(static_cast<VertexId>(i))).norm());
+  }
+  if (!std::isfinite(record.kinetic_energy)) {
+    return "the kinetic energy is not finite";
+  }
+  if (record.max_displacement > 100.0 * body_size) {
+    return fmt::format("a vertex moved {:.3g} m, 100 times the body's size: the motion blew up",
+                       record.max_displacement);
+  }
+  return {};
+}
+
+void Engine::Parts::publish() {
+  if (!surface || surface->mesh_revision != mesh.revision()) {
+    auto topology = std::make_shared<SurfaceTopology>();
+    topology->mesh_revision = mesh.revision();
+    for (const BoundaryFace& face : boundary_faces(mesh)) {
+      topology->triangles.push_back(face.vertices);
+      topology->on_cut.push_back(
+          cutter && cutter->cut_faces().is_cut(face.tet, face.local_face) ? 1 : 0);
+    }
+    surface = std::move(topology);
+  }
+  auto snapshot = std::make_shared<Snapshot>();
+  snapshot->frame = last.frame;
+  snapshot->time = state.time;
+  snapshot->positions.assign(state.x.values().begin(), state.x.values().end());
+  snapshot->surface = surface;
+  snapshot->blade = blade;
+  snapshot->cd = last.cd;
+  snapshot->gc = last.gc;
+  snapshot->rx = last.rx;
+  channel.publish(std::move(snapshot));
+}
+
+bool Engine::step() {
+  Parts& p = *parts_;
+  if (p.diverged) {
+    return false;
+  }
+  FrameRecord record;
+  record.frame = p.last.frame + 1;
+  const double frame_dt = p.description.frame_dt;
+  const double dt = p.description.integrator.dt;
+
+  // ---- the tool: cd and gc --------------------------------------------------------------------
+  const std::optional<BladePose> pose =
+      p.tool ? p.tool->pose(record.frame, frame_dt * record.frame) : std::nullopt;
+  if (p.cutter && pose) {
+    // A stroke starts where the blade was at the start of the frame (or here, when it was
+    // lifted); the blade moves to its pose at the end of this frame and cuts what it swept.
+    if (!p.cutter->started() || !p.blade) {
+      p.cutter->start(p.blade ? *p.blade : *pose);
+    }
+    if (p.blade) {
+      p.cutter->move_to(*pose);
+      record.cd = p.cutter->stats().cd_seconds;
+      record.gc = p.cutter->stats().gc_seconds;
+      record.cut = true;
+    }
+    // Local relaxation starts at the vertex nearest the blade tip.
+    const TetId holder = p.cutter->active_point_tet();
+    if (holder != kInvalidId) {
+      VertexId nearest = p.mesh.tet(holder)[0];
+      for (VertexId v : p.mesh.tet(holder)) {
+        if ((p.cutter->position(v) - pose->tip).norm() <
+            (p.cutter->position(nearest) - pose->tip).norm()) {
+          nearest = v;
+        }
+      }
+      p.integrator->focus_on(nearest);
+    }
+  }
+  p.blade = pose;
+
+  // ---- relaxation: rx -------------------------------------------------------------------------
+  auto start = Clock::now();
+  for (int s = 0; s < p.steps_per_frame; ++s) {
+    p.integrator->step(p.system, p.state.x.values(), p.state.v.values(), p.state.time, dt);
+    p.state.time = frame_dt * (record.frame - 1) + dt * (s + 1);
+  }
+  p.state.time = frame_dt * record.frame;
+  record.rx = seconds_since(start);
+  record.time = p.state.time;
+  const std::string problem = p.measure(record);
+  p.last = record;
+  if (!problem.empty()) {
+    p.diverged = true;
+    p.divergence = fmt::format(
+        "the simulation diverged in frame {} (t = {:.6g} s): {}. The integrator's stability "
+        "limit is {:.3g} s; try a smaller integrator.dt, more damping, or backward-euler. "
+        "Frames written so far stay valid.",
+        record.frame, record.time, problem, p.limit);
+    return false;
+  }
+
+  // ---- output: rd -----------------------------------------------------------------------------
+  start = Clock::now();
+  for (FrameSink* sink : p.sinks) {
+    record.written = sink->frame(*this, record) || record.written;
+  }
+  if (p.publishing) {
+    p.publish();
+  }
+  record.rd = seconds_since(start);
+  p.last = record;
+  return true;
+}
+
+void Engine::finish() {
+  for (FrameSink* sink : parts_->sinks) {
+    sink->end(*this);
+  }
+  parts_->sinks.clear();
+}
+
+int Engine::frame() const {
+  return parts_->last.frame;
+}
+double Engine::time() const {
+  return parts_->state.time;
+}
+const FrameRecord& Engine::last_frame() const {
+  return parts_->last;
+}
+bool Engine::diverged() const {
+  return parts_->diverged;
+}
+const std::string& Engine::divergence() const {
+  return parts_->divergence;
+}
+const SceneDescription& Engine::scene() const {
+  return parts_->description;
+}
+const TetMesh& Engine::mesh() const {
+  return parts_->mesh;
+}
+const SimulationState& Engine::state() const {
+  return parts_->state;
+}
+std::span<const Vec3> Engine::positions() const {
+  return parts_->state.x.values();
+}
+const SubdivisionCutter* Engine::cutter() const {
+  return parts_->cutter.get();
+}
+std::vector<Triangle> Engine::cut_surface() const {
+  std::vector<Triangle> triangles;
+  if (parts_->cutter) {
+    for (const BoundaryFace& face : boundary_faces(parts_->mesh)) {
+      if (parts_->cutter->cut_faces().is_cut(face.tet, face.local_face)) {
+        triangles.push_back(face.vertices);
+      }
+    }
+  }
+  return triangles;
+}
+const std::optional<BladePose>& Engine::blade() const {
+  return parts_->blade;
+}
+const Integrator& Engine::integrator() const {
+  return *parts_->integrator;
+}
+double Engine::total_mass() const {
+  return parts_->model->total_mass();
+}
+double Engine::stability_limit() const {
+  return parts_->limit;
+}
+const std::vector<std::string>& Engine::warnings() const {
+  return parts_->warnings;
+}
+const SnapshotChannel& Engine::snapshots() const {
+  return parts_->channel;
+}
+
+RunResult run(Engine& engine, int frames, const std::function<void(const FrameRecord&)>& on_frame) {
+  RunResult result;
+  for (int k = 0; k < frames; ++k) {
+    if (!engine.step()) {
+      result.diverged = true;
+      result.divergence = engine.divergence();
+      break;
+    }
+    result.frames.push_back(engine.last_frame());
+    if (on_frame) {
+      on_frame(engine.last_frame());
+    }
+  }
+  engine.finish();
+  return result;
+}
+
+}  // namespace incise

@@ -1,0 +1,92 @@
+#include <fmt/format.h>
+
+#include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
+#include "incise/engine/engine.hpp"
+#include "incise/engine/frame_sink.hpp"
+
+namespace incise {
+namespace {
+
+std::filesystem::path created(const std::filesystem::path& dir) {
+  std::error_code error;
+  std::filesystem::create_directories(dir, error);
+  if (error) {
+    throw InputError(dir.string(), 0, "cannot create the output folder: " + error.message());
+  }
+  return dir;
+}
+
+}  // namespace
+
+VtuSeriesSink::VtuSeriesSink(const std::filesystem::path& dir, std::string name, int every,
+                             int last_frame)
+    : dir_(created(dir)),
+      name_(std::move(name)),
+      every_(std::max(1, every)),
+      last_frame_(last_frame),
+      series_(dir_ / (name_ + ".pvd")) {}
+
+void VtuSeriesSink::write(const Engine& engine) {
+  const TetMesh& mesh = engine.mesh();
+  const SimulationState& state = engine.state();
+  const std::size_t n = mesh.vertex_count();
+  std::vector<double> displacement(3 * n);
+  std::vector<double> velocity(3 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 d = state.x.values()[i] - mesh.rest_position(static_cast<VertexId>(i));
+    const Vec3& v = state.v.values()[i];
+    for (int k = 0; k < 3; ++k) {
+      displacement[3 * i + static_cast<std::size_t>(k)] = d[k];
+      velocity[3 * i + static_cast<std::size_t>(k)] = v[k];
+    }
+  }
+  VtuFields fields;
+  fields.point_data.push_back({"displacement", 3, std::move(displacement)});
+  fields.point_data.push_back({"velocity", 3, std::move(velocity)});
+  // Global frame numbers: a resumed run continues the same series.
+  const std::string file = fmt::format("{}_{:06d}.vtu", name_, engine.frame());
+  write_vtu(dir_ / file, mesh, state.x.values(), fields);
+  series_.add(engine.time(), file);
+  written_frame_ = engine.frame();
+}
+
+void VtuSeriesSink::begin(const Engine& engine) {
+  write(engine);
+}
+
+bool VtuSeriesSink::frame(const Engine& engine, const FrameRecord& record) {
+  if (record.frame % every_ != 0 && record.frame != last_frame_) {
+    return false;
+  }
+  write(engine);
+  return true;
+}
+
+void VtuSeriesSink::end(const Engine& engine) {
+  // The last frame, unless written already; a diverged frame is never written.
+  if (!engine.diverged() && written_frame_ != engine.frame()) {
+    write(engine);
+  }
+}
+
+ToolPathRecorder::ToolPathRecorder(std::filesystem::path csv) : csv_(std::move(csv)) {}
+
+void ToolPathRecorder::begin(const Engine& engine) {
+  if (engine.blade()) {
+    poses_.push_back(*engine.blade());
+  }
+}
+
+bool ToolPathRecorder::frame(const Engine& engine, const FrameRecord& /*record*/) {
+  if (engine.blade()) {
+    poses_.push_back(*engine.blade());
+  }
+  return false;
+}
+
+void ToolPathRecorder::end(const Engine& /*engine*/) {
+  write_blade_path(csv_, poses_);
+}
+
+}  // namespace incise
