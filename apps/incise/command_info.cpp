@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
@@ -41,6 +42,13 @@ Runner add_info_command(CLI::App& app) {
     }
     const double volume = total_volume(mesh);
     const bool valid = report.ok();
+    // Regions by label: tetrahedra and volume (m^3 if the file is in metres).
+    std::map<int, std::pair<std::size_t, double>> regions;
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      auto& [count, region_volume] = regions[mesh.tet_label(static_cast<TetId>(t))];
+      ++count;
+      region_volume += signed_volume(mesh, static_cast<TetId>(t));
+    }
 
     if (*as_json) {
       nlohmann::ordered_json out;
@@ -62,6 +70,11 @@ Runner add_info_command(CLI::App& app) {
       out["nonfinite_vertices"] = report.nonfinite_vertices.size();
       out["dropped_vertices"] = read.dropped_vertices;
       out["components"] = components;
+      out["regions"] = nlohmann::ordered_json::array();
+      for (const auto& [label, region] : regions) {
+        out["regions"].push_back(
+            {{"label", label}, {"tets", region.first}, {"volume", region.second}});
+      }
       out["boundary_triangles"] = faces.size();
       out["watertight"] = boundary.watertight();
       out["quality"] = {{"min_dihedral_deg", quality.min_dihedral_deg},
@@ -89,6 +102,14 @@ Runner add_info_command(CLI::App& app) {
                              smallest, largest);
     std::cout << fmt::format("  components {}   boundary triangles {}   watertight {}\n",
                              components, faces.size(), boundary.watertight() ? "yes" : "no");
+    if (regions.size() > 1 || regions.begin()->first != 0) {
+      std::cout << "  regions:";
+      for (const auto& [label, region] : regions) {
+        std::cout << fmt::format("  {}: {} tets, volume {:.6g}", label, region.first,
+                                 region.second);
+      }
+      std::cout << "\n";
+    }
     std::cout << fmt::format(
         "  quality: min dihedral {:.2f} deg (mean of minima {:.2f}), aspect ratio max {:.3g} mean "
         "{:.3g}\n",

@@ -49,7 +49,8 @@ TetMesh build_mesh(const SceneDescription& scene) {
     for (Vec3& position : positions) {
       position *= scene.mesh_scale;
     }
-    mesh = TetMesh(std::move(positions), std::vector<Tet>(mesh.tets().begin(), mesh.tets().end()));
+    mesh = TetMesh(std::move(positions), std::vector<Tet>(mesh.tets().begin(), mesh.tets().end()),
+                   std::vector<int>(mesh.tet_labels().begin(), mesh.tet_labels().end()));
   }
   const ValidationReport report = validate(mesh);
   if (!report.ok()) {
@@ -60,17 +61,62 @@ TetMesh build_mesh(const SceneDescription& scene) {
   return mesh;
 }
 
+/// The scene's material table (its "material" first, then one per "materials" entry) and each
+/// tetrahedron's entry: the last region that holds it (by rest centroid or label), else 0.
+MaterialAssignment assign_materials(const TetMesh& mesh, const SceneDescription& scene) {
+  MaterialAssignment assignment{{scene.material}, {}};
+  if (scene.materials.empty()) {
+    return assignment;
+  }
+  assignment.ids.assign(mesh.tet_count(), 0);
+  const std::string where = scene.file.empty() ? "<default scene>" : scene.file.string();
+  for (const MaterialRegionSpec& spec : scene.materials) {
+    const int id = static_cast<int>(assignment.table.size());
+    assignment.table.push_back(spec.material);
+    std::size_t selected = 0;
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const auto tet = static_cast<TetId>(t);
+      bool inside = false;
+      if (spec.label) {
+        inside = mesh.tet_label(tet) == *spec.label;
+      } else {
+        Vec3 centroid = Vec3::Zero();
+        for (VertexId v : mesh.tet(tet)) {
+          centroid += 0.25 * mesh.rest_position(v);
+        }
+        inside = (centroid.array() >= spec.box->first.array()).all() &&
+                 (centroid.array() <= spec.box->second.array()).all();
+      }
+      if (inside) {
+        assignment.ids[t] = id;
+        ++selected;
+      }
+    }
+    if (selected == 0) {
+      throw InputError(
+          where, 0,
+          spec.where + " selects no tetrahedron of the mesh" +
+              (spec.label ? " (no tetrahedron has region label " + std::to_string(*spec.label) +
+                                "; `incise info` lists the labels)"
+                          : std::string(" (by rest centroid)")));
+    }
+  }
+  return assignment;
+}
+
 // ---- factory tables: each kind the scene names, built in one place ---------------------------
 
 using ModelFactory = std::unique_ptr<ForceModel> (*)(TetMesh&, const SceneDescription&);
 constexpr std::array<std::pair<ModelKind, ModelFactory>, 2> kModelFactories{{
     {ModelKind::kMassSpring,
      [](TetMesh& mesh, const SceneDescription& scene) -> std::unique_ptr<ForceModel> {
-       return std::make_unique<MassSpringModel>(mesh, scene.material, scene.mass_spring);
+       return std::make_unique<MassSpringModel>(mesh, assign_materials(mesh, scene),
+                                                scene.mass_spring);
      }},
     {ModelKind::kCorotationalFem,
      [](TetMesh& mesh, const SceneDescription& scene) -> std::unique_ptr<ForceModel> {
-       return std::make_unique<CorotationalFemModel>(mesh, scene.material, scene.fem);
+       return std::make_unique<CorotationalFemModel>(mesh, assign_materials(mesh, scene),
+                                                     scene.fem);
      }},
 }};
 

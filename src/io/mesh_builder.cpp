@@ -1,3 +1,5 @@
+#include <limits>
+
 #include "readers.hpp"
 
 namespace incise::io_detail {
@@ -33,7 +35,7 @@ VertexId MeshBuilder::index_of(long long tag, const std::string& context) const 
   return it->second;
 }
 
-void MeshBuilder::add_tet(const std::array<long long, 4>& tags) {
+void MeshBuilder::add_tet(const std::array<long long, 4>& tags, long long label) {
   Tet tet;
   for (int i = 0; i < 4; ++i) {
     tet[i] = index_of(tags[i], "tetrahedron " + std::to_string(mesh_.tets.size()));
@@ -44,7 +46,12 @@ void MeshBuilder::add_tet(const std::array<long long, 4>& tags) {
       }
     }
   }
+  if (label < std::numeric_limits<int>::min() || label > std::numeric_limits<int>::max()) {
+    source_->fail("tetrahedron " + std::to_string(mesh_.tets.size()) + ": region label " +
+                  std::to_string(label) + " is out of range");
+  }
   mesh_.tets.push_back(tet);
+  mesh_.tet_labels.push_back(static_cast<int>(label));
 }
 
 void MeshBuilder::add_triangle(const std::array<long long, 3>& tags) {

@@ -7,6 +7,7 @@
 #include <bit>
 #include <cctype>
 #include <fstream>
+#include <map>
 #include <random>
 
 #include "incise/core/error.hpp"
@@ -236,8 +237,12 @@ TetMeshReadResult read_tet_mesh(const std::filesystem::path& path) {
     raw.notes.push_back("ignored " + std::to_string(raw.triangles.size()) +
                         " triangles (the boundary is recomputed from the tetrahedra)");
   }
-  TetMeshReadResult result{TetMesh(std::move(points), std::move(raw.tets)), raw.format,
-                           std::move(raw.notes), dropped};
+  if (raw.tet_labels.size() != raw.tets.size()) {
+    raw.tet_labels.assign(raw.tets.size(), 0);
+  }
+  TetMeshReadResult result{
+      TetMesh(std::move(points), std::move(raw.tets), std::move(raw.tet_labels)), raw.format,
+      std::move(raw.notes), dropped};
   return result;
 }
 
@@ -380,6 +385,13 @@ std::string xyz_bytes(std::span<const Vec3> points) {
 
 }  // namespace
 
+namespace {
+bool has_labels(const TetMesh& mesh) {
+  return std::any_of(mesh.tet_labels().begin(), mesh.tet_labels().end(),
+                     [](int label) { return label != 0; });
+}
+}  // namespace
+
 void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
                std::span<const Vec3> positions, const VtuFields& fields) {
   if (positions.empty()) {
@@ -435,6 +447,12 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
     field_xml(field, n_points);
   }
   xml += "      </PointData>\n      <CellData>\n";
+  // Region labels first: readers (incise, meshio) take the first integer cell array as them.
+  if (has_labels(mesh)) {
+    FieldArray region{
+        "region", 1, std::vector<std::int32_t>(mesh.tet_labels().begin(), mesh.tet_labels().end())};
+    field_xml(region, n_cells);
+  }
   for (const FieldArray& field : fields.cell_data) {
     field_xml(field, n_cells);
   }
@@ -508,9 +526,24 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
   const std::size_t n = mesh.vertex_count();
   const std::size_t m = mesh.tet_count();
   const auto [low, high] = bounding_box(mesh);
-  std::string out = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 1\n";
-  out += fmt::format("1 {} {} {} {} {} {} 0 0\n$EndEntities\n", low.x(), low.y(), low.z(), high.x(),
-                     high.y(), high.z());
+  // One volume entity per region label, with the label as its physical group (Gmsh has no
+  // physical group 0: those tetrahedra get an entity without one).
+  std::map<int, std::vector<std::size_t>> regions;
+  for (std::size_t t = 0; t < m; ++t) {
+    regions[mesh.tet_label(static_cast<TetId>(t))].push_back(t);
+  }
+  if (regions.empty()) {
+    regions[0];
+  }
+  std::string out =
+      fmt::format("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 {}\n", regions.size());
+  int entity = 0;
+  for (const auto& [label, tets] : regions) {
+    out += fmt::format("{} {} {} {} {} {} {} ", ++entity, low.x(), low.y(), low.z(), high.x(),
+                       high.y(), high.z());
+    out += label != 0 ? fmt::format("1 {} 0\n", label) : std::string("0 0\n");
+  }
+  out += "$EndEntities\n";
   out += fmt::format("$Nodes\n1 {} 1 {}\n3 1 0 {}\n", n, n, n);
   for (std::size_t v = 1; v <= n; ++v) {
     out += fmt::format("{}\n", v);
@@ -518,10 +551,15 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
   for (const Vec3& p : mesh.rest_positions()) {
     out += fmt::format("{} {} {}\n", p.x(), p.y(), p.z());
   }
-  out += fmt::format("$EndNodes\n$Elements\n1 {} 1 {}\n3 1 4 {}\n", m, m, m);
-  for (std::size_t t = 0; t < m; ++t) {
-    const Tet& tet = mesh.tet(static_cast<TetId>(t));
-    out += fmt::format("{} {} {} {} {}\n", t + 1, tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1);
+  out += fmt::format("$EndNodes\n$Elements\n{} {} 1 {}\n", regions.size(), m, m);
+  entity = 0;
+  std::size_t tag = 0;
+  for (const auto& [label, tets] : regions) {
+    out += fmt::format("3 {} 4 {}\n", ++entity, tets.size());
+    for (std::size_t t : tets) {
+      const Tet& tet = mesh.tet(static_cast<TetId>(t));
+      out += fmt::format("{} {} {} {} {}\n", ++tag, tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1);
+    }
   }
   out += "$EndElements\n";
   AtomicFile file(path);
@@ -537,8 +575,10 @@ void write_medit(const std::filesystem::path& path, const TetMesh& mesh) {
     out += fmt::format("{} {} {} 0\n", p.x(), p.y(), p.z());
   }
   out += fmt::format("Tetrahedra\n{}\n", mesh.tet_count());
-  for (const Tet& tet : mesh.tets()) {
-    out += fmt::format("{} {} {} {} 1\n", tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1);
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    out += fmt::format("{} {} {} {} {}\n", tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1,
+                       mesh.tet_label(static_cast<TetId>(t)));
   }
   const auto faces = boundary_faces(mesh);
   out += fmt::format("Triangles\n{}\n", faces.size());
@@ -596,10 +636,13 @@ void write_tetgen(const std::filesystem::path& path, const TetMesh& mesh) {
     const Vec3& p = mesh.rest_position(static_cast<VertexId>(v));
     node += fmt::format("{} {} {} {}\n", v, p.x(), p.y(), p.z());
   }
-  std::string ele = fmt::format("{} 4 0\n", mesh.tet_count());
+  // Region labels as TetGen's region attribute, when there are any.
+  const bool labelled = has_labels(mesh);
+  std::string ele = fmt::format("{} 4 {}\n", mesh.tet_count(), labelled ? 1 : 0);
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
     const Tet& tet = mesh.tet(static_cast<TetId>(t));
-    ele += fmt::format("{} {} {} {} {}\n", t, tet[0], tet[1], tet[2], tet[3]);
+    ele += fmt::format("{} {} {} {} {}", t, tet[0], tet[1], tet[2], tet[3]);
+    ele += labelled ? fmt::format(" {}\n", mesh.tet_label(static_cast<TetId>(t))) : "\n";
   }
   AtomicFile node_file(node_path);
   node_file.write(node);

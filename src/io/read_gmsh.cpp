@@ -4,6 +4,7 @@
 
 #include <array>
 #include <limits>
+#include <map>
 
 #include "readers.hpp"
 
@@ -64,9 +65,9 @@ struct GmshReader {
   explicit GmshReader(Source& input) : source(input), builder(input) {}
 
   /// Keeps tetrahedra (linear, or the corners of 10-node ones) and triangles; skips the rest.
-  void element(long long type, const long long* nodes) {
+  void element(long long type, const long long* nodes, long long label = 0) {
     if (type == 4 || type == 11) {
-      builder.add_tet({nodes[0], nodes[1], nodes[2], nodes[3]});
+      builder.add_tet({nodes[0], nodes[1], nodes[2], nodes[3]}, label);
       corner_only_tets += type == 11 ? 1 : 0;
     } else if (type == 2 || type == 9) {
       builder.add_triangle({nodes[0], nodes[1], nodes[2]});
@@ -170,13 +171,17 @@ struct GmshReader {
         }
         for (int e = 0; e < in_block; ++e) {
           (void)source.binary<std::int32_t>(swap, "element tag");
+          long long tag_values[2] = {0, 0};
           for (int t = 0; t < tags; ++t) {
-            (void)source.binary<std::int32_t>(swap, "element tags");
+            const long long value = source.binary<std::int32_t>(swap, "element tags");
+            if (t < 2) {
+              tag_values[t] = value;
+            }
           }
           for (int n = 0; n < node_count; ++n) {
             nodes[n] = source.binary<std::int32_t>(swap, "element nodes");
           }
-          element(type, nodes);
+          element(type, nodes, region_label(tag_values[0], tag_values[1]));
         }
         read += static_cast<std::size_t>(in_block);
       }
@@ -186,9 +191,11 @@ struct GmshReader {
       (void)source.integer("element tag");
       const long long type = source.integer("element type");
       int node_count = nodes_per_element(type);
+      long long physical = 0;
+      long long elementary = 0;
       if (version1) {
-        (void)source.integer("physical region");
-        (void)source.integer("elementary region");
+        physical = source.integer("physical region");
+        elementary = source.integer("elementary region");
         const long long listed = source.integer("node count");
         if (node_count != 0 && listed != node_count) {
           source.fail("element of type " + std::to_string(type) + " must list " +
@@ -201,7 +208,12 @@ struct GmshReader {
       } else {
         const std::size_t tags = source.count("tag count", 64);
         for (std::size_t t = 0; t < tags; ++t) {
-          (void)source.integer("element tag");
+          const long long value = source.integer("element tag");
+          if (t == 0) {
+            physical = value;
+          } else if (t == 1) {
+            elementary = value;
+          }
         }
       }
       if (node_count == 0) {
@@ -215,8 +227,58 @@ struct GmshReader {
       if (source.token_on_this_line()) {
         source.fail("too many nodes for an element of type " + std::to_string(type));
       }
-      element(type, nodes);
+      element(type, nodes, region_label(physical, elementary));
     }
+  }
+
+  /// A tetrahedron's region: its physical group, else its elementary entity (0: none).
+  static long long region_label(long long physical, long long elementary) {
+    return physical != 0 ? physical : elementary;
+  }
+
+  /// Physical group of each volume entity (from $Entities): a v4 element block names only
+  /// its entity.
+  std::map<long long, long long> volume_physical;
+
+  /// $Entities (ASCII; a binary one is skipped and blocks keep their entity tags): points,
+  /// curves, surfaces and volumes with their physical tags.
+  void read_entities() {
+    if (binary) {
+      skip_section("$Entities");
+      return;
+    }
+    const bool v41 = version >= 4.1;
+    std::size_t counts[4];
+    for (auto& count : counts) {
+      count = source.count("entity count", kMaxCount);
+    }
+    for (int dimension = 0; dimension < 4; ++dimension) {
+      for (std::size_t e = 0; e < counts[dimension]; ++e) {
+        const long long tag = source.integer("entity tag");
+        const int coordinates = dimension == 0 && v41 ? 3 : 6;
+        for (int k = 0; k < coordinates; ++k) {
+          (void)source.real("entity bounding box");
+        }
+        const std::size_t physicals = source.count("physical tag count", kMaxCount);
+        long long first = 0;
+        for (std::size_t k = 0; k < physicals; ++k) {
+          const long long physical = source.integer("physical tag");
+          if (k == 0) {
+            first = physical;
+          }
+        }
+        if (dimension > 0) {
+          const std::size_t bounding = source.count("bounding entity count", kMaxCount);
+          for (std::size_t k = 0; k < bounding; ++k) {
+            (void)source.integer("bounding entity tag");
+          }
+        }
+        if (dimension == 3 && physicals > 0) {
+          volume_physical[tag] = first;
+        }
+      }
+    }
+    source.expect("$EndEntities");
   }
 
   void read_nodes_v4() {
@@ -318,17 +380,25 @@ struct GmshReader {
     for (std::size_t b = 0; b < blocks; ++b) {
       long long type = 0;
       std::size_t in_block = 0;
+      long long entity = 0;
       if (binary) {
         (void)source.binary<std::int32_t>(swap, "entity dimension");
-        (void)source.binary<std::int32_t>(swap, "entity tag");
+        entity = source.binary<std::int32_t>(swap, "entity tag");
         type = source.binary<std::int32_t>(swap, "element type");
         in_block = binary_size("elements in block");
+      } else if (v41) {
+        (void)source.integer("entity dimension");
+        entity = source.integer("entity tag");
+        type = source.integer("element type");
+        in_block = source.count("elements in block", kMaxCount);
       } else {
-        (void)source.integer(v41 ? "entity dimension" : "entity tag");
-        (void)source.integer(v41 ? "entity tag" : "entity dimension");
+        entity = source.integer("entity tag");
+        (void)source.integer("entity dimension");
         type = source.integer("element type");
         in_block = source.count("elements in block", kMaxCount);
       }
+      const auto physical = volume_physical.find(entity);
+      const long long label = physical != volume_physical.end() ? physical->second : entity;
       const int node_count = nodes_per_element(type);
       if (node_count == 0) {
         source.fail("unknown Gmsh element type " + std::to_string(type));
@@ -352,7 +422,7 @@ struct GmshReader {
             source.fail("too many nodes for an element of type " + std::to_string(type));
           }
         }
-        element(type, nodes);
+        element(type, nodes, label);
       }
       read += in_block;
     }
@@ -391,6 +461,8 @@ struct GmshReader {
         }
         source.expect(saw_header ? "$EndNodes" : "$ENDNOD");
         saw_nodes = true;
+      } else if (section == "$Entities" && saw_header && version >= 4.0) {
+        read_entities();
       } else if (section == "$ELM" || section == "$Elements") {
         if (!saw_nodes) {
           source.fail("elements before nodes");

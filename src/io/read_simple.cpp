@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -69,13 +70,19 @@ RawMesh read_tetgen(Source& node_source, Source* ele_source) {
     for (long long extra = 4; extra < corners; ++extra) {
       (void)ele.integer("mid-edge node");
     }
+    // TetGen's region attribute (-A) is a number; regions are numbered by integers.
+    long long label = 0;
     for (std::size_t a = 0; a < region_attributes; ++a) {
-      (void)ele.real("region attribute");
+      const double attribute = ele.real("region attribute");
+      if (attribute != std::floor(attribute) || std::abs(attribute) > 2e9) {
+        ele.fail("region attribute " + std::to_string(attribute) + " is not an integer label");
+      }
+      label = static_cast<long long>(attribute);
     }
     if (ele.token_on_this_line()) {
       ele.fail("too many values on a tetrahedron line");
     }
-    builder.add_tet(nodes);
+    builder.add_tet(nodes, label);
   }
   if (!ele.next_token().empty()) {
     ele.fail("more tetrahedra than the " + std::to_string(tet_count) + " announced");
@@ -154,8 +161,7 @@ RawMesh read_medit(Source& source) {
         for (long long& node : nodes) {
           node = source.integer("tetrahedron vertex");
         }
-        (void)source.integer("tetrahedron reference");
-        builder.add_tet(nodes);
+        builder.add_tet(nodes, source.integer("tetrahedron reference"));
       }
     } else if (keyword == "triangles") {
       const std::size_t count = source.count("triangle count", kMaxCount);

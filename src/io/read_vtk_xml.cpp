@@ -221,6 +221,7 @@ class VtkXmlReader {
       fail_at(cells, "Cells without a 'types' DataArray");
     }
     const std::vector<double> types = values(types_node, cell_count, "types");
+    const std::vector<double> labels = region_labels(piece, cell_count);
     for (std::size_t c = 0; c < cell_count; ++c) {
       const std::size_t begin = c == 0 ? 0 : static_cast<std::size_t>(offsets[c - 1]);
       const std::size_t size = static_cast<std::size_t>(offsets[c]) - begin;
@@ -229,7 +230,8 @@ class VtkXmlReader {
         return first_point + static_cast<long long>(connectivity[begin + k]);
       };
       if ((type == 10 && size == 4) || (type == 24 && size == 10)) {
-        builder_.add_tet({id(0), id(1), id(2), id(3)});
+        builder_.add_tet({id(0), id(1), id(2), id(3)},
+                         labels.empty() ? 0 : static_cast<long long>(labels[c]));
         if (type == 24) {
           builder_.skip("mid-edge nodes (kept the corners of quadratic tetrahedra)", 6);
         }
@@ -242,6 +244,26 @@ class VtkXmlReader {
         builder_.skip(vtk_cell_name(type));
       }
     }
+  }
+
+  /// Region labels per cell: the first one-component integer CellData array (a "subdomain
+  /// index", "region" or "gmsh:physical" array), or none.
+  std::vector<double> region_labels(const pugi::xml_node& piece, std::size_t cell_count) {
+    for (const pugi::xml_node array : piece.child("CellData").children("DataArray")) {
+      const std::string type = array.attribute("type").as_string();
+      const bool integer = type.rfind("Int", 0) == 0 || type.rfind("UInt", 0) == 0;
+      if (!integer || array.attribute("NumberOfComponents").as_int(1) != 1) {
+        continue;
+      }
+      std::vector<double> labels = values(array, cell_count, "region labels");
+      for (double label : labels) {
+        if (std::abs(label) > 2e9) {
+          fail_at(array, "region label " + std::to_string(label) + " is out of range");
+        }
+      }
+      return labels;
+    }
+    return {};
   }
 
   std::size_t count_attribute_or_zero(const pugi::xml_node& node, const std::string& name) const {

@@ -25,7 +25,8 @@ class MeshBuilder {
   /// Points are numbered 0..n-1 by position in the file (tags are implicit).
   void set_implicit_tags(long long first_tag) { implicit_first_ = first_tag; }
 
-  void add_tet(const std::array<long long, 4>& tags);
+  /// A tetrahedron in region `label` (a physical group, subdomain or reference; 0: none).
+  void add_tet(const std::array<long long, 4>& tags, long long label = 0);
   void add_triangle(const std::array<long long, 3>& tags);
   /// Notes a skipped cell of a kind ("hexahedra", "lines" ...).
   void skip(const std::string& kind, std::size_t count = 1) { skipped_[kind] += count; }

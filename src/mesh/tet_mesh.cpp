@@ -72,7 +72,19 @@ void support_of(const std::vector<VertexOrigin>& origins, VertexId vertex,
 }  // namespace
 
 TetMesh::TetMesh(std::vector<Vec3> rest_positions, std::vector<Tet> tets)
-    : rest_positions_(std::move(rest_positions)), tets_(std::move(tets)) {
+    : TetMesh(std::move(rest_positions), std::move(tets), {}) {}
+
+TetMesh::TetMesh(std::vector<Vec3> rest_positions, std::vector<Tet> tets, std::vector<int> labels)
+    : rest_positions_(std::move(rest_positions)),
+      tets_(std::move(tets)),
+      tet_labels_(std::move(labels)) {
+  if (tet_labels_.empty()) {
+    tet_labels_.assign(tets_.size(), 0);
+  }
+  if (tet_labels_.size() != tets_.size()) {
+    throw InputError(std::to_string(tet_labels_.size()) + " region labels for " +
+                     std::to_string(tets_.size()) + " tetrahedra");
+  }
   vertex_origins_.assign(rest_positions_.size(), VertexOrigin{});
   for (std::size_t t = 0; t < tets_.size(); ++t) {
     for (int i = 0; i < 4; ++i) {
@@ -97,6 +109,7 @@ TetMesh::TetMesh(const TetMesh& other)
     : rest_positions_(other.rest_positions_),
       vertex_origins_(other.vertex_origins_),
       tets_(other.tets_),
+      tet_labels_(other.tet_labels_),
       tet_neighbors_(other.tet_neighbors_),
       tet_edges_(other.tet_edges_),
       vertex_tets_(other.vertex_tets_),
@@ -118,6 +131,7 @@ TetMesh::TetMesh(TetMesh&& other) noexcept
     : rest_positions_(std::move(other.rest_positions_)),
       vertex_origins_(std::move(other.vertex_origins_)),
       tets_(std::move(other.tets_)),
+      tet_labels_(std::move(other.tet_labels_)),
       tet_neighbors_(std::move(other.tet_neighbors_)),
       tet_edges_(std::move(other.tet_edges_)),
       vertex_tets_(std::move(other.vertex_tets_)),
@@ -138,6 +152,7 @@ TetMesh& TetMesh::operator=(TetMesh&& other) noexcept {
     rest_positions_ = std::move(other.rest_positions_);
     vertex_origins_ = std::move(other.vertex_origins_);
     tets_ = std::move(other.tets_);
+    tet_labels_ = std::move(other.tet_labels_);
     tet_neighbors_ = std::move(other.tet_neighbors_);
     tet_edges_ = std::move(other.tet_edges_);
     vertex_tets_ = std::move(other.vertex_tets_);
@@ -571,10 +586,11 @@ VertexId TetMesh::duplicate_vertex(VertexId original, std::span<const TetId> tet
   return copy;
 }
 
-TetId TetMesh::add_tet(const Tet& tet) {
+TetId TetMesh::add_tet(const Tet& tet, int label) {
   check_tet_ids(tet);
   const auto id = static_cast<TetId>(tets_.size());
   tets_.push_back(tet);
+  tet_labels_.push_back(label);
   tet_neighbors_.push_back({kBoundaryFace, kBoundaryFace, kBoundaryFace, kBoundaryFace});
   tet_edges_.push_back({kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId});
   attach(id);
@@ -604,6 +620,7 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
   for (std::size_t i = 1; i < children.size(); ++i) {
     ids.push_back(static_cast<TetId>(tets_.size()));
     tets_.push_back(children[i]);
+    tet_labels_.push_back(tet_labels_[parent]);
     tet_neighbors_.push_back({kBoundaryFace, kBoundaryFace, kBoundaryFace, kBoundaryFace});
     tet_edges_.push_back({kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId});
   }
@@ -626,6 +643,7 @@ void TetMesh::remove_tet(TetId t) {
   const auto last = static_cast<TetId>(tets_.size() - 1);
   if (t != last) {
     tets_[t] = tets_[last];
+    tet_labels_[t] = tet_labels_[last];
     tet_neighbors_[t] = tet_neighbors_[last];
     tet_edges_[t] = tet_edges_[last];
     for (VertexId v : tets_[t]) {
@@ -641,6 +659,7 @@ void TetMesh::remove_tet(TetId t) {
     }
   }
   tets_.pop_back();
+  tet_labels_.pop_back();
   tet_neighbors_.pop_back();
   tet_edges_.pop_back();
   for (MeshObserver* observer : observers_) {

@@ -24,16 +24,21 @@ constexpr std::size_t kParallelColours = 64;
 
 CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const Material& material,
                                            const CorotationalFemParameters& parameters)
+    : CorotationalFemModel(mesh, MaterialAssignment::uniform(material), parameters) {}
+
+CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const MaterialAssignment& materials,
+                                           const CorotationalFemParameters& parameters)
     : mesh_(&mesh),
-      material_(material),
+      materials_(mesh, materials),
       parameters_(parameters),
       elements_(mesh, FemElement{}, TetRule::kDefault),
       fraction_(mesh, 1.0, TetRule::kCopy),
       tet_mass_(mesh, 0.0, TetRule::kDefault),
       rotations_(mesh, Eigen::Quaterniond::Identity(), TetRule::kCopy),
       masses_(mesh, 0.0, VertexRule::kDefault) {
-  material_.check();
-  lame_ = lame_parameters(material_.young_modulus, material_.poisson_ratio);
+  for (const Material& material : materials_.table()) {
+    lames_.push_back(lame_parameters(material.young_modulus, material.poisson_ratio));
+  }
   if (!(parameters_.rayleigh_mass >= 0.0) || !(parameters_.rayleigh_stiffness >= 0.0) ||
       !std::isfinite(parameters_.rayleigh_mass) || !std::isfinite(parameters_.rayleigh_stiffness)) {
     throw InputError("Rayleigh damping coefficients must be non-negative (alpha 1/s, beta s)");
@@ -46,7 +51,7 @@ CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const Material& materi
     }
     elements_[tet].shape = tet_rest_shape(rest, static_cast<std::int64_t>(t));
     elements_[tet].valid = true;
-    tet_mass_[tet] = material_.density * elements_[tet].shape.volume;
+    tet_mass_[tet] = materials_.of(tet).density * elements_[tet].shape.volume;
   }
   tet_mass_.set_hook(mass_split_by_volume(mesh_));
   mesh.add_observer(this);
@@ -106,7 +111,7 @@ void CorotationalFemModel::update_rest_data() {
       element.shape = TetRestShape{};
     }
     if (tet_mass_[tet] == 0.0) {
-      tet_mass_[tet] = material_.density * element.shape.volume;  // a tet added afresh
+      tet_mass_[tet] = materials_.of(tet).density * element.shape.volume;  // a tet added afresh
     }
   }
 }
@@ -203,8 +208,11 @@ void CorotationalFemModel::refresh() {
   masses_stale_ = false;
   // Gershgorin bound on M^-1/2 K M^-1/2 with the rest stiffness.
   std::vector<double> row(mesh.vertex_count(), 0.0);
-  const CorotatedLinearization rest_linearization =
-      corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame_, TangentKind::kWarped);
+  std::vector<CorotatedLinearization> rest_linearizations;  // per material
+  for (const LameParameters& lame : lames_) {
+    rest_linearizations.push_back(
+        corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame, TangentKind::kWarped));
+  }
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
     const auto tet = static_cast<TetId>(t);
     const FemElement& element = elements_[tet];
@@ -223,7 +231,8 @@ void CorotationalFemModel::refresh() {
           continue;
         }
         const Mat3 block =
-            stiffness_block(rest_linearization, lame_, element.shape, fraction_[tet], a, b);
+            stiffness_block(rest_linearizations[static_cast<std::size_t>(materials_.id(tet))],
+                            lame(tet), element.shape, fraction_[tet], a, b);
         row[corners[a]] += block.cwiseAbs().rowwise().sum().maxCoeff() / std::sqrt(ma * mb);
       }
     }
@@ -314,12 +323,12 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
                         }
                         const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
                         const Mat3 R = polar_rotation(F, rotations_[tet]);
-                        Mat3 P = corotated_stress(F, R, lame_);
+                        Mat3 P = corotated_stress(F, R, lame(tet));
                         if (beta > 0.0) {
                           // Stiffness-proportional damping with the element's current rotation.
-                          P += beta *
-                               warped_stress_differential(
-                                   R, lame_, deformation_gradient(corners(tet, v), element.shape));
+                          P += beta * warped_stress_differential(
+                                          R, lame(tet),
+                                          deformation_gradient(corners(tet, v), element.shape));
                         }
                         scaled_stress_[t] = (-weight * element.shape.volume) * P;
                         if (linearize) {
@@ -353,9 +362,9 @@ void CorotationalFemModel::store_linearization(TetId tet, const Mat3& F, const M
     // Only what the warped tangent reads: a third of the bytes of a full linearisation.
     linearization.warped = true;
     linearization.rotation = R;
-    linearization.twist_weights.fill(-2.0 * lame_.mu);
+    linearization.twist_weights.fill(-2.0 * lame(tet).mu);
   } else {
-    linearization = corotated_linearization(F, R, lame_, parameters_.tangent);
+    linearization = corotated_linearization(F, R, lame(tet), parameters_.tangent);
   }
   auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
   for (int a = 0; a < 4; ++a) {
@@ -389,10 +398,11 @@ Vec3 CorotationalFemModel::vertex_force(VertexId vertex, const Vec3& x, const Ve
     const Mat3 F = deformation_gradient(positions, element.shape);
     Eigen::Quaterniond start = rotations_[tet];
     const Mat3 R = polar_rotation(F, start);
-    Mat3 P = corotated_stress(F, R, lame_);
+    Mat3 P = corotated_stress(F, R, lame(tet));
     if (parameters_.rayleigh_stiffness > 0.0) {
-      P += parameters_.rayleigh_stiffness *
-           warped_stress_differential(R, lame_, deformation_gradient(velocities, element.shape));
+      P +=
+          parameters_.rayleigh_stiffness *
+          warped_stress_differential(R, lame(tet), deformation_gradient(velocities, element.shape));
     }
     force -= weight * element.shape.volume * P * element.shape.gradients[local];
   }
@@ -446,7 +456,7 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
     for_each_element([&](TetId tet, const FemElement& element, double weight) {
       const Mat3 dF = deformation_gradient(corners(tet, p), element.shape);
       const Mat3 dP = (stiffness_scale * weight * element.shape.volume) *
-                      stress_differential(linearization_[tet], lame_, dF);
+                      stress_differential(linearization_[tet], lame(tet), dF);
       const Tet& vertices = mesh_->tet(tet);
       for (int c = 0; c < 4; ++c) {
         y[vertices[c]] += dP * element.shape.gradients[c];
@@ -474,7 +484,7 @@ void CorotationalFemModel::add_linearized_diagonal(double a, double b,
     for_each_element([&](TetId tet, const FemElement& element, double weight) {
       const Tet& vertices = mesh_->tet(tet);
       for (int c = 0; c < 4; ++c) {
-        diagonal[vertices[c]] += stiffness_scale * stiffness_block(linearization_[tet], lame_,
+        diagonal[vertices[c]] += stiffness_scale * stiffness_block(linearization_[tet], lame(tet),
                                                                    element.shape, weight, c, c);
       }
     });
@@ -538,20 +548,20 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
             if (warped) {
               const auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
               const double factor = scale * weight * element.shape.volume;
-              const Vec3 lambda_a = (factor * lame_.lambda) * rotated[a];
-              const Vec3 mu_a = (factor * lame_.mu) * rotated[a];
+              const Vec3 lambda_a = (factor * lame(tet).lambda) * rotated[a];
+              const Vec3 mu_a = (factor * lame(tet).mu) * rotated[a];
               const Vec3& gradient_a = element.shape.gradients[a];
               for (int b = 0; b < 4; ++b) {
                 add_warped_stiffness_block(
                     out[slot[4 * a + b]], lambda_a, mu_a, rotated[b],
-                    factor * lame_.mu * gradient_a.dot(element.shape.gradients[b]));
+                    factor * lame(tet).mu * gradient_a.dot(element.shape.gradients[b]));
               }
               continue;
             }
             const CorotatedLinearization& linearization = linearization_[tet];
             for (int b = 0; b < 4; ++b) {
               out[slot[4 * a + b]] +=
-                  stiffness_block(linearization, lame_, element.shape, scale * weight, a, b);
+                  stiffness_block(linearization, lame(tet), element.shape, scale * weight, a, b);
             }
           }
         }
@@ -566,7 +576,7 @@ double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {
     Eigen::Quaterniond start = rotations_[tet];
     energy[static_cast<std::size_t>(tet)] =
         fraction_[tet] * element.shape.volume *
-        corotated_energy_density(F, polar_rotation(F, start), lame_);
+        corotated_energy_density(F, polar_rotation(F, start), lame(tet));
   });
   double total = 0.0;
   for (double e : energy) {

@@ -10,13 +10,16 @@ namespace incise {
 
 MassSpringModel::MassSpringModel(TetMesh& mesh, const Material& material,
                                  const MassSpringParameters& parameters)
+    : MassSpringModel(mesh, MaterialAssignment::uniform(material), parameters) {}
+
+MassSpringModel::MassSpringModel(TetMesh& mesh, const MaterialAssignment& materials,
+                                 const MassSpringParameters& parameters)
     : mesh_(&mesh),
-      material_(material),
+      materials_(mesh, materials),
       parameters_(parameters),
       tet_mass_(mesh, 0.0, TetRule::kDefault),
       masses_(mesh, 0.0, VertexRule::kDefault),
       springs_(mesh, Spring{}, EdgeRule::kDefault) {
-  material_.check();
   if (!(parameters_.prestrain >= 0.0 && parameters_.prestrain < 1.0)) {
     throw InputError("prestrain must lie in [0, 1)");
   }
@@ -25,8 +28,8 @@ MassSpringModel::MassSpringModel(TetMesh& mesh, const Material& material,
     throw InputError("spring damping ratio must be non-negative");
   }
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    tet_mass_[static_cast<TetId>(t)] =
-        material_.density * std::abs(signed_volume(mesh, static_cast<TetId>(t)));
+    const auto tet = static_cast<TetId>(t);
+    tet_mass_[tet] = materials_.of(tet).density * std::abs(signed_volume(mesh, tet));
   }
   tet_mass_.set_hook(mass_split_by_volume(mesh_));
   mesh.add_observer(this);
@@ -66,7 +69,7 @@ void MassSpringModel::on_vertex_added(const TetMesh&, VertexId vertex, const Ver
 }
 
 void MassSpringModel::on_tet_added(const TetMesh& mesh, TetId tet) {
-  tet_mass_[tet] = material_.density * std::abs(signed_volume(mesh, tet));
+  tet_mass_[tet] = materials_.of(tet).density * std::abs(signed_volume(mesh, tet));
   mark(mesh.tet(tet));
 }
 
@@ -117,20 +120,21 @@ void MassSpringModel::refresh() {
     masses_[v] = mass;
   }
   // Springs at touched vertices (van Gelder's rule, extended to tetrahedra: the stiffness of
-  // an edge is E times the summed rest volume of the tetrahedra around it over its squared
-  // rest length; A. van Gelder, J. Graphics Tools 3(2), 1998).
+  // an edge is the sum of E times rest volume over the tetrahedra around it, over its squared
+  // rest length; A. van Gelder, J. Graphics Tools 3(2), 1998). Each tetrahedron brings its
+  // own material's E.
   for (VertexId v : dirty_) {
     for (std::size_t k = graph_.row_start[v]; k < graph_.row_start[v + 1]; ++k) {
       const EdgeId e = graph_.edge[k];
       const auto& ends = mesh.edge(e);
       const double length = (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
-      double volume = 0.0;
+      double modulus_volume = 0.0;  // Pa m^3
       for (TetId t : mesh.edge_tets(e)) {
-        volume += std::abs(signed_volume(mesh, t));
+        modulus_volume += materials_.of(t).young_modulus * std::abs(signed_volume(mesh, t));
       }
       Spring& spring = springs_[e];
       spring.rest_length = (1.0 - parameters_.prestrain) * length;
-      spring.stiffness = length > 0.0 ? material_.young_modulus * volume / (length * length) : 0.0;
+      spring.stiffness = length > 0.0 ? modulus_volume / (length * length) : 0.0;
       const double ma = masses_[ends[0]];
       const double mb = masses_[ends[1]];
       const double reduced = ma + mb > 0.0 ? ma * mb / (ma + mb) : 0.0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <span>
 #include <sstream>
@@ -268,6 +269,45 @@ std::filesystem::path resolve(const Context& context, const std::string& path) {
   return result.lexically_normal();
 }
 
+/// A preset name, or {young_modulus, poisson_ratio, density} (Pa, -, kg/m^3) starting from
+/// the liver preset; `name` becomes the preset's name or "custom".
+Material parse_material(const Context& context, const Json& value, const std::string& path,
+                        std::string& name) {
+  Material result = material_preset("liver");
+  if (value.is_string()) {
+    name = value.get<std::string>();
+    try {
+      return material_preset(name);
+    } catch (const InputError& error) {
+      context.fail(path, error.what());
+    }
+  }
+  const ObjectReader material(context, value, path, {"young_modulus", "poisson_ratio", "density"});
+  name = "custom";
+  result.young_modulus = material.positive("young_modulus", result.young_modulus);
+  result.poisson_ratio = material.number("poisson_ratio", result.poisson_ratio);
+  result.density = material.positive("density", result.density);
+  try {
+    result.check();
+  } catch (const InputError& error) {
+    context.fail(path, error.what());
+  }
+  return result;
+}
+
+/// [[x0,y0,z0],[x1,y1,z1]] with the first corner not above the second (m).
+std::pair<Vec3, Vec3> parse_box(const Context& context, const Json& box, const std::string& path) {
+  if (!box.is_array() || box.size() != 2) {
+    context.fail(path, "must be [[x0,y0,z0],[x1,y1,z1]]");
+  }
+  const Vec3 low = ObjectReader::parse_vec3(context, box[0], path + "[0]");
+  const Vec3 high = ObjectReader::parse_vec3(context, box[1], path + "[1]");
+  if (!(low.array() <= high.array()).all()) {
+    context.fail(path, "its first corner must not exceed the second");
+  }
+  return {low, high};
+}
+
 RegionSpec parse_region(const Context& context, const Json& value, const std::string& path,
                         const std::vector<std::string>& extra_keys) {
   std::vector<std::string> allowed{"box", "vertices"};
@@ -280,16 +320,7 @@ RegionSpec parse_region(const Context& context, const Json& value, const std::st
                  "give exactly one of \"box\": [[x0,y0,z0],[x1,y1,z1]] and \"vertices\": [ids]");
   }
   if (reader.has("box")) {
-    const Json& box = reader.at("box");
-    if (!box.is_array() || box.size() != 2) {
-      context.fail(reader.child("box"), "must be [[x0,y0,z0],[x1,y1,z1]]");
-    }
-    const Vec3 low = ObjectReader::parse_vec3(context, box[0], reader.child("box") + "[0]");
-    const Vec3 high = ObjectReader::parse_vec3(context, box[1], reader.child("box") + "[1]");
-    if (!(low.array() <= high.array()).all()) {
-      context.fail(reader.child("box"), "its first corner must not exceed the second");
-    }
-    region.box = std::make_pair(low, high);
+    region.box = parse_box(context, reader.at("box"), reader.child("box"));
   } else {
     const Json& ids = reader.at("vertices");
     if (!ids.is_array() || ids.empty() || !std::all_of(ids.begin(), ids.end(), [](const Json& id) {
@@ -339,7 +370,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   }
   const ObjectReader top(
       context, root, "",
-      {"description", "mesh", "material", "model", "damping", "integrator", "fixed",
+      {"description", "mesh", "material", "materials", "model", "damping", "integrator", "fixed",
        "displacements", "forces", "gravity", "frames", "frame_dt", "output", "tool", "cutter"});
   SceneDescription scene;
   scene.file = file;
@@ -383,30 +414,38 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     }
   }
 
-  // material
-  if (top.has("material") && top.at("material").is_string()) {
-    scene.material_name = top.at("material").get<std::string>();
-    try {
-      scene.material = material_preset(scene.material_name);
-    } catch (const InputError& error) {
-      context.fail("material", error.what());
-    }
-  } else if (top.has("material")) {
-    const ObjectReader material(context, top.at("material"), "material",
-                                {"young_modulus", "poisson_ratio", "density"});
-    scene.material_name = "custom";
-    scene.material.young_modulus = material.positive("young_modulus", scene.material.young_modulus);
-    scene.material.poisson_ratio = material.number("poisson_ratio", scene.material.poisson_ratio);
-    scene.material.density = material.positive("density", scene.material.density);
-    try {
-      scene.material.check();
-    } catch (const InputError& error) {
-      context.fail("material", error.what());
-    }
+  // material: the default of every tetrahedron; "materials" override it by region
+  if (top.has("material")) {
+    scene.material = parse_material(context, top.at("material"), "material", scene.material_name);
   } else {
     scene.material_name = "liver";
     scene.material = material_preset("liver");
   }
+  parse_list(context, top, "materials", [&](const Json& value, const std::string& path) {
+    const ObjectReader reader(context, value, path, {"material", "region"});
+    MaterialRegionSpec spec;
+    spec.where = path;
+    if (!reader.has("material") || !reader.has("region")) {
+      context.fail(path,
+                   "needs \"material\" (a preset name or {young_modulus, poisson_ratio, "
+                   "density}) and \"region\" ({\"box\": [[x0,y0,z0],[x1,y1,z1]]} or "
+                   "{\"label\": N})");
+    }
+    spec.material =
+        parse_material(context, reader.at("material"), reader.child("material"), spec.name);
+    const ObjectReader region(context, reader.at("region"), reader.child("region"),
+                              {"box", "label"});
+    if (region.has("box") == region.has("label")) {
+      context.fail(reader.child("region"), "give exactly one of \"box\" and \"label\"");
+    }
+    if (region.has("label")) {
+      spec.label = region.integer("label", 0, std::numeric_limits<int>::min(),
+                                  std::numeric_limits<int>::max());
+    } else {
+      spec.box = parse_box(context, region.at("box"), region.child("box"));
+    }
+    scene.materials.push_back(spec);
+  });
 
   // model
   bool fem_tangent_given = false;

@@ -33,6 +33,7 @@ enum class MeshFormat { kUnknown, kGmsh, kTetGen, kMedit, kVtkLegacy, kVtkXml, k
 struct RawMesh {
   std::vector<Vec3> points;
   std::vector<Tet> tets;
+  std::vector<int> tet_labels;  ///< region label per tetrahedron (0 where the file has none)
   std::vector<Triangle> triangles;
   /// Human-readable notes ("skipped 120 hexahedra"), one per kind of thing skipped.
   std::vector<std::string> notes;

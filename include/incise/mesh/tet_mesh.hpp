@@ -105,6 +105,8 @@ class TetMesh {
   /// Builds the mesh and its adjacency in bulk. Throws InputError for vertex ids out of range
   /// or a tetrahedron that repeats a vertex. Orientation is not checked here (see validate()).
   TetMesh(std::vector<Vec3> rest_positions, std::vector<Tet> tets);
+  /// The same with a region label per tetrahedron (as many as tets; empty: all 0).
+  TetMesh(std::vector<Vec3> rest_positions, std::vector<Tet> tets, std::vector<int> labels);
 
   /// Copies geometry and adjacency, not observers.
   TetMesh(const TetMesh& other);
@@ -123,6 +125,11 @@ class TetMesh {
   [[nodiscard]] std::span<const Vec3> rest_positions() const { return rest_positions_; }
   [[nodiscard]] const Tet& tet(TetId tet) const { return tets_[tet]; }
   [[nodiscard]] std::span<const Tet> tets() const { return tets_; }
+  /// Region label of a tetrahedron (a file's physical group, subdomain or reference; 0 when
+  /// the file had none). Children of a split keep their parent's label.
+  [[nodiscard]] int tet_label(TetId tet) const { return tet_labels_[tet]; }
+  [[nodiscard]] std::span<const int> tet_labels() const { return tet_labels_; }
+  void set_tet_label(TetId tet, int label) { tet_labels_[tet] = label; }
   [[nodiscard]] const VertexOrigin& vertex_origin(VertexId vertex) const {
     return vertex_origins_[vertex];
   }
@@ -160,8 +167,8 @@ class TetMesh {
   /// instead; faces between moved and unmoved tetrahedra become boundary. Throws InputError if
   /// a listed tetrahedron does not use `original`.
   VertexId duplicate_vertex(VertexId original, std::span<const TetId> tets_to_move);
-  /// Appends a tetrahedron with no parent.
-  TetId add_tet(const Tet& tet);
+  /// Appends a tetrahedron with no parent, in region `label`.
+  TetId add_tet(const Tet& tet, int label = 0);
   /// Replaces `parent` by `children` (at least one): the first child takes the parent's id,
   /// the others are appended. Returns the children's ids.
   std::vector<TetId> replace_tet(TetId parent, std::span<const Tet> children);
@@ -207,6 +214,7 @@ class TetMesh {
   std::vector<Vec3> rest_positions_;
   std::vector<VertexOrigin> vertex_origins_;
   std::vector<Tet> tets_;
+  std::vector<int> tet_labels_;
   std::vector<std::array<TetId, 4>> tet_neighbors_;
   std::vector<std::array<EdgeId, 6>> tet_edges_;
   std::vector<std::vector<TetId>> vertex_tets_;

@@ -17,6 +17,7 @@
 #include "incise/physics/corotational.hpp"
 #include "incise/physics/force_model.hpp"
 #include "incise/physics/material.hpp"
+#include "incise/physics/material_map.hpp"
 
 namespace incise {
 
@@ -42,6 +43,9 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
  public:
   /// Throws InputError naming the element if a tetrahedron is inverted or degenerate at rest.
   CorotationalFemModel(TetMesh& mesh, const Material& material,
+                       const CorotationalFemParameters& parameters = {});
+  /// A body of several materials: each element takes its own Lame parameters and density.
+  CorotationalFemModel(TetMesh& mesh, const MaterialAssignment& materials,
                        const CorotationalFemParameters& parameters = {});
   ~CorotationalFemModel() override;
 
@@ -69,8 +73,12 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   void set_material_fraction(TetId tet, double fraction);
   [[nodiscard]] double material_fraction(TetId tet) const { return fraction_[tet]; }
   [[nodiscard]] double total_mass() const override;
-  [[nodiscard]] const Material& material() const { return material_; }
-  [[nodiscard]] const LameParameters& lame() const { return lame_; }
+  /// The first material (the only one of a uniform body) and its Lame parameters.
+  [[nodiscard]] const Material& material() const { return materials_.table().front(); }
+  [[nodiscard]] const LameParameters& lame() const { return lames_.front(); }
+  [[nodiscard]] const MaterialMap& materials() const { return materials_; }
+  /// Lame parameters of an element's material.
+  [[nodiscard]] const LameParameters& lame(TetId tet) const { return lames_[materials_.id(tet)]; }
   [[nodiscard]] const CorotationalFemParameters& parameters() const { return parameters_; }
   void set_tangent(TangentKind kind) { parameters_.tangent = kind; }
   void set_assemble(bool assemble) { parameters_.assemble = assemble; }
@@ -108,8 +116,8 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   void for_each_element(const Body& body) const;
 
   TetMesh* mesh_;
-  Material material_;
-  LameParameters lame_;
+  MaterialMap materials_;
+  std::vector<LameParameters> lames_;  ///< per material
   CorotationalFemParameters parameters_;
   TetData<FemElement> elements_;
   TetData<double> fraction_;

@@ -9,6 +9,7 @@
 #include "incise/mesh/vertex_graph.hpp"
 #include "incise/physics/force_model.hpp"
 #include "incise/physics/material.hpp"
+#include "incise/physics/material_map.hpp"
 
 namespace incise {
 
@@ -30,6 +31,10 @@ struct Spring {
 class MassSpringModel final : public ForceModel, public MeshObserver {
  public:
   MassSpringModel(TetMesh& mesh, const Material& material, const MassSpringParameters& parameters);
+  /// A body of several materials: each tetrahedron's density gives its mass and its Young's
+  /// modulus its share of the springs along its edges.
+  MassSpringModel(TetMesh& mesh, const MaterialAssignment& materials,
+                  const MassSpringParameters& parameters);
   ~MassSpringModel() override;
 
   [[nodiscard]] std::string name() const override { return "mass-spring"; }
@@ -49,7 +54,9 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
 
   [[nodiscard]] const Spring& spring(EdgeId edge) const { return springs_[edge]; }
   [[nodiscard]] double total_mass() const override;
-  [[nodiscard]] const Material& material() const { return material_; }
+  /// The first material (the only one of a uniform body).
+  [[nodiscard]] const Material& material() const { return materials_.table().front(); }
+  [[nodiscard]] const MaterialMap& materials() const { return materials_; }
 
   // MeshObserver: collects the vertices whose mass or springs an edit changed.
   void on_vertex_added(const TetMesh& mesh, VertexId vertex, const VertexOrigin& origin) override;
@@ -72,7 +79,7 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
                                   const Vec3& xb, const Vec3& vb) const;
 
   TetMesh* mesh_;
-  Material material_;
+  MaterialMap materials_;
   MassSpringParameters parameters_;
   /// Mass of each tetrahedron (kg): density times rest volume, split among children in
   /// proportion to their volumes so the total never drifts.

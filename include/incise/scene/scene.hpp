@@ -46,6 +46,16 @@ struct RegionSpec {
   std::string where;  ///< "fixed[1]": for error messages
 };
 
+/// A material for the tetrahedra of a region: those whose rest centroid lies in a box (m), or
+/// those with a region label from the mesh file.
+struct MaterialRegionSpec {
+  Material material;
+  std::string name;  ///< preset name, or "custom"
+  std::optional<std::pair<Vec3, Vec3>> box;
+  std::optional<int> label;
+  std::string where;  ///< "materials[1]": for error messages
+};
+
 struct DisplacementSpec {
   RegionSpec region;
   Vec3 displacement = Vec3::Zero();  ///< m
@@ -82,7 +92,8 @@ struct SceneDescription {
   double mesh_scale = 1.0;    ///< metres per file unit (files carry no units)
   BoxGridOptions box;         ///< used when mesh_file is empty
   std::string material_name;  ///< preset name, or "custom"
-  Material material;
+  Material material;          ///< of every tetrahedron no entry of `materials` selects
+  std::vector<MaterialRegionSpec> materials;  ///< later entries win
   ModelKind model_type = ModelKind::kMassSpring;
   MassSpringParameters mass_spring;
   CorotationalFemParameters fem;
