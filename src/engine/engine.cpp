@@ -350,7 +350,9 @@ bool Engine::step() {
       p.cutter->start(p.blade ? *p.blade : *pose);
     }
     if (p.blade) {
+      const std::uint64_t revision = p.mesh.revision();
       p.cutter->move_to(*pose);
+      record.edited = p.mesh.revision() != revision;
       record.cd = p.cutter->stats().cd_seconds;
       record.gc = p.cutter->stats().gc_seconds;
       record.cut = true;

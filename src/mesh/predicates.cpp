@@ -8,6 +8,8 @@
 #include <array>
 #include <limits>
 
+#include "incise/mesh/tet_mesh.hpp"
+
 namespace incise {
 namespace {
 
@@ -103,12 +105,63 @@ bool segment_may_meet_tet(const Vec3& p, const Vec3& q, const std::array<Vec3, 4
   return true;
 }
 
+/// The segment clipped by the tetrahedron's four half-spaces in floating point: +1 when it
+/// clearly meets the tetrahedron, 0 when it clearly misses, -1 when round-off could decide
+/// (it grazes a face, edge or vertex): only then does the exact test run.
+int clip_segment_by_tet(const Vec3& p, const Vec3& q, const std::array<Vec3, 4>& tet) {
+  constexpr double kMargin = 1e-8;    // of the segment's parameter
+  constexpr double kParallel = 1e-6;  // |rate| below this fraction: as good as parallel
+  const Vec3 d = q - p;
+  const double length = d.norm();
+  double low = 0.0;
+  double high = 1.0;
+  bool unsure = false;
+  for (int f = 0; f < 4; ++f) {
+    const auto& face = tet_local::kFaces[f];
+    const Vec3& a = tet[face[0]];
+    Vec3 inward = (tet[face[1]] - a).cross(tet[face[2]] - a);
+    const double size = inward.norm();
+    if (size == 0.0) {
+      return -1;
+    }
+    if (inward.dot(tet[f] - a) < 0.0) {
+      inward = -inward;
+    }
+    const double at_p = inward.dot(p - a);
+    const double rate = inward.dot(d);
+    const double reach = size * (length + (p - a).norm());  // scale of at_p and rate
+    if (std::abs(rate) <= kParallel * size * length) {
+      if (at_p < -kMargin * reach) {
+        return 0;  // parallel and outside
+      }
+      unsure = unsure || at_p <= kMargin * reach;
+      continue;
+    }
+    const double s = -at_p / rate;
+    if (rate > 0.0) {
+      low = std::max(low, s);
+    } else {
+      high = std::min(high, s);
+    }
+  }
+  if (low > high + kMargin) {
+    return 0;
+  }
+  return !unsure && high > low + kMargin ? 1 : -1;
+}
+
 }  // namespace
 
 bool segment_intersects_tet(const Vec3& p, const Vec3& q, const Vec3& p0, const Vec3& p1,
                             const Vec3& p2, const Vec3& p3) {
-  if (p != q && !segment_may_meet_tet(p, q, {p0, p1, p2, p3})) {
-    return false;
+  if (p != q) {
+    if (!segment_may_meet_tet(p, q, {p0, p1, p2, p3})) {
+      return false;
+    }
+    const int clipped = clip_segment_by_tet(p, q, {p0, p1, p2, p3});
+    if (clipped >= 0) {
+      return clipped == 1;
+    }
   }
   const Kernel::Tetrahedron_3 tet(to_cgal(p0), to_cgal(p1), to_cgal(p2), to_cgal(p3));
   if (tet.is_degenerate()) {

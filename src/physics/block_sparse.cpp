@@ -15,8 +15,11 @@
 namespace incise {
 
 void BlockSparseMatrix::build_pattern(const TetMesh& mesh) {
-  const std::size_t n = mesh.vertex_count();
-  const VertexGraph graph = vertex_graph(mesh);
+  build_pattern(vertex_graph(mesh), mesh.revision());
+}
+
+void BlockSparseMatrix::build_pattern(const VertexGraph& graph, std::uint64_t revision) {
+  const std::size_t n = graph.row_start.size() - 1;
   // Each row: the diagonal, then the neighbours.
   row_start_.resize(n + 1);
   for (std::size_t v = 0; v <= n; ++v) {
@@ -37,7 +40,7 @@ void BlockSparseMatrix::build_pattern(const TetMesh& mesh) {
     diagonal_[v] = find(static_cast<VertexId>(v), static_cast<VertexId>(v));
   }
   values_.assign(columns_.size(), Mat3::Zero());
-  pattern_revision_ = mesh.revision();
+  pattern_revision_ = revision;
 }
 
 void BlockSparseMatrix::match_pattern(const BlockSparseMatrix& other) {

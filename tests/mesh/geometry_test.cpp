@@ -82,6 +82,42 @@ TEST(Predicates, DistanceToTriangleMatchesBruteForce) {
   }
 }
 
+TEST(Predicates, SegmentTetAgreesWithEndpointsAndFacesExactly) {
+  // A segment meets a closed tetrahedron exactly when an end lies in it or it meets one of its
+  // faces (both exact predicates). Small integer coordinates make segments through vertices,
+  // along edges and in face planes common: there the floating-point clip must defer to the
+  // exact test.
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> grid(-2, 2);
+  std::uniform_real_distribution<double> real(-2.0, 2.0);
+  int hits = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const bool integer = trial % 2 == 0;
+    const auto point = [&] {
+      return integer ? Vec3(grid(rng), grid(rng), grid(rng))
+                     : Vec3(real(rng), real(rng), real(rng));
+    };
+    std::array<Vec3, 4> t{point(), point(), point(), point()};
+    if (orient3d(t[0], t[1], t[2], t[3]) == Sign::kZero) {
+      continue;
+    }
+    if (orient3d(t[0], t[1], t[2], t[3]) == Sign::kNegative) {
+      std::swap(t[2], t[3]);  // locate_in_tet takes positively oriented tetrahedra
+    }
+    const Vec3 p = point();
+    const Vec3 q = point();
+    bool expected = locate_in_tet(p, t[0], t[1], t[2], t[3]) != TetLocation::kOutside ||
+                    locate_in_tet(q, t[0], t[1], t[2], t[3]) != TetLocation::kOutside;
+    for (int f = 0; f < 4 && !expected; ++f) {
+      const auto& face = tet_local::kFaces[f];
+      expected = segment_intersects_triangle(p, q, t[face[0]], t[face[1]], t[face[2]]);
+    }
+    ASSERT_EQ(segment_intersects_tet(p, q, t[0], t[1], t[2], t[3]), expected) << "trial " << trial;
+    hits += expected ? 1 : 0;
+  }
+  EXPECT_GT(hits, 1000);
+}
+
 TEST(Predicates, LocateInTet) {
   const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0), d(0, 0, 1);
   EXPECT_EQ(locate_in_tet(Vec3(0.1, 0.1, 0.1), a, b, c, d), TetLocation::kInside);

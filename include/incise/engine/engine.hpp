@@ -39,7 +39,8 @@ struct FrameRecord {
   double kinetic_energy = 0.0;    ///< J
   double max_displacement = 0.0;  ///< m, from the rest position
   bool written = false;           ///< a sink wrote output for this frame
-  bool cut = false;               ///< the blade moved through the body this frame
+  bool cut = false;               ///< the blade moved (with a cutter) this frame
+  bool edited = false;            ///< the mesh changed this frame (the cut advanced)
 };
 
 class Engine {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "incise/core/types.hpp"
+#include "incise/mesh/vertex_graph.hpp"
 
 namespace incise {
 
@@ -18,6 +19,8 @@ class BlockSparseMatrix {
  public:
   /// Builds the pattern from the mesh's edges; values become zero.
   void build_pattern(const TetMesh& mesh);
+  /// The same from a vertex graph already at hand (taken at the mesh's current revision).
+  void build_pattern(const VertexGraph& graph, std::uint64_t revision);
   /// Copies another matrix's pattern (values zero) unless it is already the same.
   void match_pattern(const BlockSparseMatrix& other);
   /// Mesh revision the pattern was built for.

@@ -131,7 +131,9 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   VertexGraph graph_;
   std::vector<std::size_t> colour_start_;
   std::vector<TetId> coloured_tets_;
-  double max_frequency_ = 0.0;
+  static constexpr std::uint64_t kNoRevision = ~std::uint64_t{0};
+  mutable double max_frequency_ = 0.0;
+  mutable std::uint64_t frequency_revision_ = kNoRevision;  ///< mesh revision of the bound
 
   // Written by the element loops (each element only by its own thread).
   mutable std::vector<CorotatedLinearization> linearization_;

@@ -4,6 +4,7 @@
 
 #include <functional>
 #include <span>
+#include <vector>
 
 #include "incise/core/types.hpp"
 #include "incise/physics/block_sparse.hpp"
@@ -22,6 +23,13 @@ class DynamicSystem {
 
   /// Brings internal data up to date after mesh edits (cheap when nothing changed).
   virtual void refresh() {}
+  /// Extends per-vertex values (a solver's earlier solutions) onto vertices added since they
+  /// were taken (those at values.size() and beyond), as positions are: a vertex on an edge or
+  /// face takes its parents' weighted values, a copy made by a cut its original's. Without a
+  /// mesh to ask, new vertices get zero.
+  virtual void extend_vertex_values(std::vector<Vec3>& values) const {
+    values.resize(vertex_count(), Vec3::Zero());
+  }
   [[nodiscard]] virtual std::size_t vertex_count() const = 0;
   /// Lumped masses (kg).
   [[nodiscard]] virtual std::span<const double> masses() const = 0;

@@ -31,6 +31,7 @@ class MechanicalSystem final : public DynamicSystem {
                    const DampingParameters& damping = {});
 
   void refresh() override { model_.refresh(); }
+  void extend_vertex_values(std::vector<Vec3>& values) const override;
   [[nodiscard]] std::size_t vertex_count() const override { return mesh_.vertex_count(); }
   [[nodiscard]] std::span<const double> masses() const override { return model_.masses(); }
   void forces(double t, std::span<const Vec3> x, std::span<const Vec3> v,
