@@ -1,5 +1,5 @@
 // incise run [SCENE] [--frames N] [--out DIR] [--report FILE] [--threads N] [--tool CSV]
-// [--record-tool CSV]: runs a scene headless, a short loop over the engine.
+// [--record-tool CSV]: runs a scene headless, a short loop over the engine->
 
 #include <fmt/format.h>
 #include <tbb/global_control.h>
@@ -25,24 +25,28 @@ namespace {
 /// A progress bar on a terminal, a plain line per 10 % otherwise (logs, CI).
 class Progress {
  public:
-  explicit Progress(int total) : total_(total), terminal_(isatty(fileno(stderr)) != 0) {}
+  /// Frames first+1 .. last (global numbers: a resumed run starts past 0).
+  Progress(int first, int last)
+      : first_(first), last_(last), terminal_(isatty(fileno(stderr)) != 0) {}
   void update(const FrameRecord& record, double elapsed) {
-    const double fps = elapsed > 0.0 ? record.frame / elapsed : 0.0;
+    const int done = record.frame - first_;
+    const int total = last_ - first_;
+    const double fps = elapsed > 0.0 ? done / elapsed : 0.0;
     if (terminal_) {
       const int width = 30;
-      const int filled = total_ > 0 ? width * record.frame / total_ : width;
+      const int filled = total > 0 ? width * done / total : width;
       std::cerr << fmt::format("\r[{}{}] {}/{} frames  t = {:.3f} s  {:.1f} frames/s ",
                                std::string(static_cast<std::size_t>(filled), '#'),
                                std::string(static_cast<std::size_t>(width - filled), '.'),
-                               record.frame, total_, record.time, fps)
+                               record.frame, last_, record.time, fps)
                 << std::flush;
-      if (record.frame == total_) {
+      if (record.frame == last_) {
         std::cerr << "\n";
       }
-    } else if (total_ > 0 && (record.frame * 10 / total_ != (record.frame - 1) * 10 / total_)) {
+    } else if (total > 0 && (done * 10 / total != (done - 1) * 10 / total)) {
       std::cerr << fmt::format(
           "frame {}/{}  t = {:.3f} s  {:.1f} frames/s  max displacement {:.4g} m\n", record.frame,
-          total_, record.time, fps, record.max_displacement);
+          last_, record.time, fps, record.max_displacement);
     }
   }
   void interrupt() const {
@@ -52,7 +56,8 @@ class Progress {
   }
 
  private:
-  int total_;
+  int first_;
+  int last_;
   bool terminal_;
 };
 
@@ -80,6 +85,19 @@ Runner add_run_command(CLI::App& app) {
   auto record_path = std::make_shared<std::string>();
   command->add_option("--record-tool", *record_path,
                       "Write the blade pose of every frame to this CSV (replay with --tool)");
+  auto checkpoint = std::make_shared<std::string>();
+  auto checkpoint_every = std::make_shared<int>(0);
+  auto resume_path = std::make_shared<std::string>();
+  command->add_option("--checkpoint", *checkpoint,
+                      "Write the complete state here (atomically) at the end, and every "
+                      "--checkpoint-every frames");
+  command->add_option("--checkpoint-every", *checkpoint_every, "Frames between checkpoints")
+      ->check(CLI::PositiveNumber);
+  command
+      ->add_option("--resume", *resume_path,
+                   "Continue the run saved in this checkpoint (its scene is stored in it): "
+                   "--frames more frames (default: the rest of the scene's), frames numbered on")
+      ->check(CLI::ExistingFile);
   auto threads = std::make_shared<int>(0);
   command
       ->add_option("--threads", *threads,
@@ -92,38 +110,54 @@ Runner add_run_command(CLI::App& app) {
       thread_limit = std::make_unique<tbb::global_control>(
           tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(*threads));
     }
-    SceneDescription scene = scene_path->empty() ? default_scene() : load_scene(*scene_path);
-    if (!tool_path->empty() && scene.tool.cutter == CutterKind::kNone) {
-      scene.tool.cutter = CutterKind::kSubdivision;  // a blade path given to cut with
+    if (!resume_path->empty() && !scene_path->empty()) {
+      throw InputError(*resume_path, 0,
+                       "--resume takes the scene stored in the checkpoint: "
+                       "give no scene file with it");
     }
-    const std::string name =
-        scene_path->empty() ? "default" : std::filesystem::path(*scene_path).stem().string();
-    const int frame_count = *frames >= 0 ? *frames : scene.frames;
+    std::unique_ptr<Engine> engine;
+    if (!resume_path->empty()) {
+      engine = Engine::resume(*resume_path);
+    } else {
+      SceneDescription fresh = scene_path->empty() ? default_scene() : load_scene(*scene_path);
+      if (!tool_path->empty() && fresh.tool.cutter == CutterKind::kNone) {
+        fresh.tool.cutter = CutterKind::kSubdivision;  // a blade path given to cut with
+      }
+      engine = std::make_unique<Engine>(fresh);
+    }
+    const SceneDescription& scene = engine->scene();
+    const std::string name = scene.file.empty() ? "default" : scene.file.stem().string();
+    const int first_frame = engine->frame();
+    const int frame_count = *frames >= 0 ? *frames : std::max(0, scene.frames - first_frame);
     const std::filesystem::path output =
         out->empty() ? scene.output_dir : std::filesystem::path(*out);
-
-    Engine engine(scene);
     if (!tool_path->empty()) {
-      engine.set_tool_source(ScriptedToolPath::from_csv(*tool_path));
+      engine->set_tool_source(ScriptedToolPath::from_csv(*tool_path));
     }
-    for (const std::string& warning : engine.warnings()) {
+    for (const std::string& warning : engine->warnings()) {
       std::cerr << "warning: " << warning << "\n";
     }
     std::cerr << fmt::format(
-        "{}: {} vertices, {} tetrahedra, {:.4g} kg, {} with dt = {:.4g} s, {} frames\n",
-        scene_path->empty() ? "default scene" : *scene_path, engine.mesh().vertex_count(),
-        engine.mesh().tet_count(), engine.total_mass(), engine.integrator().name(),
-        scene.integrator.dt, frame_count);
-    VtuSeriesSink series(output, name, scene.vtu_every, frame_count);
-    engine.add_sink(series);
+        "{}{}: {} vertices, {} tetrahedra, {:.4g} kg, {} with dt = {:.4g} s, {} frames\n",
+        scene.file.empty() ? "default scene" : scene.file.string(),
+        first_frame > 0 ? fmt::format(" resumed at frame {}", first_frame) : std::string(),
+        engine->mesh().vertex_count(), engine->mesh().tet_count(), engine->total_mass(),
+        engine->integrator().name(), scene.integrator.dt, frame_count);
+    // Frames keep their global numbers: a resumed run continues the same series.
+    VtuSeriesSink series(output, name, scene.vtu_every, first_frame + frame_count, first_frame > 0);
+    engine->add_sink(series);
     std::optional<ToolPathRecorder> recorder;
     if (!record_path->empty()) {
-      engine.add_sink(recorder.emplace(*record_path));
+      engine->add_sink(recorder.emplace(*record_path));
     }
-    Progress progress(frame_count);
+    std::optional<CheckpointSink> checkpoints;
+    if (!checkpoint->empty()) {
+      engine->add_sink(checkpoints.emplace(*checkpoint, *checkpoint_every));
+    }
+    Progress progress(first_frame, first_frame + frame_count);
     const auto start = Clock::now();
     auto elapsed = [&start] { return seconds_since(start); };
-    const RunResult result = run(engine, frame_count, [&](const FrameRecord& record) {
+    const RunResult result = run(*engine, frame_count, [&](const FrameRecord& record) {
       progress.update(record, elapsed());
     });
     const double wall = elapsed();
@@ -163,12 +197,12 @@ Runner add_run_command(CLI::App& app) {
     if (!report_path->empty()) {
       nlohmann::ordered_json report;
       report["scene"] = scene_path->empty() ? "default" : *scene_path;
-      report["integrator"] = engine.integrator().name();
+      report["integrator"] = engine->integrator().name();
       report["dt"] = scene.integrator.dt;
       report["frame_dt"] = scene.frame_dt;
       report["frames_run"] = result.frames.size();
-      report["vertices"] = engine.mesh().vertex_count();
-      report["tets"] = engine.mesh().tet_count();
+      report["vertices"] = engine->mesh().vertex_count();
+      report["tets"] = engine->mesh().tet_count();
       report["kinetic_energy"] = result.frames.empty() ? 0.0 : result.frames.back().kinetic_energy;
       report["max_displacement"] =
           result.frames.empty() ? 0.0 : result.frames.back().max_displacement;

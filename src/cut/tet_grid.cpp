@@ -179,4 +179,31 @@ void TetGrid::query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) 
   });
 }
 
+void TetGrid::save_state(StateWriter& out) const {
+  out.tag("tet grid");
+  out.value(origin_);
+  out.value(cell_);
+  out.value(dims_);
+  out.nested(cells_);
+  out.values(pending_);
+}
+
+void TetGrid::load_state(StateReader& in) {
+  in.tag("tet grid");
+  origin_ = in.value<Vec3>("grid origin");
+  cell_ = in.value<double>("grid cell size");
+  dims_ = in.value<decltype(dims_)>("grid dimensions");
+  cells_ = in.nested<TetId>("grid cells");
+  pending_ = in.values<TetId>("grid pending tetrahedra");
+  std::size_t expected = 1;
+  for (const auto d : dims_) {
+    expected *= static_cast<std::size_t>(d);
+  }
+  if (!(cell_ > 0.0) || cells_.size() != expected) {
+    in.fail("the tetrahedron grid", "its cells disagree with its dimensions");
+  }
+  seen_.clear();
+  stamp_ = 0;
+}
+
 }  // namespace incise

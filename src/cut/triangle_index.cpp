@@ -162,4 +162,25 @@ bool TriangleIndex::any_within(const Vec3& point, double radius) const {
   return found;
 }
 
+void TriangleIndex::save_state(StateWriter& out) const {
+  out.tag("swept triangles");
+  out.value(finest_);
+  out.values(triangles_);
+}
+
+void TriangleIndex::load_state(StateReader& in) {
+  in.tag("swept triangles");
+  finest_ = in.value<double>("finest cell");
+  const std::vector<Stored> stored = in.values<Stored>("swept triangles");
+  triangles_.clear();
+  levels_.clear();
+  cells_.clear();
+  for (const Stored& s : stored) {
+    add(s.corners, s.low, s.high);
+  }
+  if (triangles_.size() != stored.size()) {
+    in.fail("swept triangles", "a stored triangle was not accepted again");
+  }
+}
+
 }  // namespace incise::detail

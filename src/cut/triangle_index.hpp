@@ -10,6 +10,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "incise/core/state_archive.hpp"
 #include "incise/core/types.hpp"
 
 namespace incise::detail {
@@ -29,6 +30,9 @@ class TriangleIndex {
   [[nodiscard]] const std::array<Vec3, 3>& triangle(std::size_t index) const {
     return triangles_[index].corners;
   }
+  /// The triangles and their boxes; loading files them again in the same order.
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
 
   /// The stored triangle nearest to `point` among those within `radius` (m), or -1; its
   /// distance in `distance`.

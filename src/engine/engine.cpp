@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "engine_parts.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/cut/subdivision_cutter.hpp"
@@ -161,41 +162,14 @@ Factory factory_for(const std::array<std::pair<Kind, Factory>, N>& table, Kind k
 
 }  // namespace
 
-struct Engine::Parts {
-  explicit Parts(const SceneDescription& scene)
-      : description(scene),
-        mesh(build_mesh(scene)),
-        model(factory_for(kModelFactories, scene.model_type)(mesh, scene)),
-        conditions(mesh),
-        system(mesh, *model, conditions, scene.damping),
-        state(mesh),
-        integrator(factory_for(kIntegratorFactories, scene.integrator.type)(scene.integrator)) {}
-
-  SceneDescription description;
-  TetMesh mesh;
-  std::unique_ptr<ForceModel> model;
-  BoundaryConditions conditions;
-  MechanicalSystem system;
-  SimulationState state;
-  std::unique_ptr<Integrator> integrator;
-  std::unique_ptr<SubdivisionCutter> cutter;
-  std::unique_ptr<ToolPoseSource> tool;
-  std::optional<BladePose> blade;
-  std::vector<FrameSink*> sinks;
-  std::vector<std::string> warnings;
-  double limit = 0.0;
-  double body_size = 0.0;  ///< m: the rest bounding box's diagonal
-  int steps_per_frame = 1;
-  FrameRecord last;
-  bool diverged = false;
-  std::string divergence;
-  bool publishing = false;
-  SnapshotChannel channel;
-  std::shared_ptr<const SurfaceTopology> surface;
-
-  std::string measure(FrameRecord& record) const;
-  void publish();
-};
+Engine::Parts::Parts(const SceneDescription& scene)
+    : description(scene),
+      mesh(build_mesh(scene)),
+      model(factory_for(kModelFactories, scene.model_type)(mesh, scene)),
+      conditions(mesh),
+      system(mesh, *model, conditions, scene.damping),
+      state(mesh),
+      integrator(factory_for(kIntegratorFactories, scene.integrator.type)(scene.integrator)) {}
 
 Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(scene)) {
   Parts& p = *parts_;

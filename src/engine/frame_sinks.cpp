@@ -20,11 +20,12 @@ std::filesystem::path created(const std::filesystem::path& dir) {
 }  // namespace
 
 VtuSeriesSink::VtuSeriesSink(const std::filesystem::path& dir, std::string name, int every,
-                             int last_frame)
+                             int last_frame, bool continue_series)
     : dir_(created(dir)),
       name_(std::move(name)),
       every_(std::max(1, every)),
       last_frame_(last_frame),
+      continue_series_(continue_series),
       series_(dir_ / (name_ + ".pvd")) {}
 
 void VtuSeriesSink::write(const Engine& engine) {
@@ -52,6 +53,9 @@ void VtuSeriesSink::write(const Engine& engine) {
 }
 
 void VtuSeriesSink::begin(const Engine& engine) {
+  if (continue_series_) {
+    series_.keep_existing_before(engine.time());
+  }
   write(engine);
 }
 

@@ -8,6 +8,7 @@
 #include <cctype>
 #include <fstream>
 #include <map>
+#include <pugixml.hpp>
 #include <random>
 
 #include "incise/core/error.hpp"
@@ -327,6 +328,16 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+}  // namespace
+
+void write_file_atomically(const std::filesystem::path& path, std::string_view bytes) {
+  AtomicFile file(path);
+  file.write(bytes);
+  file.commit();
+}
+
+namespace {
+
 void check_finite_positions(const std::filesystem::path& path, std::span<const Vec3> positions) {
   for (std::size_t v = 0; v < positions.size(); ++v) {
     if (!positions[v].allFinite()) {
@@ -506,6 +517,21 @@ void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
 }
 
 PvdSeries::PvdSeries(std::filesystem::path pvd_path) : path_(std::move(pvd_path)) {}
+
+void PvdSeries::keep_existing_before(double time) {
+  entries_.clear();
+  pugi::xml_document document;
+  if (!std::filesystem::exists(path_) || !document.load_file(path_.c_str())) {
+    return;  // nothing to continue: the series starts afresh
+  }
+  for (const pugi::xml_node entry :
+       document.child("VTKFile").child("Collection").children("DataSet")) {
+    const double entry_time = entry.attribute("timestep").as_double();
+    if (entry_time < time) {
+      entries_.emplace_back(entry_time, entry.attribute("file").as_string());
+    }
+  }
+}
 
 void PvdSeries::add(double time, const std::string& file) {
   entries_.emplace_back(time, file);

@@ -60,8 +60,60 @@ bool triangles_intersect(const Vec3& a0, const Vec3& b0, const Vec3& c0, const V
   return CGAL::do_intersect(first, second);
 }
 
+namespace {
+
+/// Whether `axis` separates the points `first` from `second` by more than `slack` (m): a
+/// conservative separating-axis test.
+template <std::size_t N, std::size_t M>
+bool separated_along(const Vec3& axis, const std::array<Vec3, N>& first,
+                     const std::array<Vec3, M>& second, double slack) {
+  double low1 = std::numeric_limits<double>::infinity();
+  double high1 = -low1;
+  double low2 = low1;
+  double high2 = -low1;
+  for (const Vec3& x : first) {
+    low1 = std::min(low1, axis.dot(x));
+    high1 = std::max(high1, axis.dot(x));
+  }
+  for (const Vec3& x : second) {
+    low2 = std::min(low2, axis.dot(x));
+    high2 = std::max(high2, axis.dot(x));
+  }
+  return low1 > high2 + slack || low2 > high1 + slack;
+}
+
+}  // namespace
+
 bool triangle_intersects_tet(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& p0,
                              const Vec3& p1, const Vec3& p2, const Vec3& p3) {
+  // The triangle's plane and the tetrahedron's face planes first (the axes that separate a
+  // swept blade triangle from most tetrahedra in its box); only what they cannot separate by
+  // more than round-off reaches CGAL's exact test, the costly part of collision detection.
+  {
+    const std::array<Vec3, 3> triangle{a, b, c};
+    const std::array<Vec3, 4> corners{p0, p1, p2, p3};
+    double scale = 0.0;
+    for (const Vec3& x : triangle) {
+      scale = std::max(scale, x.cwiseAbs().maxCoeff());
+    }
+    for (const Vec3& x : corners) {
+      scale = std::max(scale, x.cwiseAbs().maxCoeff());
+    }
+    const double slack = 1e-9 * scale;
+    const Vec3 normal = (b - a).cross(c - a);
+    if (normal.squaredNorm() > 0.0 &&
+        separated_along(normal.normalized(), triangle, corners, slack)) {
+      return false;
+    }
+    for (const auto& face : tet_local::kFaces) {
+      const Vec3 face_normal =
+          (corners[face[1]] - corners[face[0]]).cross(corners[face[2]] - corners[face[0]]);
+      if (face_normal.squaredNorm() > 0.0 &&
+          separated_along(face_normal.normalized(), triangle, corners, slack)) {
+        return false;
+      }
+    }
+  }
   const Kernel::Tetrahedron_3 tet(to_cgal(p0), to_cgal(p1), to_cgal(p2), to_cgal(p3));
   const Kernel::Triangle_3 triangle(to_cgal(a), to_cgal(b), to_cgal(c));
   if (tet.is_degenerate() || triangle.is_degenerate()) {

@@ -677,6 +677,73 @@ void TetMesh::set_rest_position(VertexId vertex, const Vec3& rest_position) {
 
 // ---- self-check --------------------------------------------------------------------------
 
+void TetMesh::save_state(StateWriter& out) const {
+  out.tag("mesh");
+  out.values(rest_positions_);
+  out.values(vertex_origins_);
+  out.values(tets_);
+  out.values(tet_labels_);
+  out.values(tet_neighbors_);
+  out.values(tet_edges_);
+  out.nested(vertex_tets_);
+  out.values(edges_);
+  out.nested(edge_tets_);
+  out.value(revision_);
+  out.value<std::uint64_t>(observers_.size());
+  for (const MeshObserver* observer : observers_) {
+    observer->save_state(out);
+  }
+}
+
+void TetMesh::load_state(StateReader& in) {
+  in.tag("mesh");
+  rest_positions_ = in.values<Vec3>("rest positions");
+  vertex_origins_ = in.values<VertexOrigin>("vertex origins");
+  tets_ = in.values<Tet>("tetrahedra");
+  tet_labels_ = in.values<int>("region labels");
+  tet_neighbors_ = in.values<std::array<TetId, 4>>("tetrahedron neighbours");
+  tet_edges_ = in.values<std::array<EdgeId, 6>>("tetrahedron edges");
+  vertex_tets_ = in.nested<TetId>("vertex tetrahedra");
+  edges_ = in.values<std::array<VertexId, 2>>("edges");
+  edge_tets_ = in.nested<TetId>("edge tetrahedra");
+  revision_ = in.value<std::uint64_t>("revision");
+  const std::size_t n = rest_positions_.size();
+  const std::size_t m = tets_.size();
+  if (vertex_origins_.size() != n || vertex_tets_.size() != n || tet_labels_.size() != m ||
+      tet_neighbors_.size() != m || tet_edges_.size() != m || edge_tets_.size() != edges_.size()) {
+    in.fail("the mesh", "its arrays disagree in size");
+  }
+  for (const Tet& tet : tets_) {
+    for (VertexId v : tet) {
+      if (v < 0 || static_cast<std::size_t>(v) >= n) {
+        in.fail("the mesh", "a tetrahedron names vertex " + std::to_string(v));
+      }
+    }
+  }
+  for (const auto& edge : edges_) {
+    for (VertexId v : edge) {
+      if (v < 0 || static_cast<std::size_t>(v) >= n) {
+        in.fail("the mesh", "an edge names vertex " + std::to_string(v));
+      }
+    }
+  }
+  edge_index_.clear();
+  for (std::size_t e = 0; e < edges_.size(); ++e) {
+    edge_index_[edge_key(edges_[e][0], edges_[e][1])] = static_cast<EdgeId>(e);
+  }
+  edit_created_edges_.clear();
+  edit_unused_edges_.clear();
+  const auto observers = in.value<std::uint64_t>("observer count");
+  if (observers != observers_.size()) {
+    in.fail("observer count", "the checkpoint has " + std::to_string(observers) +
+                                  " parts following the mesh, this scene " +
+                                  std::to_string(observers_.size()));
+  }
+  for (MeshObserver* observer : observers_) {
+    observer->load_state(in);
+  }
+}
+
 std::string TetMesh::compare_with_rebuilt_adjacency() const {
   TetMesh fresh(rest_positions_, tets_);
   std::ostringstream diff;

@@ -98,6 +98,15 @@ void MassSpringModel::on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
   }
 }
 
+void MassSpringModel::load_state(StateReader& /*in*/) {
+  dirty_.clear();
+  is_dirty_.assign(mesh_->vertex_count(), 0);
+  for (std::size_t v = 0; v < mesh_->vertex_count(); ++v) {
+    mark(static_cast<VertexId>(v));
+  }
+  adjacency_revision_ = ~std::uint64_t{0};
+}
+
 void MassSpringModel::rebuild_adjacency() {
   graph_ = vertex_graph(*mesh_);
   adjacency_revision_ = mesh_->revision();

@@ -374,6 +374,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
        "displacements", "forces", "gravity", "frames", "frame_dt", "output", "tool", "cutter"});
   SceneDescription scene;
   scene.file = file;
+  scene.source_text = json_text;
   scene.description = top.string("description", "");
 
   // mesh

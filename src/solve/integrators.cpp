@@ -408,4 +408,30 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   stats_.seconds_step = seconds_since(step_start);
 }
 
+// ---- checkpoints ----------------------------------------------------------------------------
+
+void BackwardEuler::save_state(StateWriter& out) const {
+  out.tag("backward euler");
+  out.nested(history_);
+}
+
+void BackwardEuler::load_state(StateReader& in) {
+  in.tag("backward euler");
+  history_ = in.nested<Vec3>("earlier solutions");
+}
+
+void HierarchicalRungeKutta4::save_state(StateWriter& out) const {
+  out.tag("hierarchical rk4");
+  out.value(focus_);
+  out.value(last_sweeps_);
+  out.values(stamp_);
+}
+
+void HierarchicalRungeKutta4::load_state(StateReader& in) {
+  in.tag("hierarchical rk4");
+  focus_ = in.value<VertexId>("focus");
+  last_sweeps_ = in.value<int>("sweeps");
+  stamp_ = in.values<double>("vertex time stamps");
+}
+
 }  // namespace incise

@@ -230,6 +230,39 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000040.vtu"));
 }
 
+TEST(Cli, RunResumesFromACheckpointIntoTheSameSeries) {
+  // 40 frames straight, against 27 frames with a checkpoint and 13 more resumed from it (the
+  // blade is in the block at frame 27): the same .vtu files, one .pvd listing them all.
+  const auto dir = test::scratch_dir("cli-resume");
+  const std::string straight = (dir / "straight").string();
+  const std::string parts = (dir / "parts").string();
+  const std::string checkpoint = (dir / "run.ck").string();
+  ASSERT_EQ(incise("run --frames 40 --out " + straight).code, 0);
+  const CommandResult first = incise("run --frames 27 --out " + parts + " --checkpoint " +
+                                     checkpoint + " --checkpoint-every 10");
+  ASSERT_EQ(first.code, 0) << first.err;
+  const CommandResult second = incise("run --resume " + checkpoint + " --frames 13 --out " + parts);
+  ASSERT_EQ(second.code, 0) << second.err;
+  EXPECT_NE(second.err.find("resumed at frame 27"), std::string::npos) << second.err;
+  for (int frame = 0; frame <= 40; frame += 5) {
+    const std::string name =
+        "default_0000" + std::string(frame < 10 ? "0" : "") + std::to_string(frame) + ".vtu";
+    EXPECT_EQ(slurp(dir / "straight" / name), slurp(dir / "parts" / name)) << name;
+  }
+  const std::string pvd = slurp(dir / "parts" / "default.pvd");
+  EXPECT_NE(pvd.find("default_000005.vtu"), std::string::npos) << pvd;
+  EXPECT_NE(pvd.find("default_000040.vtu"), std::string::npos) << pvd;
+  // A scene file beside --resume is refused; so is a damaged checkpoint.
+  EXPECT_NE(incise("run --resume " + checkpoint + " " +
+                   (std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "default.json").string())
+                .code,
+            0);
+  std::ofstream(dir / "bad.ck") << "INCISE-CHECKPOINT\ngarbage";
+  const CommandResult bad = incise("run --resume " + (dir / "bad.ck").string());
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.err.find("bad.ck"), std::string::npos) << bad.err;
+}
+
 TEST(Cli, CutReportsWhatTheIssueAsks) {
   const auto dir = test::scratch_dir("cli-cut");
   const std::string mesh = (dir / "block.msh").string();

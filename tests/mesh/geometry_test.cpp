@@ -118,6 +118,40 @@ TEST(Predicates, SegmentTetAgreesWithEndpointsAndFacesExactly) {
   EXPECT_GT(hits, 1000);
 }
 
+TEST(Predicates, TriangleTetAgreesWithEdgesExactly) {
+  // A triangle meets a tetrahedron exactly when one of its edges meets the tetrahedron or one
+  // of the tetrahedron's edges meets the triangle: the filters before the exact test must not
+  // change a single answer, on integer grids (touching cases) as on random points.
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> grid(-2, 2);
+  std::uniform_real_distribution<double> real(-2.0, 2.0);
+  int hits = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const bool integer = trial % 2 == 0;
+    const auto point = [&] {
+      return integer ? Vec3(grid(rng), grid(rng), grid(rng))
+                     : Vec3(real(rng), real(rng), real(rng));
+    };
+    const std::array<Vec3, 4> t{point(), point(), point(), point()};
+    const std::array<Vec3, 3> tri{point(), point(), point()};
+    if (orient3d(t[0], t[1], t[2], t[3]) == Sign::kZero ||
+        (tri[1] - tri[0]).cross(tri[2] - tri[0]).squaredNorm() == 0.0) {
+      continue;
+    }
+    bool expected = false;
+    for (int k = 0; k < 3 && !expected; ++k) {
+      expected = segment_intersects_tet(tri[k], tri[(k + 1) % 3], t[0], t[1], t[2], t[3]);
+    }
+    for (const auto& e : tet_local::kEdges) {
+      expected = expected || segment_intersects_triangle(t[e[0]], t[e[1]], tri[0], tri[1], tri[2]);
+    }
+    ASSERT_EQ(triangle_intersects_tet(tri[0], tri[1], tri[2], t[0], t[1], t[2], t[3]), expected)
+        << "trial " << trial;
+    hits += expected ? 1 : 0;
+  }
+  EXPECT_GT(hits, 1000);
+}
+
 TEST(Predicates, LocateInTet) {
   const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0), d(0, 0, 1);
   EXPECT_EQ(locate_in_tet(Vec3(0.1, 0.1, 0.1), a, b, c, d), TetLocation::kInside);

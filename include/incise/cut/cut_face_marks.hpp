@@ -39,6 +39,17 @@ class CutFaceMarks final : public MeshObserver {
   void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                       const Tet& removed_vertices) override;
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  void save_state(StateWriter& out) const override {
+    out.tag("cut face marks");
+    out.values(bits_);
+  }
+  void load_state(StateReader& in) override {
+    in.tag("cut face marks");
+    bits_ = in.values<std::uint8_t>("cut face marks");
+    if (bits_.size() != mesh_->tet_count()) {
+      in.fail("cut face marks", "one per tetrahedron expected");
+    }
+  }
 
  private:
   /// Sets or clears a face's bit on both tetrahedra sharing it.

@@ -137,6 +137,11 @@ class SubdivisionCutter {
   /// The tetrahedron holding the blade tip, or kInvalidId when the tip is outside.
   [[nodiscard]] TetId active_point_tet() const { return point_tet_; }
   /// Tetrahedra the blade segment intersects now (the seed's active tetrahedra).
+  /// Checkpoints: the cut so far (swept surface, blade, pending blade-line vertices,
+  /// statistics). What follows the mesh (marks, grid, per-vertex and per-tet data) is saved
+  /// with the mesh's observers.
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
   [[nodiscard]] const std::vector<TetId>& active_tets() const { return active_; }
   /// Whether a vertex lies on the cut surface.
   [[nodiscard]] bool on_cut(VertexId vertex) const { return on_cut_[vertex] != 0; }

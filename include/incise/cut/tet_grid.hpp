@@ -38,6 +38,9 @@ class TetGrid final : public MeshObserver {
                       const Tet& removed_vertices) override;
   void on_vertex_relocating(const TetMesh& mesh, VertexId vertex) override;
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  /// The cells exactly as filed: queries list tetrahedra in filing order.
+  void save_state(StateWriter& out) const override;
+  void load_state(StateReader& in) override;
 
  private:
   void cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>& first,

@@ -66,6 +66,16 @@ class Engine {
   /// Ends the run: every sink's end() (a series writes its last frame).
   void finish();
 
+  /// Writes the complete state to `path`, atomically (a temporary renamed over it): the scene
+  /// it was built from, the mesh with every attribute and label, positions and velocities,
+  /// the integrator's history, the cutter's state, the scripted tool path, time and frame.
+  /// A run resumed from it writes the same frames, bit for bit, as one that never stopped.
+  void save_checkpoint(const std::filesystem::path& path) const;
+  /// An engine that continues a checkpointed run: the stored scene built afresh, then every
+  /// part's state restored. A missing, truncated, corrupted or foreign file is an InputError
+  /// naming it; nothing is half-restored.
+  [[nodiscard]] static std::unique_ptr<Engine> resume(const std::filesystem::path& path);
+
   [[nodiscard]] int frame() const;
   [[nodiscard]] double time() const;  ///< s
   [[nodiscard]] const FrameRecord& last_frame() const;
@@ -93,6 +103,19 @@ class Engine {
  private:
   struct Parts;
   std::unique_ptr<Parts> parts_;
+};
+
+/// Writes a checkpoint every `every` frames and when the run ends (unless it diverged).
+class CheckpointSink final : public FrameSink {
+ public:
+  CheckpointSink(std::filesystem::path path, int every);
+  bool frame(const Engine& engine, const FrameRecord& record) override;
+  void end(const Engine& engine) override;
+
+ private:
+  std::filesystem::path path_;
+  int every_;
+  int written_frame_ = -1;
 };
 
 /// Frames run by run(): each frame's record, and how it ended.

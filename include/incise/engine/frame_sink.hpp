@@ -37,8 +37,10 @@ class FrameSink {
 class VtuSeriesSink final : public FrameSink {
  public:
   /// `last_frame`: written even off the `every` grid (-1: unknown; end() writes it then).
+  /// `continue_series`: a resumed run keeps the entries the .pvd already lists before its
+  /// first frame, so both runs make one series.
   VtuSeriesSink(const std::filesystem::path& dir, std::string name, int every = 1,
-                int last_frame = -1);
+                int last_frame = -1, bool continue_series = false);
   void begin(const Engine& engine) override;
   bool frame(const Engine& engine, const FrameRecord& record) override;
   void end(const Engine& engine) override;
@@ -51,6 +53,7 @@ class VtuSeriesSink final : public FrameSink {
   int every_;
   int last_frame_;
   int written_frame_ = -1;
+  bool continue_series_;
   PvdSeries series_;
 };
 

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -86,6 +87,9 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
 class PvdSeries {
  public:
   explicit PvdSeries(std::filesystem::path pvd_path);
+  /// Continues the series already at the path (a resumed run): keeps its entries before
+  /// `time` (s), so the next add() writes one series across both runs.
+  void keep_existing_before(double time);
   /// Records `file` (relative to the .pvd's folder) at time `time` (s) and rewrites the .pvd.
   void add(double time, const std::string& file);
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
@@ -94,6 +98,9 @@ class PvdSeries {
   std::filesystem::path path_;
   std::vector<std::pair<double, std::string>> entries_;
 };
+
+/// Writes a whole file or nothing: a temporary beside it, renamed over it once complete.
+void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
 
 /// Gmsh 4.1 ASCII.
 void write_msh(const std::filesystem::path& path, const TetMesh& mesh);

@@ -73,7 +73,25 @@ class AttributeBase : public MeshObserver {
 
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
 
+  void save_state(StateWriter& out) const override {
+    static_assert(RawState<T>, "attributes saved in checkpoints hold plain values");
+    out.tag("attribute");
+    out.values(values_);
+  }
+  void load_state(StateReader& in) override {
+    in.tag("attribute");
+    std::vector<T> values = in.values<T>("attribute values");
+    if (values.size() != count_in(*mesh_)) {
+      in.fail("attribute values", std::to_string(values.size()) + " values for " +
+                                      std::to_string(count_in(*mesh_)) + " mesh entities");
+    }
+    values_ = std::move(values);
+  }
+
  protected:
+  /// How many values the mesh needs (vertices, tetrahedra or edges).
+  [[nodiscard]] virtual std::size_t count_in(const TetMesh& mesh) const = 0;
+
   AttributeBase(TetMesh& mesh, std::size_t count, T default_value)
       : mesh_(&mesh), values_(count, default_value), default_value_(std::move(default_value)) {
     mesh.add_observer(this);
@@ -108,6 +126,9 @@ class VertexData final : public detail::AttributeBase<T> {
         rule_(rule) {}
 
   void set_hook(Hook hook) { hook_ = std::move(hook); }
+  [[nodiscard]] std::size_t count_in(const TetMesh& mesh) const override {
+    return mesh.vertex_count();
+  }
 
   void on_vertex_added(const TetMesh& /*mesh*/, VertexId vertex,
                        const VertexOrigin& origin) override {
@@ -169,6 +190,9 @@ class TetData final : public detail::AttributeBase<T> {
       : detail::AttributeBase<T>(mesh, mesh.tet_count(), std::move(default_value)), rule_(rule) {}
 
   void set_hook(Hook hook) { hook_ = std::move(hook); }
+  [[nodiscard]] std::size_t count_in(const TetMesh& mesh) const override {
+    return mesh.tet_count();
+  }
 
   void on_tet_added(const TetMesh& /*mesh*/, TetId tet) override {
     INCISE_ASSERT(static_cast<std::size_t>(tet) == this->values_.size(),
@@ -209,6 +233,9 @@ class EdgeData final : public detail::AttributeBase<T> {
       : detail::AttributeBase<T>(mesh, mesh.edge_count(), std::move(default_value)), rule_(rule) {}
 
   void set_hook(Hook hook) { hook_ = std::move(hook); }
+  [[nodiscard]] std::size_t count_in(const TetMesh& mesh) const override {
+    return mesh.edge_count();
+  }
 
   void on_edges_created(const TetMesh& /*mesh*/, std::span<const EdgeOrigin> edges) override {
     for (const EdgeOrigin& origin : edges) {

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "incise/core/state_archive.hpp"
 #include "incise/core/types.hpp"
 
 namespace incise {
@@ -96,6 +97,13 @@ class MeshObserver {
   }
   /// The observed mesh was moved to a new address (or destroyed: nullptr).
   virtual void on_mesh_relocated(TetMesh* /*mesh*/) {}
+
+  // ---- checkpoints -------------------------------------------------------------------------
+  /// An observer with state writes it here; TetMesh::save_state calls every observer in the
+  /// order they registered, after the mesh itself.
+  virtual void save_state(StateWriter& /*out*/) const {}
+  /// Reads back what save_state wrote, once the mesh is restored (caches may rebuild instead).
+  virtual void load_state(StateReader& /*in*/) {}
 };
 
 /// A tetrahedral mesh with incrementally maintained adjacency.
@@ -188,6 +196,14 @@ class TetMesh {
   void add_observer(MeshObserver* observer);
   void remove_observer(MeshObserver* observer);
   void replace_observer(MeshObserver* old_observer, MeshObserver* new_observer);
+
+  // ---- checkpoints -------------------------------------------------------------------------
+  /// Writes everything: geometry, labels, origins, adjacency exactly as maintained (so later
+  /// edits iterate in the same order), the revision, then each observer's state.
+  void save_state(StateWriter& out) const;
+  /// Replaces this mesh by a saved one and restores its observers, which must be the same
+  /// kinds registered in the same order as when it was saved (checked).
+  void load_state(StateReader& in);
 
   // ---- self-check -------------------------------------------------------------------------
   /// Rebuilds adjacency from scratch (the bulk algorithm) and compares it with the

@@ -89,6 +89,13 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  /// Its values live in attribute containers (restored on their own); the element order,
+  /// colouring, matrix pattern and masses are rebuilt from them.
+  void load_state(StateReader& /*in*/) override {
+    topology_revision_ = kNoRevision;
+    frequency_revision_ = kNoRevision;
+    masses_stale_ = true;
+  }
   /// The rest shapes of the vertex's tetrahedra changed: taken again at the next refresh.
   void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                            const VertexOrigin& origin) override;

@@ -69,6 +69,9 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
   void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                            const VertexOrigin& origin) override;
   void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  /// Its values live in attribute containers (restored on their own); springs and masses are
+  /// recomputed from them.
+  void load_state(StateReader& in) override;
 
  private:
   void mark(VertexId vertex);

@@ -87,6 +87,7 @@ struct ToolSpec {
 
 struct SceneDescription {
   std::filesystem::path file;  ///< empty for the built-in default scene
+  std::string source_text;     ///< the JSON it was parsed from (checkpoints carry it)
   std::string description;
   std::optional<std::filesystem::path> mesh_file;
   double mesh_scale = 1.0;    ///< metres per file unit (files carry no units)

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "incise/core/state_archive.hpp"
 #include "incise/physics/dynamic_system.hpp"
 #include "incise/solve/linear_solvers.hpp"
 
@@ -45,6 +46,10 @@ class Integrator {
   [[nodiscard]] virtual double stability_limit(const DynamicSystem& system) const;
   /// Where the tool acts: schemes that relax locally start there (others ignore it).
   virtual void focus_on(VertexId /*vertex*/) {}
+  /// Checkpoints: what a scheme carries from one step to the next (earlier solutions, time
+  /// stamps); scratch space is not saved.
+  virtual void save_state(StateWriter& /*out*/) const {}
+  virtual void load_state(StateReader& /*in*/) {}
   [[nodiscard]] const IntegratorStats& stats() const { return stats_; }
 
  protected:
@@ -111,6 +116,8 @@ class HierarchicalRungeKutta4 final : public Integrator {
   /// Focus of the traversal, or kInvalidId for full relaxation.
   void set_focus(VertexId focus) { focus_ = focus; }
   void focus_on(VertexId vertex) override { focus_ = vertex; }
+  void save_state(StateWriter& out) const override;
+  void load_state(StateReader& in) override;
   [[nodiscard]] VertexId focus() const { return focus_; }
   /// Breadth-first depth of each vertex advanced by the last step (-1: not advanced).
   [[nodiscard]] const std::vector<int>& last_depths() const { return depth_; }
@@ -150,6 +157,8 @@ class BackwardEuler final : public Integrator {
   [[nodiscard]] double stability_limit(const DynamicSystem& system) const override;
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
             double dt) override;
+  void save_state(StateWriter& out) const override;
+  void load_state(StateReader& in) override;
 
  private:
   BackwardEulerOptions options_;

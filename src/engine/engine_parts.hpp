@@ -1,0 +1,48 @@
+#pragma once
+// The engine's parts, shared by its frame loop (engine.cpp) and its checkpoints
+// (checkpoint.cpp). Private to the engine module.
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "incise/cut/subdivision_cutter.hpp"
+#include "incise/engine/engine.hpp"
+#include "incise/physics/boundary_conditions.hpp"
+#include "incise/physics/force_model.hpp"
+#include "incise/physics/mechanical_system.hpp"
+#include "incise/solve/integrators.hpp"
+
+namespace incise {
+
+struct Engine::Parts {
+  explicit Parts(const SceneDescription& scene);
+
+  SceneDescription description;
+  TetMesh mesh;
+  std::unique_ptr<ForceModel> model;
+  BoundaryConditions conditions;
+  MechanicalSystem system;
+  SimulationState state;
+  std::unique_ptr<Integrator> integrator;
+  std::unique_ptr<SubdivisionCutter> cutter;
+  std::unique_ptr<ToolPoseSource> tool;
+  std::optional<BladePose> blade;
+  std::vector<FrameSink*> sinks;
+  std::vector<std::string> warnings;
+  double limit = 0.0;
+  double body_size = 0.0;  ///< m: the rest bounding box's diagonal
+  int steps_per_frame = 1;
+  FrameRecord last;
+  bool diverged = false;
+  std::string divergence;
+  bool publishing = false;
+  SnapshotChannel channel;
+  std::shared_ptr<const SurfaceTopology> surface;
+
+  std::string measure(FrameRecord& record) const;
+  void publish();
+};
+
+}  // namespace incise
