@@ -3,8 +3,13 @@
 namespace incise {
 
 VertexGraph vertex_graph(const TetMesh& mesh) {
-  const std::size_t n = mesh.vertex_count();
   VertexGraph graph;
+  vertex_graph(mesh, graph);
+  return graph;
+}
+
+void vertex_graph(const TetMesh& mesh, VertexGraph& graph) {
+  const std::size_t n = mesh.vertex_count();
   graph.row_start.assign(n + 1, 0);
   for (std::size_t e = 0; e < mesh.edge_count(); ++e) {
     const auto& ends = mesh.edge(static_cast<EdgeId>(e));
@@ -25,7 +30,6 @@ VertexGraph vertex_graph(const TetMesh& mesh) {
       graph.edge[slot] = static_cast<EdgeId>(e);
     }
   }
-  return graph;
 }
 
 }  // namespace incise

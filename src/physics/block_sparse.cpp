@@ -13,6 +13,18 @@
 #include "incise/mesh/vertex_graph.hpp"
 
 namespace incise {
+namespace {
+
+/// Copies `from` into `to`, growing `to` with slack so small growth does not reallocate.
+template <typename T>
+void copy_growing(const std::vector<T>& from, std::vector<T>& to) {
+  if (to.capacity() < from.size()) {
+    to.reserve(from.size() + from.size() / 4);
+  }
+  to.assign(from.begin(), from.end());
+}
+
+}  // namespace
 
 void BlockSparseMatrix::build_pattern(const TetMesh& mesh) {
   build_pattern(vertex_graph(mesh), mesh.revision());
@@ -39,7 +51,7 @@ void BlockSparseMatrix::build_pattern(const VertexGraph& graph, std::uint64_t re
               columns_.begin() + static_cast<std::ptrdiff_t>(row_start_[v + 1]));
     diagonal_[v] = find(static_cast<VertexId>(v), static_cast<VertexId>(v));
   }
-  values_.assign(columns_.size(), Mat3::Zero());
+  zero_values();
   pattern_revision_ = revision;
 }
 
@@ -49,10 +61,20 @@ void BlockSparseMatrix::match_pattern(const BlockSparseMatrix& other) {
     return;
   }
   pattern_revision_ = other.pattern_revision_;
-  row_start_ = other.row_start_;
-  columns_ = other.columns_;
-  diagonal_ = other.diagonal_;
-  values_.assign(columns_.size(), Mat3::Zero());
+  copy_growing(other.row_start_, row_start_);
+  copy_growing(other.columns_, columns_);
+  copy_growing(other.diagonal_, diagonal_);
+  zero_values();
+}
+
+void BlockSparseMatrix::zero_values() {
+  // A cut adds a few blocks per frame: growing by exactly that would reallocate (and fault in
+  // fresh pages for) the whole array every frame, a cost of the body's size. Grow with slack.
+  if (values_.capacity() < columns_.size()) {
+    values_.reserve(columns_.size() + columns_.size() / 4);
+  }
+  values_.resize(columns_.size());
+  std::fill(values_.begin(), values_.end(), Mat3::Zero());
 }
 
 std::size_t BlockSparseMatrix::find(VertexId row, VertexId column) const {

@@ -120,7 +120,7 @@ void CorotationalFemModel::rebuild_topology() {
   const TetMesh& mesh = *mesh_;
   const std::size_t n = mesh.vertex_count();
   const std::size_t tets = mesh.tet_count();
-  graph_ = vertex_graph(mesh);
+  vertex_graph(mesh, graph_);
   // Greedy colouring in tet order: deterministic.
   std::vector<std::uint64_t> used(n, 0);
   std::vector<std::uint8_t> colour(tets);

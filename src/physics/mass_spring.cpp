@@ -108,7 +108,7 @@ void MassSpringModel::load_state(StateReader& /*in*/) {
 }
 
 void MassSpringModel::rebuild_adjacency() {
-  graph_ = vertex_graph(*mesh_);
+  vertex_graph(*mesh_, graph_);
   adjacency_revision_ = mesh_->revision();
 }
 

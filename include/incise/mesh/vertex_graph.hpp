@@ -22,5 +22,8 @@ struct VertexGraph {
 };
 
 [[nodiscard]] VertexGraph vertex_graph(const TetMesh& mesh);
+/// The same into an existing graph, reusing its storage (a cut rebuilds it every frame: fresh
+/// arrays would be faulted in anew each time).
+void vertex_graph(const TetMesh& mesh, VertexGraph& graph);
 
 }  // namespace incise

@@ -23,6 +23,8 @@ class BlockSparseMatrix {
   void build_pattern(const VertexGraph& graph, std::uint64_t revision);
   /// Copies another matrix's pattern (values zero) unless it is already the same.
   void match_pattern(const BlockSparseMatrix& other);
+  /// Sets every stored block to zero (keeping the storage).
+  void zero_values();
   /// Mesh revision the pattern was built for.
   [[nodiscard]] std::uint64_t pattern_revision() const { return pattern_revision_; }
 
