@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <limits>
+#include <set>
+#include <string>
 
 #include "readers.hpp"
 
@@ -43,10 +45,15 @@ class VtkLegacyReader {
     CellBlock cells;
     std::vector<long long> cell_types;
     bool has_cells = false;
+    std::string attributes;  // POINT_DATA or CELL_DATA: where the geometry ends
     for (;;) {
       const std::string_view keyword = source_.next_token();
-      if (keyword.empty() || keyword == "POINT_DATA" || keyword == "CELL_DATA") {
-        break;  // attribute data is not needed to build the mesh
+      if (keyword.empty()) {
+        break;
+      }
+      if (keyword == "POINT_DATA" || keyword == "CELL_DATA") {
+        attributes = keyword;
+        break;
       }
       if (keyword == "POINTS") {
         read_points();
@@ -88,8 +95,11 @@ class VtkLegacyReader {
         source_.fail("CELL_TYPES lists " + std::to_string(cell_types.size()) + " types for " +
                      std::to_string(cells.size()) + " cells");
       }
+      const std::vector<double> labels =
+          attributes.empty() ? std::vector<double>{} : cell_labels(attributes, cells.size());
       for (std::size_t c = 0; c < cells.size(); ++c) {
-        add_cell(cell_types[c], cells, c);
+        add_cell(cell_types[c], cells, c,
+                 labels.size() == cells.size() ? static_cast<long long>(labels[c]) : 0);
       }
     }
     return builder_.finish(MeshFormat::kVtkLegacy);
@@ -203,12 +213,89 @@ class VtkLegacyReader {
     return block;
   }
 
-  void add_cell(long long type, const CellBlock& cells, std::size_t c) {
+  /// Region labels from the attribute data: the first one-component integer array of
+  /// CELL_DATA (SCALARS or a FIELD array). Attribute data was never needed for the mesh, so
+  /// what cannot be read here leaves the tetrahedra unlabelled (with a note), not unread.
+  std::vector<double> cell_labels(const std::string& first, std::size_t cell_count) {
+    static const std::set<std::string> kIntegerTypes{
+        "bit",          "char", "unsigned_char", "short",     "unsigned_short", "int",
+        "unsigned_int", "long", "unsigned_long", "vtkIdType", "vtktypeint64",   "vtktypeuint64"};
+    std::vector<double> labels;
+    try {
+      std::string keyword = first;
+      bool cells = false;
+      std::size_t count = 0;
+      while (!keyword.empty()) {
+        if (keyword == "POINT_DATA" || keyword == "CELL_DATA") {
+          cells = keyword == "CELL_DATA";
+          count = source_.count("attribute count", kMaxCount);
+        } else if (keyword == "SCALARS") {
+          (void)source_.token("scalars name");
+          const std::string type(source_.token("scalars type"));
+          std::size_t components = 1;
+          if (source_.token_on_this_line()) {
+            components = source_.count("scalars components", 4);
+          }
+          if (source_.peek_token() == "LOOKUP_TABLE") {
+            (void)source_.next_token();
+            (void)source_.token("lookup table name");
+          }
+          end_of_header_line();
+          std::vector<double> values = read_reals(components * count, type, "SCALARS");
+          if (cells && labels.empty() && components == 1 && count == cell_count &&
+              kIntegerTypes.count(type) > 0) {
+            labels = std::move(values);
+          }
+        } else if (keyword == "VECTORS" || keyword == "NORMALS" || keyword == "TENSORS") {
+          (void)source_.token("attribute name");
+          const std::string type(source_.token("attribute type"));
+          end_of_header_line();
+          (void)read_reals((keyword == "TENSORS" ? 9 : 3) * count, type, keyword.c_str());
+        } else if (keyword == "TEXTURE_COORDINATES") {
+          (void)source_.token("attribute name");
+          const std::size_t dimension = source_.count("texture dimension", 3);
+          const std::string type(source_.token("attribute type"));
+          end_of_header_line();
+          (void)read_reals(dimension * count, type, "TEXTURE_COORDINATES");
+        } else if (keyword == "FIELD") {
+          (void)source_.token("field name");
+          const std::size_t arrays = source_.count("field array count", 10000);
+          for (std::size_t a = 0; a < arrays; ++a) {
+            (void)source_.token("field array name");
+            const std::size_t components = source_.count("field components", 1000000);
+            const std::size_t tuples = source_.count("field tuples", kMaxCount);
+            const std::string type(source_.token("field data type"));
+            end_of_header_line();
+            std::vector<double> values = read_reals(components * tuples, type, "FIELD data");
+            if (cells && labels.empty() && components == 1 && tuples == cell_count &&
+                kIntegerTypes.count(type) > 0) {
+              labels = std::move(values);
+            }
+            if (source_.peek_token() == "METADATA") {
+              (void)source_.next_token();
+              skip_metadata();
+            }
+          }
+        } else if (keyword == "METADATA") {
+          skip_metadata();
+        } else {
+          builder_.skip("attribute data from '" + keyword + "' on (not needed for the mesh)");
+          break;
+        }
+        keyword = std::string(source_.next_token());
+      }
+    } catch (const InputError& error) {
+      builder_.skip(std::string("unreadable attribute data (") + error.what() + ")");
+    }
+    return labels;
+  }
+
+  void add_cell(long long type, const CellBlock& cells, std::size_t c, long long label) {
     const long long begin = cells.offsets[c];
     const long long size = cells.offsets[c + 1] - begin;
     const long long* ids = cells.connectivity.data() + begin;
     if ((type == 10 && size == 4) || (type == 24 && size == 10)) {
-      builder_.add_tet({ids[0], ids[1], ids[2], ids[3]});
+      builder_.add_tet({ids[0], ids[1], ids[2], ids[3]}, label);
       if (type == 24) {
         builder_.skip("mid-edge nodes (kept the corners of quadratic tetrahedra)", 6);
       }

@@ -70,6 +70,29 @@ TEST(RegionLabels, MeditReferencesAndTetgenAttributes) {
   }
 }
 
+TEST(RegionLabels, LegacyVtkCellDataScalarsOrFieldArrays) {
+  const std::string geometry =
+      "# vtk DataFile Version 3.0\ntwo\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n"
+      "0 0 0 1 0 0 0 1 0 0 0 1 1 1 1\nCELLS 2 10\n4 0 1 2 3\n4 1 2 3 4\nCELL_TYPES 2\n10 10\n";
+  // Point data first, a float cell array, then the integer one: it is the labels.
+  const auto scalars = write_text(
+      "scalars.vtk", geometry +
+                         "POINT_DATA 5\nSCALARS t float\nLOOKUP_TABLE default\n"
+                         "0 1 2 3 4\nCELL_DATA 2\nSCALARS q double 1\nLOOKUP_TABLE "
+                         "default\n0.5 0.7\nSCALARS region int 1\nLOOKUP_TABLE default\n8 3\n");
+  EXPECT_EQ(labels_of(scalars), (std::vector<int>{8, 3}));
+  const auto field = write_text("field.vtk", geometry +
+                                                 "CELL_DATA 2\nFIELD FieldData 2\n"
+                                                 "quality 1 2 double\n0.1 0.2\n"
+                                                 "subdomain 1 2 int\n4 9\n");
+  EXPECT_EQ(labels_of(field), (std::vector<int>{4, 9}));
+  // No attribute data: label 0; unreadable attribute data: the mesh is still read.
+  EXPECT_EQ(labels_of(write_text("plain.vtk", geometry)), (std::vector<int>{0, 0}));
+  EXPECT_EQ(labels_of(write_text("broken.vtk", geometry + "CELL_DATA 2\nSCALARS r int\n"
+                                                          "LOOKUP_TABLE default\n1\n")),
+            (std::vector<int>{0, 0}));
+}
+
 TEST(RegionLabels, EveryWriterWritesThemBack) {
   BoxGridOptions options;
   options.cells = {4, 2, 2};
