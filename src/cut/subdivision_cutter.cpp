@@ -100,15 +100,51 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   fresh_.clear();
   move_triangles_ = triangles;
 
-  // ---- the blade line: vertices where it crosses faces, and at its tip ---------------------
+  // The seed's frame, stage by stage: gc for the blade line, cd, then gc for the cut itself.
   auto start = Clock::now();
   if (positions_moved_) {
     grid_.refit();  // the body moved since the last cut
     positions_moved_ = false;
   }
+  place_blade_line(from, pose, triangles);
+  double gc_seconds = seconds_since(start);
+
+  start = Clock::now();
+  Contact contact = collide(triangles, pose);
+  stats_.cd_seconds = seconds_since(start);
+  if (options_.split == SplitMode::kGeneric && !contact.crossings.empty()) {
+    start = Clock::now();
+    presplit_generic(contact);
+    gc_seconds += seconds_since(start);
+    start = Clock::now();
+    contact = detect(triangles);
+    stats_.cd_seconds += seconds_since(start);
+  }
+
+  start = Clock::now();
+  split_crossed_edges(contact);
+  surface_.insert(surface_.end(), triangles.begin(), triangles.end());
+  open_cut(triangles);
+  stats_.gc_seconds = gc_seconds + seconds_since(start);
+  stats_.total_cd_seconds += stats_.cd_seconds;
+  stats_.total_gc_seconds += stats_.gc_seconds;
+  stats_.max_move_seconds =
+      std::max(stats_.max_move_seconds, stats_.cd_seconds + stats_.gc_seconds);
+
+  track_point_tet();
+  update_active_tets();
+  if (positions_ != nullptr) {
+    tip_material_ = material_point(pose.tip);
+    base_material_ = material_point(pose.base);
+  }
+}
+
+void SubdivisionCutter::place_blade_line(const BladePose& from, const BladePose& pose,
+                                         const std::vector<std::array<Vec3, 3>>& triangles) {
+  // Vertices where the blade line crosses faces, and at its tip: both ends of the swept
+  // surface. The previous blade line was placed by the previous move already (unless the body
+  // moved since or this is the first move); its vertices slide along with the blade.
   if (options_.open_under_blade && !triangles.empty()) {
-    // Both ends of the swept surface: the previous blade line was inserted by the previous
-    // move already (unless the body moved since or this is the first move).
     const auto unit_normal = [](const std::array<Vec3, 3>& t) {
       return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
     };
@@ -124,26 +160,18 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     sliding_ = false;
   }
   provisional_.clear();
-  double gc_seconds = seconds_since(start);
+}
 
-  // ---- collision detection: tets the swept surface touches, edges it crosses ---------------
-  start = Clock::now();
+SubdivisionCutter::Contact SubdivisionCutter::collide(
+    const std::vector<std::array<Vec3, 3>>& triangles, const BladePose& pose) {
   Contact contact = detect(triangles);
   stats_.candidate_tets = contact.touched.size();
   record_swept(triangles, contact);
   classify(contact, pose);
-  stats_.cd_seconds = seconds_since(start);
-  if (options_.split == SplitMode::kGeneric && !contact.crossings.empty()) {
-    start = Clock::now();
-    presplit_generic(contact);
-    gc_seconds += seconds_since(start);
-    start = Clock::now();
-    contact = detect(triangles);
-    stats_.cd_seconds += seconds_since(start);
-  }
+  return contact;
+}
 
-  // ---- topology and geometry changes ---------------------------------------------------------
-  start = Clock::now();
+void SubdivisionCutter::split_crossed_edges(const Contact& contact) {
   for (VertexId v : contact.snapped) {
     if (on_cut_[v] == 0) {
       mark_on_cut(v, distance_to_move(mesh_.rest_position(v)));
@@ -163,11 +191,12 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     ++stats_.edges_split;
     stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
   }
-  surface_.insert(surface_.end(), triangles.begin(), triangles.end());
+}
 
-  // Open the cut: decide the faces this move puts on it, then separate their corners where
-  // cut faces part the tetrahedra around them. Faces through vertices put on the cut earlier
-  // are decided again where this move swept: the surface may only now reach past them.
+void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangles) {
+  // Decide the faces this move puts on the cut, then separate their corners where cut faces
+  // part the tetrahedra around them. Faces through vertices put on the cut earlier are
+  // decided again where this move swept: the surface may only now reach past them.
   for (const auto& triangle : triangles) {
     Vec3 low;
     Vec3 high;
@@ -196,7 +225,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     candidates.push_back(v);
   }
   resolve_pinched_edges(candidates);
-  // Blade-line vertices the cut has opened at stay where they are.
+  // Blade-line vertices the cut has opened at stay where they are; the others may slide.
   std::sort(separated_.begin(), separated_.end());
   for (const Provisional& point : next_provisional_) {
     if (!std::binary_search(separated_.begin(), separated_.end(), point.vertex)) {
@@ -204,18 +233,6 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
     }
   }
   separated_.clear();
-  stats_.gc_seconds = gc_seconds + seconds_since(start);
-  stats_.total_cd_seconds += stats_.cd_seconds;
-  stats_.total_gc_seconds += stats_.gc_seconds;
-  stats_.max_move_seconds =
-      std::max(stats_.max_move_seconds, stats_.cd_seconds + stats_.gc_seconds);
-
-  track_point_tet();
-  update_active_tets();
-  if (positions_ != nullptr) {
-    tip_material_ = material_point(pose.tip);
-    base_material_ = material_point(pose.base);
-  }
 }
 
 }  // namespace incise

@@ -173,6 +173,18 @@ class SubdivisionCutter {
     std::vector<Crossing> crossings;
     std::vector<VertexId> snapped;
   };
+  // The stages of one move (move_to), in order.
+  /// Blade-line vertices for the previous and the new pose (sliding those that can).
+  void place_blade_line(const BladePose& from, const BladePose& pose,
+                        const std::vector<std::array<Vec3, 3>>& triangles);
+  /// Collision detection, the swept surface recorded, cut-edge codes classified.
+  [[nodiscard]] Contact collide(const std::vector<std::array<Vec3, 3>>& triangles,
+                                const BladePose& pose);
+  /// Snapped vertices put on the cut; crossed edges split at the crossing.
+  void split_crossed_edges(const Contact& contact);
+  /// Faces on the cut marked, vertices separated, pinched edges resolved.
+  void open_cut(const std::vector<std::array<Vec3, 3>>& triangles);
+
   [[nodiscard]] Contact detect(const std::vector<std::array<Vec3, 3>>& triangles);
   void classify(const Contact& contact, const BladePose& pose);
   /// Inserts vertices on the blade line of `pose`; `normal` (unit) is that of the swept surface
