@@ -208,6 +208,14 @@ Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(s
     }
     p.integrator->focus_on(nearest);
   }
+  if ((p.integrator->needs_vertex_forces() && p.model->vertex_forces() == nullptr) ||
+      (p.integrator->needs_linearization() && p.model->linearization() == nullptr)) {
+    throw InputError(
+        where, 0,
+        "integrator.type " + p.integrator->name() + " needs " +
+            (p.integrator->needs_vertex_forces() ? "per-vertex forces" : "a linearised force") +
+            ", which model.type " + p.model->name() + " does not give");
+  }
   p.limit = p.integrator->stability_limit(p.system);
   if (!p.integrator->implicit() && spec.dt > p.limit) {
     p.warnings.push_back(fmt::format(

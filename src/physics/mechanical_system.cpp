@@ -37,6 +37,26 @@ MechanicalSystem::MechanicalSystem(TetMesh& mesh, ForceModel& model, BoundaryCon
   }
 }
 
+const VertexForces& MechanicalSystem::per_vertex() const {
+  const VertexForces* forces = model_.vertex_forces();
+  if (forces == nullptr) {
+    throw InputError("model '" + model_.name() +
+                     "' gives no per-vertex forces, which vertex-by-vertex relaxation "
+                     "(rk4-hierarchical) needs: choose rk4, symplectic-euler or backward-euler");
+  }
+  return *forces;
+}
+
+ForceLinearization& MechanicalSystem::linearized() const {
+  ForceLinearization* linearization = model_.linearization();
+  if (linearization == nullptr) {
+    throw InputError("model '" + model_.name() +
+                     "' gives no linearisation, which implicit and static solves "
+                     "(backward-euler, static) need: choose an explicit integrator");
+  }
+  return *linearization;
+}
+
 void MechanicalSystem::external_and_damping_forces(std::span<const Vec3> v,
                                                    std::span<Vec3> f) const {
   const auto masses = model_.masses();
@@ -56,24 +76,24 @@ void MechanicalSystem::forces(double, std::span<const Vec3> x, std::span<const V
 void MechanicalSystem::forces_and_linearization(double, std::span<const Vec3> x,
                                                 std::span<const Vec3> v, std::span<Vec3> f) {
   external_and_damping_forces(v, f);
-  model_.add_forces_and_linearize(x, v, f);
+  linearized().add_forces_and_linearize(x, v, f);
 }
 
 Vec3 MechanicalSystem::vertex_force(double, VertexId vertex, const Vec3& x, const Vec3& v,
                                     const NeighborState& neighbor) {
   const double mass = model_.masses()[static_cast<std::size_t>(vertex)];
   return mass * (conditions_.gravity() - damping_.viscous * v) + conditions_.point_force(vertex) +
-         model_.vertex_force(vertex, x, v, neighbor);
+         per_vertex().vertex_force(vertex, x, v, neighbor);
 }
 
 void MechanicalSystem::prepare_linearization(double, std::span<const Vec3> x,
                                              std::span<const Vec3> v) {
-  model_.prepare_linearization(x, v);
+  linearized().prepare_linearization(x, v);
 }
 
 void MechanicalSystem::add_linearized_product(double a, double b, std::span<const Vec3> p,
                                               std::span<Vec3> y) const {
-  model_.add_linearized_product(a, b, p, y);
+  linearized().add_linearized_product(a, b, p, y);
   if (damping_.viscous > 0.0 && b != 0.0) {
     const auto masses = model_.masses();
     for (std::size_t i = 0; i < p.size(); ++i) {
@@ -83,7 +103,7 @@ void MechanicalSystem::add_linearized_product(double a, double b, std::span<cons
 }
 
 void MechanicalSystem::add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const {
-  model_.add_linearized_diagonal(a, b, diagonal);
+  linearized().add_linearized_diagonal(a, b, diagonal);
   if (damping_.viscous > 0.0 && b != 0.0) {
     const auto masses = model_.masses();
     for (std::size_t i = 0; i < diagonal.size(); ++i) {
@@ -93,7 +113,7 @@ void MechanicalSystem::add_linearized_diagonal(double a, double b, std::span<Mat
 }
 
 bool MechanicalSystem::assemble_linearization(double a, double b, BlockSparseMatrix& matrix) const {
-  if (!model_.assemble_linearization(a, b, matrix)) {
+  if (!linearized().assemble_linearization(a, b, matrix)) {
     return false;
   }
   if (damping_.viscous > 0.0 && b != 0.0) {

@@ -4,6 +4,11 @@
 
 #include <cmath>
 
+#include "incise/core/error.hpp"
+#include "incise/mesh/generators.hpp"
+#include "incise/physics/boundary_conditions.hpp"
+#include "incise/physics/force_model.hpp"
+#include "incise/physics/mechanical_system.hpp"
 #include "incise/solve/integrators.hpp"
 #include "oscillator.hpp"
 
@@ -149,6 +154,87 @@ TEST(HierarchicalIterations, HalveWithDepthUpToTheBound) {
   EXPECT_EQ(integrator.iterations_at_depth(4), 0);
   HierarchicalRungeKutta4 shallow(HierarchicalOptions{3, 4});
   EXPECT_EQ(shallow.iterations_at_depth(2), 1);  // never fewer than one inside the bound
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+/// The smallest model: only the core (masses, forces, energy). A linear spring on every edge
+/// pulling towards rest length, with no per-vertex forces and no linearisation.
+class CoreOnlySprings final : public ForceModel {
+ public:
+  explicit CoreOnlySprings(const TetMesh& mesh) : mesh_(mesh), masses_(mesh.vertex_count(), 0.01) {}
+  [[nodiscard]] std::string name() const override { return "core-only springs"; }
+  void refresh() override {}
+  [[nodiscard]] double total_mass() const override { return 0.01 * mesh_.vertex_count(); }
+  [[nodiscard]] std::span<const double> masses() const override { return masses_; }
+  void add_forces(std::span<const Vec3> x, std::span<const Vec3> /*v*/,
+                  std::span<Vec3> f) const override {
+    for (std::size_t e = 0; e < mesh_.edge_count(); ++e) {
+      const auto& [a, b] = mesh_.edge(static_cast<EdgeId>(e));
+      const double rest = (mesh_.rest_position(a) - mesh_.rest_position(b)).norm();
+      const Vec3 d = x[b] - x[a];
+      const Vec3 force = kStiffness * (d.norm() - rest) * d.normalized();
+      f[a] += force;
+      f[b] -= force;
+    }
+  }
+  [[nodiscard]] double elastic_energy(std::span<const Vec3> x) const override {
+    double energy = 0.0;
+    for (std::size_t e = 0; e < mesh_.edge_count(); ++e) {
+      const auto& [a, b] = mesh_.edge(static_cast<EdgeId>(e));
+      const double stretch =
+          (x[b] - x[a]).norm() - (mesh_.rest_position(a) - mesh_.rest_position(b)).norm();
+      energy += 0.5 * kStiffness * stretch * stretch;
+    }
+    return energy;
+  }
+  [[nodiscard]] double max_vertex_frequency() const override {
+    return std::sqrt(40 * kStiffness / 0.01);
+  }
+
+ private:
+  static constexpr double kStiffness = 10.0;  // N/m
+  const TetMesh& mesh_;
+  std::vector<double> masses_;
+};
+
+TEST(ForceModelCapabilities, ACoreOnlyModelRunsExplicitlyAndImplicitSchemesSayWhatIsMissing) {
+  BoxGridOptions options;
+  options.cells = {1, 1, 1};
+  options.size = Vec3(0.1, 0.1, 0.1);
+  TetMesh mesh = make_box_grid(options);
+  CoreOnlySprings model(mesh);
+  BoundaryConditions conditions(mesh);
+  conditions.fix(vertices_in_box(mesh, Vec3(-1, -1, -1), Vec3(1, 1, 0)));
+  conditions.set_gravity(Vec3(0, 0, -9.81));
+  MechanicalSystem system(mesh, model, conditions);
+  SimulationState state(mesh);
+  RungeKutta4 rk4;
+  const double dt = 0.5 * rk4.stability_limit(system);
+  double lowest = 0.0;
+  for (int step = 0; step < 200; ++step) {
+    rk4.step(system, state.x.values(), state.v.values(), state.time, dt);
+    state.time += dt;
+    for (const Vec3& x : state.x.values()) {
+      lowest = std::min(lowest, x.z());
+    }
+  }
+  EXPECT_LT(lowest, -1e-4);  // the free top sags under gravity
+  for (const Vec3& x : state.x.values()) {
+    ASSERT_TRUE(x.allFinite());
+  }
+  BackwardEuler implicit;
+  try {
+    implicit.step(system, state.x.values(), state.v.values(), state.time, dt);
+    FAIL() << "backward Euler ran without a linearisation";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("gives no linearisation"), std::string::npos)
+        << error.what();
+  }
 }
 
 }  // namespace

@@ -39,7 +39,10 @@ struct FemElement {
   bool valid = false;  ///< false until computed, or when the rest shape is degenerate
 };
 
-class CorotationalFemModel final : public ForceModel, public MeshObserver {
+class CorotationalFemModel final : public ForceModel,
+                                   public VertexForces,
+                                   public ForceLinearization,
+                                   public MeshObserver {
  public:
   /// Throws InputError naming the element if a tetrahedron is inverted or degenerate at rest.
   CorotationalFemModel(TetMesh& mesh, const Material& material,
@@ -49,6 +52,8 @@ class CorotationalFemModel final : public ForceModel, public MeshObserver {
                        const CorotationalFemParameters& parameters = {});
   ~CorotationalFemModel() override;
 
+  [[nodiscard]] const VertexForces* vertex_forces() const override { return this; }
+  [[nodiscard]] ForceLinearization* linearization() override { return this; }
   [[nodiscard]] std::string name() const override { return "corotational-fem"; }
   void refresh() override;
   [[nodiscard]] std::span<const double> masses() const override { return masses_.values(); }

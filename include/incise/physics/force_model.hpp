@@ -11,6 +11,49 @@
 
 namespace incise {
 
+/// Forces one vertex at a time, for schemes that relax vertex by vertex (the seed's
+/// hierarchical breadth-first RK4). Optional: ForceModel::vertex_forces().
+class VertexForces {
+ public:
+  VertexForces() = default;
+  VertexForces(const VertexForces&) = delete;
+  VertexForces& operator=(const VertexForces&) = delete;
+  virtual ~VertexForces() = default;
+
+  /// Internal force on one vertex (N), its neighbours' states given by `neighbor`.
+  [[nodiscard]] virtual Vec3 vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
+                                          const NeighborState& neighbor) const = 0;
+  [[nodiscard]] virtual std::span<const VertexId> neighbors(VertexId vertex) const = 0;
+};
+
+/// The force's linearisation (stiffness K and damping D), for implicit schemes and static
+/// solves. Optional: ForceModel::linearization().
+class ForceLinearization {
+ public:
+  ForceLinearization() = default;
+  ForceLinearization(const ForceLinearization&) = delete;
+  ForceLinearization& operator=(const ForceLinearization&) = delete;
+  virtual ~ForceLinearization() = default;
+
+  virtual void prepare_linearization(std::span<const Vec3> x, std::span<const Vec3> v) = 0;
+  /// The model's forces added to f, then prepare_linearization at the same state; models that
+  /// share work between the two (the FEM's rotations) do both in one pass.
+  virtual void add_forces_and_linearize(std::span<const Vec3> x, std::span<const Vec3> v,
+                                        std::span<Vec3> f) = 0;
+  virtual void add_linearized_product(double a, double b, std::span<const Vec3> p,
+                                      std::span<Vec3> y) const = 0;
+  virtual void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const = 0;
+  /// Writes a K + b D of the last linearisation into `matrix` (its pattern rebuilt when the
+  /// mesh changed); false when the model offers products only.
+  virtual bool assemble_linearization(double /*a*/, double /*b*/,
+                                      BlockSparseMatrix& /*matrix*/) const {
+    return false;
+  }
+};
+
+/// A body's internal forces: the small core every model has (masses, forces, energy). What
+/// only some schemes need is an optional capability a model may offer, so a new model starts
+/// with the core and runs under the schemes that need nothing more (explicit Euler, RK4).
 class ForceModel {
  public:
   ForceModel() = default;
@@ -28,30 +71,13 @@ class ForceModel {
   /// Adds internal (elastic and internal damping) forces.
   virtual void add_forces(std::span<const Vec3> x, std::span<const Vec3> v,
                           std::span<Vec3> f) const = 0;
-  /// Internal force on one vertex.
-  [[nodiscard]] virtual Vec3 vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
-                                          const NeighborState& neighbor) const = 0;
-  [[nodiscard]] virtual std::span<const VertexId> neighbors(VertexId vertex) const = 0;
-  virtual void prepare_linearization(std::span<const Vec3> x, std::span<const Vec3> v) = 0;
-  /// add_forces then prepare_linearization at the same state; models that share work between
-  /// the two (the FEM's rotations) do both in one pass.
-  virtual void add_forces_and_linearize(std::span<const Vec3> x, std::span<const Vec3> v,
-                                        std::span<Vec3> f) {
-    add_forces(x, v, f);
-    prepare_linearization(x, v);
-  }
-  virtual void add_linearized_product(double a, double b, std::span<const Vec3> p,
-                                      std::span<Vec3> y) const = 0;
-  virtual void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const = 0;
-  /// Writes a K + b D of the last linearisation into `matrix` (its pattern rebuilt when the
-  /// mesh changed); false when the model offers products only.
-  virtual bool assemble_linearization(double /*a*/, double /*b*/,
-                                      BlockSparseMatrix& /*matrix*/) const {
-    return false;
-  }
   [[nodiscard]] virtual double elastic_energy(std::span<const Vec3> x) const = 0;
   /// Upper bound on the highest natural angular frequency at rest (rad/s), for step limits.
   [[nodiscard]] virtual double max_vertex_frequency() const = 0;
+
+  /// Optional capabilities: null when the model does not offer them.
+  [[nodiscard]] virtual const VertexForces* vertex_forces() const { return nullptr; }
+  [[nodiscard]] virtual ForceLinearization* linearization() { return nullptr; }
 };
 
 }  // namespace incise

@@ -28,7 +28,10 @@ struct Spring {
   double damping = 0.0;      ///< N s/m
 };
 
-class MassSpringModel final : public ForceModel, public MeshObserver {
+class MassSpringModel final : public ForceModel,
+                              public VertexForces,
+                              public ForceLinearization,
+                              public MeshObserver {
  public:
   MassSpringModel(TetMesh& mesh, const Material& material, const MassSpringParameters& parameters);
   /// A body of several materials: each tetrahedron's density gives its mass and its Young's
@@ -37,6 +40,8 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
                   const MassSpringParameters& parameters);
   ~MassSpringModel() override;
 
+  [[nodiscard]] const VertexForces* vertex_forces() const override { return this; }
+  [[nodiscard]] ForceLinearization* linearization() override { return this; }
   [[nodiscard]] std::string name() const override { return "mass-spring"; }
   void refresh() override;
   [[nodiscard]] std::span<const double> masses() const override { return masses_.values(); }
@@ -46,6 +51,11 @@ class MassSpringModel final : public ForceModel, public MeshObserver {
                                   const NeighborState& neighbor) const override;
   [[nodiscard]] std::span<const VertexId> neighbors(VertexId vertex) const override;
   void prepare_linearization(std::span<const Vec3> x, std::span<const Vec3> v) override;
+  void add_forces_and_linearize(std::span<const Vec3> x, std::span<const Vec3> v,
+                                std::span<Vec3> f) override {
+    add_forces(x, v, f);
+    prepare_linearization(x, v);
+  }
   void add_linearized_product(double a, double b, std::span<const Vec3> p,
                               std::span<Vec3> y) const override;
   void add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const override;

@@ -39,7 +39,7 @@ class MechanicalSystem final : public DynamicSystem {
   Vec3 vertex_force(double t, VertexId vertex, const Vec3& x, const Vec3& v,
                     const NeighborState& neighbor) override;
   [[nodiscard]] std::span<const VertexId> neighbors(VertexId vertex) const override {
-    return model_.neighbors(vertex);
+    return per_vertex().neighbors(vertex);
   }
   [[nodiscard]] bool is_constrained(VertexId vertex) const override {
     return conditions_.is_constrained(vertex);
@@ -65,6 +65,9 @@ class MechanicalSystem final : public DynamicSystem {
   [[nodiscard]] const TetMesh& mesh() const { return mesh_; }
 
  private:
+  /// The model's optional capabilities; a clear error when the scheme needs one it lacks.
+  [[nodiscard]] const VertexForces& per_vertex() const;
+  [[nodiscard]] ForceLinearization& linearized() const;
   /// f = gravity, point forces and viscous damping (overwrites f).
   void external_and_damping_forces(std::span<const Vec3> v, std::span<Vec3> f) const;
 

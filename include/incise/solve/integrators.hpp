@@ -44,6 +44,10 @@ class Integrator {
   [[nodiscard]] virtual bool implicit() const { return false; }
   /// The largest step (s) this scheme takes stably on the system (infinity: any step).
   [[nodiscard]] virtual double stability_limit(const DynamicSystem& system) const;
+  /// What the scheme asks of a force model beyond its core (ForceModel's optional
+  /// capabilities): forces one vertex at a time, or a linearisation.
+  [[nodiscard]] virtual bool needs_vertex_forces() const { return false; }
+  [[nodiscard]] virtual bool needs_linearization() const { return false; }
   /// Where the tool acts: schemes that relax locally start there (others ignore it).
   virtual void focus_on(VertexId /*vertex*/) {}
   /// Checkpoints: what a scheme carries from one step to the next (earlier solutions, time
@@ -116,6 +120,7 @@ class HierarchicalRungeKutta4 final : public Integrator {
   /// Focus of the traversal, or kInvalidId for full relaxation.
   void set_focus(VertexId focus) { focus_ = focus; }
   void focus_on(VertexId vertex) override { focus_ = vertex; }
+  [[nodiscard]] bool needs_vertex_forces() const override { return true; }
   void save_state(StateWriter& out) const override;
   void load_state(StateReader& in) override;
   [[nodiscard]] VertexId focus() const { return focus_; }
@@ -154,6 +159,7 @@ class BackwardEuler final : public Integrator {
   explicit BackwardEuler(const BackwardEulerOptions& options = {});
   [[nodiscard]] std::string name() const override { return "backward-euler"; }
   [[nodiscard]] bool implicit() const override { return true; }
+  [[nodiscard]] bool needs_linearization() const override { return true; }
   [[nodiscard]] double stability_limit(const DynamicSystem& system) const override;
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
             double dt) override;
@@ -186,6 +192,7 @@ class StaticEquilibrium final : public Integrator {
   explicit StaticEquilibrium(const StaticOptions& options = {});
   [[nodiscard]] std::string name() const override { return "static"; }
   [[nodiscard]] bool implicit() const override { return true; }
+  [[nodiscard]] bool needs_linearization() const override { return true; }
   [[nodiscard]] double stability_limit(const DynamicSystem& system) const override;
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
             double dt) override;
