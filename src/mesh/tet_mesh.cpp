@@ -10,6 +10,12 @@
 
 namespace incise {
 namespace {
+constexpr const char* kObservedMove =
+    "a mesh that attributes or models observe cannot be moved: they hold its address "
+    "(build the mesh, move it into place, then attach them)";
+}  // namespace
+
+namespace {
 
 std::uint64_t edge_key(VertexId a, VertexId b) {
   if (a > b) {
@@ -127,8 +133,8 @@ TetMesh& TetMesh::operator=(const TetMesh& other) {
   return *this;
 }
 
-TetMesh::TetMesh(TetMesh&& other) noexcept
-    : rest_positions_(std::move(other.rest_positions_)),
+TetMesh::TetMesh(TetMesh&& other)
+    : rest_positions_(std::move(unobserved(other).rest_positions_)),
       vertex_origins_(std::move(other.vertex_origins_)),
       tets_(std::move(other.tets_)),
       tet_labels_(std::move(other.tet_labels_)),
@@ -138,16 +144,19 @@ TetMesh::TetMesh(TetMesh&& other) noexcept
       edges_(std::move(other.edges_)),
       edge_tets_(std::move(other.edge_tets_)),
       edge_index_(std::move(other.edge_index_)),
-      revision_(other.revision_),
-      observers_(std::move(other.observers_)) {
-  other.observers_.clear();
-  notify_relocated();
+      revision_(other.revision_) {}
+
+TetMesh& TetMesh::unobserved(TetMesh& mesh) {
+  if (!mesh.observers_.empty()) {
+    throw InternalError(kObservedMove);  // checked before any member moves
+  }
+  return mesh;
 }
 
-TetMesh& TetMesh::operator=(TetMesh&& other) noexcept {
+TetMesh& TetMesh::operator=(TetMesh&& other) {
   if (this != &other) {
-    for (MeshObserver* observer : observers_) {
-      observer->on_mesh_relocated(nullptr);
+    if (!observers_.empty() || !other.observers_.empty()) {
+      throw InternalError(kObservedMove);
     }
     rest_positions_ = std::move(other.rest_positions_);
     vertex_origins_ = std::move(other.vertex_origins_);
@@ -160,22 +169,13 @@ TetMesh& TetMesh::operator=(TetMesh&& other) noexcept {
     edge_tets_ = std::move(other.edge_tets_);
     edge_index_ = std::move(other.edge_index_);
     revision_ = other.revision_ + 1;
-    observers_ = std::move(other.observers_);
-    other.observers_.clear();
-    notify_relocated();
   }
   return *this;
 }
 
 TetMesh::~TetMesh() {
   for (MeshObserver* observer : observers_) {
-    observer->on_mesh_relocated(nullptr);
-  }
-}
-
-void TetMesh::notify_relocated() {
-  for (MeshObserver* observer : observers_) {
-    observer->on_mesh_relocated(this);
+    observer->on_mesh_destroyed();
   }
 }
 

@@ -195,24 +195,33 @@ TEST(TetMesh, NonManifoldFaceIsMarkedAndHealed) {
   EXPECT_EQ(mesh.compare_with_rebuilt_adjacency(), "");
 }
 
-TEST(TetMesh, ObserversFollowMovesAndDestruction) {
-  auto mesh = std::make_unique<TetMesh>(two_tets());
-  VertexData<double> weight(*mesh, 1.0);
-  TetMesh moved = std::move(*mesh);
-  EXPECT_EQ(weight.mesh(), &moved);
-  moved.add_vertex(Vec3(3, 3, 3));
+TEST(TetMesh, AnObservedMeshStaysWhereItIsAndItsDestructionIsAnnounced) {
+  // The ownership rule: attributes and models hold the mesh's address, so a mesh they observe
+  // is never moved, nor overwritten; the attempt is refused before anything changes.
+  TetMesh mesh = two_tets();
+  VertexData<double> weight(mesh, 1.0);
+  EXPECT_THROW({ TetMesh moved(std::move(mesh)); }, InternalError);
+  EXPECT_EQ(mesh.tet_count(), 2u);
+  EXPECT_EQ(weight.mesh(), &mesh);
+  TetMesh other = two_tets();
+  EXPECT_THROW(other = std::move(mesh), InternalError);
+  EXPECT_THROW(mesh = two_tets(), InternalError);
+  EXPECT_EQ(mesh.tet_count(), 2u);
+  mesh.add_vertex(Vec3(3, 3, 3));
   EXPECT_EQ(weight.size(), 6u);
+  // An attribute may move: it goes on following the same mesh.
   VertexData<double> relocated = std::move(weight);
-  moved.add_vertex(Vec3(4, 4, 4));
+  mesh.add_vertex(Vec3(4, 4, 4));
   EXPECT_EQ(relocated.size(), 7u);
-  mesh.reset();
-  {
-    TetMesh scoped = two_tets();
-    VertexData<int> survivor(scoped, 0);
-    TetData<int> other(scoped, 0);
-    scoped = two_tets();  // the observers followed the overwritten mesh: detached
-    EXPECT_EQ(survivor.mesh(), nullptr);
-  }
+  // A mesh nobody observes moves freely (a reader's result into its place).
+  TetMesh fresh = two_tets();
+  TetMesh placed = std::move(fresh);
+  EXPECT_EQ(placed.tet_count(), 2u);
+  // Observers that outlive their mesh are told, and do not touch it afterwards.
+  auto owned = std::make_unique<TetMesh>(two_tets());
+  VertexData<int> survivor(*owned, 0);
+  owned.reset();
+  EXPECT_EQ(survivor.mesh(), nullptr);
 }
 
 TEST(Attributes, VertexRules) {

@@ -38,7 +38,7 @@ class CutFaceMarks final : public MeshObserver {
                        const Tet& parent_vertices) override;
   void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                       const Tet& removed_vertices) override;
-  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  void on_mesh_destroyed() override { mesh_ = nullptr; }
   void save_state(StateWriter& out) const override {
     out.tag("cut face marks");
     out.values(bits_);

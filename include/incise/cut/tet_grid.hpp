@@ -37,7 +37,7 @@ class TetGrid final : public MeshObserver {
   void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                       const Tet& removed_vertices) override;
   void on_vertex_relocating(const TetMesh& mesh, VertexId vertex) override;
-  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  void on_mesh_destroyed() override { mesh_ = nullptr; }
   /// The cells exactly as filed: queries list tetrahedra in filing order.
   void save_state(StateWriter& out) const override;
   void load_state(StateReader& in) override;

@@ -71,7 +71,7 @@ class AttributeBase : public MeshObserver {
   [[nodiscard]] const TetMesh* mesh() const { return mesh_; }
   void fill(const T& value) { std::fill(values_.begin(), values_.end(), value); }
 
-  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  void on_mesh_destroyed() override { mesh_ = nullptr; }
 
   void save_state(StateWriter& out) const override {
     static_assert(RawState<T>, "attributes saved in checkpoints hold plain values");

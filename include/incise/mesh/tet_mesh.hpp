@@ -95,8 +95,8 @@ class MeshObserver {
   /// Same swap-with-last convention as on_tet_removed.
   virtual void on_edge_removed(const TetMesh& /*mesh*/, EdgeId /*removed*/, EdgeId /*moved_from*/) {
   }
-  /// The observed mesh was moved to a new address (or destroyed: nullptr).
-  virtual void on_mesh_relocated(TetMesh* /*mesh*/) {}
+  /// The observed mesh is being destroyed: forget it (do not unregister).
+  virtual void on_mesh_destroyed() {}
 
   // ---- checkpoints -------------------------------------------------------------------------
   /// An observer with state writes it here; TetMesh::save_state calls every observer in the
@@ -119,9 +119,11 @@ class TetMesh {
   /// Copies geometry and adjacency, not observers.
   TetMesh(const TetMesh& other);
   TetMesh& operator=(const TetMesh& other);
-  /// Moves everything, observers included (they are told the new address).
-  TetMesh(TetMesh&& other) noexcept;
-  TetMesh& operator=(TetMesh&& other) noexcept;
+  /// Moves a mesh nobody observes yet (a reader's result into its place). The ownership
+  /// rule: attributes and models attach to a mesh where it will stay; moving an observed
+  /// mesh, or onto one, throws InternalError.
+  TetMesh(TetMesh&& other);
+  TetMesh& operator=(TetMesh&& other);
   ~TetMesh();
 
   // ---- sizes and geometry ----------------------------------------------------------------
@@ -213,6 +215,8 @@ class TetMesh {
 
  private:
   void check_tet_ids(const Tet& tet) const;
+  /// `mesh`, or InternalError when something observes it (the ownership rule).
+  static TetMesh& unobserved(TetMesh& mesh);
   void attach(TetId tet);
   void detach(TetId tet);
   void update_face(VertexId a, VertexId b, VertexId c);
@@ -224,7 +228,6 @@ class TetMesh {
                            std::span<const double> weights, Vec3& position) const;
   /// Emits edge events and drops unused edges at the end of an edit.
   void finish_edit();
-  void notify_relocated();
   void build_adjacency();
 
   std::vector<Vec3> rest_positions_;

@@ -93,7 +93,7 @@ class CorotationalFemModel final : public ForceModel,
   /// asked for).
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
-  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  void on_mesh_destroyed() override { mesh_ = nullptr; }
   /// Its values live in attribute containers (restored on their own); the element order,
   /// colouring, matrix pattern and masses are rebuilt from them.
   void load_state(StateReader& /*in*/) override {

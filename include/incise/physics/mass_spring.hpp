@@ -78,7 +78,7 @@ class MassSpringModel final : public ForceModel,
   void on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
   void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                            const VertexOrigin& origin) override;
-  void on_mesh_relocated(TetMesh* mesh) override { mesh_ = mesh; }
+  void on_mesh_destroyed() override { mesh_ = nullptr; }
   /// Its values live in attribute containers (restored on their own); springs and masses are
   /// recomputed from them.
   void load_state(StateReader& in) override;
