@@ -87,6 +87,7 @@ TetMesh::TetMesh(std::vector<Vec3> rest_positions, std::vector<Tet> tets, std::v
   if (tet_labels_.empty()) {
     tet_labels_.assign(tets_.size(), 0);
   }
+  tet_fractions_.assign(tets_.size(), 1.0);
   if (tet_labels_.size() != tets_.size()) {
     throw InputError(std::to_string(tet_labels_.size()) + " region labels for " +
                      std::to_string(tets_.size()) + " tetrahedra");
@@ -116,6 +117,7 @@ TetMesh::TetMesh(const TetMesh& other)
       vertex_origins_(other.vertex_origins_),
       tets_(other.tets_),
       tet_labels_(other.tet_labels_),
+      tet_fractions_(other.tet_fractions_),
       tet_neighbors_(other.tet_neighbors_),
       tet_edges_(other.tet_edges_),
       vertex_tets_(other.vertex_tets_),
@@ -138,6 +140,7 @@ TetMesh::TetMesh(TetMesh&& other)
       vertex_origins_(std::move(other.vertex_origins_)),
       tets_(std::move(other.tets_)),
       tet_labels_(std::move(other.tet_labels_)),
+      tet_fractions_(std::move(other.tet_fractions_)),
       tet_neighbors_(std::move(other.tet_neighbors_)),
       tet_edges_(std::move(other.tet_edges_)),
       vertex_tets_(std::move(other.vertex_tets_)),
@@ -162,6 +165,7 @@ TetMesh& TetMesh::operator=(TetMesh&& other) {
     vertex_origins_ = std::move(other.vertex_origins_);
     tets_ = std::move(other.tets_);
     tet_labels_ = std::move(other.tet_labels_);
+    tet_fractions_ = std::move(other.tet_fractions_);
     tet_neighbors_ = std::move(other.tet_neighbors_);
     tet_edges_ = std::move(other.tet_edges_);
     vertex_tets_ = std::move(other.vertex_tets_);
@@ -591,6 +595,7 @@ TetId TetMesh::add_tet(const Tet& tet, int label) {
   const auto id = static_cast<TetId>(tets_.size());
   tets_.push_back(tet);
   tet_labels_.push_back(label);
+  tet_fractions_.push_back(1.0);
   tet_neighbors_.push_back({kBoundaryFace, kBoundaryFace, kBoundaryFace, kBoundaryFace});
   tet_edges_.push_back({kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId});
   attach(id);
@@ -621,6 +626,7 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
     ids.push_back(static_cast<TetId>(tets_.size()));
     tets_.push_back(children[i]);
     tet_labels_.push_back(tet_labels_[parent]);
+    tet_fractions_.push_back(tet_fractions_[parent]);
     tet_neighbors_.push_back({kBoundaryFace, kBoundaryFace, kBoundaryFace, kBoundaryFace});
     tet_edges_.push_back({kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId});
   }
@@ -644,6 +650,7 @@ void TetMesh::remove_tet(TetId t) {
   if (t != last) {
     tets_[t] = tets_[last];
     tet_labels_[t] = tet_labels_[last];
+    tet_fractions_[t] = tet_fractions_[last];
     tet_neighbors_[t] = tet_neighbors_[last];
     tet_edges_[t] = tet_edges_[last];
     for (VertexId v : tets_[t]) {
@@ -660,6 +667,7 @@ void TetMesh::remove_tet(TetId t) {
   }
   tets_.pop_back();
   tet_labels_.pop_back();
+  tet_fractions_.pop_back();
   tet_neighbors_.pop_back();
   tet_edges_.pop_back();
   for (MeshObserver* observer : observers_) {
@@ -677,12 +685,28 @@ void TetMesh::set_rest_position(VertexId vertex, const Vec3& rest_position) {
 
 // ---- self-check --------------------------------------------------------------------------
 
+void TetMesh::set_material_fraction(TetId tet, double fraction) {
+  if (tet < 0 || static_cast<std::size_t>(tet) >= tets_.size()) {
+    throw InputError("set_material_fraction: tetrahedron " + std::to_string(tet) +
+                     " does not exist");
+  }
+  if (!(fraction >= 0.0 && fraction <= 1.0)) {
+    throw InputError("material fraction of tetrahedron " + std::to_string(tet) +
+                     " must lie in [0, 1]");
+  }
+  tet_fractions_[tet] = fraction;  // the topology is the same: the revision stays
+  for (MeshObserver* observer : observers_) {
+    observer->on_material_fraction_changed(*this, tet);
+  }
+}
+
 void TetMesh::save_state(StateWriter& out) const {
   out.tag("mesh");
   out.values(rest_positions_);
   out.values(vertex_origins_);
   out.values(tets_);
   out.values(tet_labels_);
+  out.values(tet_fractions_);
   out.values(tet_neighbors_);
   out.values(tet_edges_);
   out.nested(vertex_tets_);
@@ -701,6 +725,7 @@ void TetMesh::load_state(StateReader& in) {
   vertex_origins_ = in.values<VertexOrigin>("vertex origins");
   tets_ = in.values<Tet>("tetrahedra");
   tet_labels_ = in.values<int>("region labels");
+  tet_fractions_ = in.values<double>("material fractions");
   tet_neighbors_ = in.values<std::array<TetId, 4>>("tetrahedron neighbours");
   tet_edges_ = in.values<std::array<EdgeId, 6>>("tetrahedron edges");
   vertex_tets_ = in.nested<TetId>("vertex tetrahedra");
@@ -710,7 +735,8 @@ void TetMesh::load_state(StateReader& in) {
   const std::size_t n = rest_positions_.size();
   const std::size_t m = tets_.size();
   if (vertex_origins_.size() != n || vertex_tets_.size() != n || tet_labels_.size() != m ||
-      tet_neighbors_.size() != m || tet_edges_.size() != m || edge_tets_.size() != edges_.size()) {
+      tet_fractions_.size() != m || tet_neighbors_.size() != m || tet_edges_.size() != m ||
+      edge_tets_.size() != edges_.size()) {
     in.fail("the mesh", "its arrays disagree in size");
   }
   for (const Tet& tet : tets_) {

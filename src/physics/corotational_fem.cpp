@@ -32,7 +32,6 @@ CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const MaterialAssignme
       materials_(mesh, materials),
       parameters_(parameters),
       elements_(mesh, FemElement{}, TetRule::kDefault),
-      fraction_(mesh, 1.0, TetRule::kCopy),
       tet_mass_(mesh, 0.0, TetRule::kDefault),
       rotations_(mesh, Eigen::Quaterniond::Identity(), TetRule::kCopy),
       masses_(mesh, 0.0, VertexRule::kDefault) {
@@ -65,18 +64,13 @@ CorotationalFemModel::~CorotationalFemModel() {
 }
 
 void CorotationalFemModel::set_material_fraction(TetId tet, double fraction) {
-  if (!(fraction >= 0.0 && fraction <= 1.0)) {
-    throw InputError("material fraction of tetrahedron " + std::to_string(tet) +
-                     " must lie in [0, 1]");
-  }
-  fraction_[tet] = fraction;
-  masses_stale_ = true;
+  mesh_->set_material_fraction(tet, fraction);  // on_material_fraction_changed follows
 }
 
 double CorotationalFemModel::total_mass() const {
   double total = 0.0;
   for (std::size_t t = 0; t < tet_mass_.size(); ++t) {
-    total += tet_mass_[static_cast<TetId>(t)] * fraction_[static_cast<TetId>(t)];
+    total += tet_mass_[static_cast<TetId>(t)] * mesh_->material_fraction(static_cast<TetId>(t));
   }
   return total;
 }
@@ -200,7 +194,7 @@ void CorotationalFemModel::refresh() {
   masses_.fill(0.0);
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
     const auto tet = static_cast<TetId>(t);
-    const double quarter = 0.25 * tet_mass_[tet] * fraction_[tet];
+    const double quarter = 0.25 * tet_mass_[tet] * mesh_->material_fraction(tet);
     for (VertexId v : mesh.tet(tet)) {
       masses_[v] += quarter;
     }
@@ -220,7 +214,7 @@ void CorotationalFemModel::for_each_element(const Body& body) const {
     auto visit = [&](std::size_t k) {
       const TetId tet = coloured_tets_[k];
       const FemElement& element = elements_[tet];
-      const double weight = fraction_[tet];
+      const double weight = mesh_->material_fraction(tet);
       if (element.valid && weight != 0.0) {
         body(tet, element, weight);
       }
@@ -285,7 +279,7 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
                       for (std::size_t t = range.begin(); t != range.end(); ++t) {
                         const auto tet = static_cast<TetId>(t);
                         const FemElement& element = elements_[tet];
-                        const double weight = fraction_[tet];
+                        const double weight = mesh_->material_fraction(tet);
                         if (!element.valid || weight == 0.0) {
                           scaled_stress_[t].setZero();
                           continue;
@@ -347,7 +341,7 @@ Vec3 CorotationalFemModel::vertex_force(VertexId vertex, const Vec3& x, const Ve
   Vec3 force = -parameters_.rayleigh_mass * masses_[vertex] * v;
   for (TetId tet : mesh.vertex_tets(vertex)) {
     const FemElement& element = elements_[tet];
-    const double weight = fraction_[tet];
+    const double weight = mesh_->material_fraction(tet);
     if (!element.valid || weight == 0.0) {
       continue;
     }
@@ -509,7 +503,7 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
           for (std::size_t k = incidence_start_[row]; k < incidence_start_[row + 1]; ++k) {
             const auto [tet, a] = incidences_[k];
             const FemElement& element = elements_[tet];
-            const double weight = fraction_[tet];
+            const double weight = mesh_->material_fraction(tet);
             if (!element.valid || weight == 0.0) {
               continue;
             }
@@ -544,7 +538,7 @@ double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {
     const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
     Eigen::Quaterniond start = rotations_[tet];
     energy[static_cast<std::size_t>(tet)] =
-        fraction_[tet] * element.shape.volume *
+        mesh_->material_fraction(tet) * element.shape.volume *
         corotated_energy_density(F, polar_rotation(F, start), lame(tet));
   });
   double total = 0.0;
@@ -586,7 +580,7 @@ double CorotationalFemModel::max_vertex_frequency() const {
         }
         const Mat3 block =
             stiffness_block(rest_linearizations[static_cast<std::size_t>(materials_.id(tet))],
-                            lame(tet), element.shape, fraction_[tet], a, b);
+                            lame(tet), element.shape, mesh_->material_fraction(tet), a, b);
         row[corners[a]] += block.cwiseAbs().rowwise().sum().maxCoeff() / std::sqrt(ma * mb);
       }
     }

@@ -124,7 +124,7 @@ void MassSpringModel::refresh() {
   for (VertexId v : dirty_) {
     double mass = 0.0;
     for (TetId t : mesh.vertex_tets(v)) {
-      mass += 0.25 * tet_mass_[t];
+      mass += 0.25 * tet_mass_[t] * mesh.material_fraction(t);
     }
     masses_[v] = mass;
   }
@@ -139,7 +139,8 @@ void MassSpringModel::refresh() {
       const double length = (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
       double modulus_volume = 0.0;  // Pa m^3
       for (TetId t : mesh.edge_tets(e)) {
-        modulus_volume += materials_.of(t).young_modulus * std::abs(signed_volume(mesh, t));
+        modulus_volume += materials_.of(t).young_modulus * mesh.material_fraction(t) *
+                          std::abs(signed_volume(mesh, t));
       }
       Spring& spring = springs_[e];
       spring.rest_length = (1.0 - parameters_.prestrain) * length;
@@ -278,8 +279,8 @@ double MassSpringModel::max_vertex_frequency() const {
 
 double MassSpringModel::total_mass() const {
   double total = 0.0;
-  for (double m : tet_mass_.values()) {
-    total += m;
+  for (std::size_t t = 0; t < tet_mass_.size(); ++t) {
+    total += tet_mass_[static_cast<TetId>(t)] * mesh_->material_fraction(static_cast<TetId>(t));
   }
   return total;
 }

@@ -9,9 +9,11 @@
 #include <cmath>
 #include <random>
 
+#include "incise/core/error.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/operations.hpp"
 #include "incise/physics/corotational_fem.hpp"
+#include "incise/physics/mass_spring.hpp"
 #include "incise/physics/mechanical_system.hpp"
 #include "incise/solve/integrators.hpp"
 
@@ -573,6 +575,44 @@ TEST(FemSolver, StartingFromEarlierSolutionsKeepsTheTrajectoryAndSavesIterations
   EXPECT_LT(max_difference(b, c), 1e-7);
   EXPECT_LT(with_history, extrapolated);
   EXPECT_LT(extrapolated, cold);
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+TEST(MaterialFraction, LivesOnTheMeshFollowsSplitsAndBothModelsWeighIt) {
+  // A cutter that keeps elements whole (XFEM) sets the fraction on the mesh; each model weighs
+  // its elements' mass and stiffness by it, and children of a split keep their parent's.
+  BoxGridOptions options;
+  options.cells = {2, 2, 2};
+  options.size = Vec3(0.02, 0.02, 0.02);
+  TetMesh mesh = make_box_grid(options);
+  const Material material = material_preset("liver");
+  CorotationalFemModel fem(mesh, material);
+  MassSpringModel springs(mesh, material, MassSpringParameters{});
+  const double full = material.density * 0.02 * 0.02 * 0.02;  // kg
+  EXPECT_NEAR(fem.total_mass(), full, 1e-12 * full);
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    mesh.set_material_fraction(static_cast<TetId>(t), t < 24 ? 0.25 : 1.0);
+  }
+  const double weighed = full * (24 * 0.25 + 24 * 1.0) / 48.0;
+  EXPECT_NEAR(fem.total_mass(), weighed, 1e-12 * full);
+  EXPECT_NEAR(springs.total_mass(), weighed, 1e-12 * full);
+  const TetId first = 0;
+  (void)split_edge(mesh, mesh.tet_edges(first)[0], 0.3);
+  fem.refresh();
+  springs.refresh();
+  EXPECT_NEAR(fem.total_mass(), weighed, 1e-12 * full);
+  EXPECT_NEAR(springs.total_mass(), weighed, 1e-12 * full);
+  double lumped = 0.0;
+  for (double m : springs.masses()) {
+    lumped += m;
+  }
+  EXPECT_NEAR(lumped, weighed, 1e-12 * full);
+  EXPECT_THROW(mesh.set_material_fraction(0, -0.1), InputError);
 }
 
 }  // namespace

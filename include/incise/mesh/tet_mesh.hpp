@@ -95,6 +95,8 @@ class MeshObserver {
   /// Same swap-with-last convention as on_tet_removed.
   virtual void on_edge_removed(const TetMesh& /*mesh*/, EdgeId /*removed*/, EdgeId /*moved_from*/) {
   }
+  /// A tetrahedron's material fraction changed (set_material_fraction).
+  virtual void on_material_fraction_changed(const TetMesh& /*mesh*/, TetId /*tet*/) {}
   /// The observed mesh is being destroyed: forget it (do not unregister).
   virtual void on_mesh_destroyed() {}
 
@@ -140,6 +142,13 @@ class TetMesh {
   [[nodiscard]] int tet_label(TetId tet) const { return tet_labels_[tet]; }
   [[nodiscard]] std::span<const int> tet_labels() const { return tet_labels_; }
   void set_tet_label(TetId tet, int label) { tet_labels_[tet] = label; }
+  /// The share of a tetrahedron's rest volume that holds material, in [0, 1] (1 unless a
+  /// cutter that keeps elements whole, such as XFEM's virtual elements, says otherwise). On the
+  /// mesh, so any cutter can set it and every model sees it; children keep their parent's.
+  [[nodiscard]] double material_fraction(TetId tet) const { return tet_fractions_[tet]; }
+  [[nodiscard]] std::span<const double> material_fractions() const { return tet_fractions_; }
+  /// Throws InputError outside [0, 1]; observers are told (models reweigh the element).
+  void set_material_fraction(TetId tet, double fraction);
   [[nodiscard]] const VertexOrigin& vertex_origin(VertexId vertex) const {
     return vertex_origins_[vertex];
   }
@@ -234,6 +243,7 @@ class TetMesh {
   std::vector<VertexOrigin> vertex_origins_;
   std::vector<Tet> tets_;
   std::vector<int> tet_labels_;
+  std::vector<double> tet_fractions_;
   std::vector<std::array<TetId, 4>> tet_neighbors_;
   std::vector<std::array<EdgeId, 6>> tet_edges_;
   std::vector<std::vector<TetId>> vertex_tets_;

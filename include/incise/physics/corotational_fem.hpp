@@ -76,7 +76,7 @@ class CorotationalFemModel final : public ForceModel,
 
   /// Weight in [0, 1] of an element's stiffness and mass (1 by default; children inherit it).
   void set_material_fraction(TetId tet, double fraction);
-  [[nodiscard]] double material_fraction(TetId tet) const { return fraction_[tet]; }
+  [[nodiscard]] double material_fraction(TetId tet) const { return mesh_->material_fraction(tet); }
   [[nodiscard]] double total_mass() const override;
   /// The first material (the only one of a uniform body) and its Lame parameters.
   [[nodiscard]] const Material& material() const { return materials_.table().front(); }
@@ -94,6 +94,10 @@ class CorotationalFemModel final : public ForceModel,
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
   void on_mesh_destroyed() override { mesh_ = nullptr; }
+  void on_material_fraction_changed(const TetMesh& /*mesh*/, TetId /*tet*/) override {
+    masses_stale_ = true;
+    frequency_revision_ = kNoRevision;
+  }
   /// Its values live in attribute containers (restored on their own); the element order,
   /// colouring, matrix pattern and masses are rebuilt from them.
   void load_state(StateReader& /*in*/) override {
@@ -132,7 +136,6 @@ class CorotationalFemModel final : public ForceModel,
   std::vector<LameParameters> lames_;  ///< per material
   CorotationalFemParameters parameters_;
   TetData<FemElement> elements_;
-  TetData<double> fraction_;
   TetData<double> tet_mass_;  ///< kg, before the material fraction; split by volume on cuts
   /// Rotation of each element at the last force evaluation: the warm start of the next.
   mutable TetData<Eigen::Quaterniond> rotations_;

@@ -79,6 +79,9 @@ class MassSpringModel final : public ForceModel,
   void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                            const VertexOrigin& origin) override;
   void on_mesh_destroyed() override { mesh_ = nullptr; }
+  void on_material_fraction_changed(const TetMesh& mesh, TetId tet) override {
+    mark(mesh.tet(tet));
+  }
   /// Its values live in attribute containers (restored on their own); springs and masses are
   /// recomputed from them.
   void load_state(StateReader& in) override;
