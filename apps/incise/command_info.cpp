@@ -23,8 +23,11 @@ Runner add_info_command(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingFile);
   command->add_flag("--json", *as_json, "Print one JSON object instead of text");
-  return [path, as_json]() {
-    const TetMeshReadResult read = read_tet_mesh(*path);
+  auto labels = std::make_shared<std::string>();
+  command->add_option("--labels", *labels,
+                      "VTK cell array to take as region labels (default: the first integer one)");
+  return [path, as_json, labels]() {
+    const TetMeshReadResult read = read_tet_mesh(*path, ReadOptions{*labels});
     const TetMesh& mesh = read.mesh;
     const ValidationReport report = validate(mesh);
     const QualitySummary quality = summarize_quality(mesh);

@@ -44,7 +44,7 @@ TetMesh build_mesh(const SceneDescription& scene) {
   if (!scene.mesh_file) {
     return make_box_grid(scene.box);
   }
-  TetMesh mesh = read_tet_mesh(*scene.mesh_file).mesh;
+  TetMesh mesh = read_tet_mesh(*scene.mesh_file, ReadOptions{scene.mesh_labels}).mesh;
   if (scene.mesh_scale != 1.0) {
     std::vector<Vec3> positions(mesh.rest_positions().begin(), mesh.rest_positions().end());
     for (Vec3& position : positions) {

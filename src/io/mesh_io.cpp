@@ -158,7 +158,7 @@ MeshFormat detect_format(const std::filesystem::path& path) {
   return by_content != MeshFormat::kUnknown ? by_content : format_from_extension(path);
 }
 
-RawMesh read_raw_mesh(const std::filesystem::path& path) {
+RawMesh read_raw_mesh(const std::filesystem::path& path, const ReadOptions& options) {
   Source source = Source::open(path);
   MeshFormat format = format_from_content(source.bytes());
   if (format == MeshFormat::kUnknown) {
@@ -183,9 +183,9 @@ RawMesh read_raw_mesh(const std::filesystem::path& path) {
     case MeshFormat::kMedit:
       return io_detail::read_medit(source);
     case MeshFormat::kVtkLegacy:
-      return io_detail::read_vtk_legacy(source);
+      return io_detail::read_vtk_legacy(source, options.label_array);
     case MeshFormat::kVtkXml:
-      return io_detail::read_vtk_xml(source);
+      return io_detail::read_vtk_xml(source, options.label_array);
     case MeshFormat::kObj:
       return io_detail::read_obj(source);
     case MeshFormat::kStl:
@@ -200,8 +200,8 @@ RawMesh read_raw_mesh(const std::filesystem::path& path) {
                    ".vtp, .obj, .stl, .ply)");
 }
 
-TetMeshReadResult read_tet_mesh(const std::filesystem::path& path) {
-  RawMesh raw = read_raw_mesh(path);
+TetMeshReadResult read_tet_mesh(const std::filesystem::path& path, const ReadOptions& options) {
+  RawMesh raw = read_raw_mesh(path, options);
   if (raw.tets.empty()) {
     throw InputError(
         path.string(), 0,

@@ -23,7 +23,8 @@ struct CellBlock {
 
 class VtkLegacyReader {
  public:
-  explicit VtkLegacyReader(Source& source) : source_(source), builder_(source) {}
+  VtkLegacyReader(Source& source, std::string label_array)
+      : source_(source), builder_(source), label_array_(std::move(label_array)) {}
 
   RawMesh read() {
     const std::string_view magic = source_.rest_of_line();
@@ -94,6 +95,10 @@ class VtkLegacyReader {
       if (cell_types.size() != cells.size()) {
         source_.fail("CELL_TYPES lists " + std::to_string(cell_types.size()) + " types for " +
                      std::to_string(cells.size()) + " cells");
+      }
+      if (attributes.empty() && !label_array_.empty()) {
+        source_.fail_without_line("no cell data, so no array named '" + label_array_ +
+                                  "' for region labels");
       }
       const std::vector<double> labels =
           attributes.empty() ? std::vector<double>{} : cell_labels(attributes, cells.size());
@@ -220,6 +225,10 @@ class VtkLegacyReader {
     static const std::set<std::string> kIntegerTypes{
         "bit",          "char", "unsigned_char", "short",     "unsigned_short", "int",
         "unsigned_int", "long", "unsigned_long", "vtkIdType", "vtktypeint64",   "vtktypeuint64"};
+    // The array the caller named, else the first integer one.
+    const auto wanted = [&](const std::string& name, const std::string& type) {
+      return label_array_.empty() ? kIntegerTypes.count(type) > 0 : name == label_array_;
+    };
     std::vector<double> labels;
     try {
       std::string keyword = first;
@@ -230,7 +239,7 @@ class VtkLegacyReader {
           cells = keyword == "CELL_DATA";
           count = source_.count("attribute count", kMaxCount);
         } else if (keyword == "SCALARS") {
-          (void)source_.token("scalars name");
+          const std::string name(source_.token("scalars name"));
           const std::string type(source_.token("scalars type"));
           std::size_t components = 1;
           if (source_.token_on_this_line()) {
@@ -243,7 +252,7 @@ class VtkLegacyReader {
           end_of_header_line();
           std::vector<double> values = read_reals(components * count, type, "SCALARS");
           if (cells && labels.empty() && components == 1 && count == cell_count &&
-              kIntegerTypes.count(type) > 0) {
+              wanted(name, type)) {
             labels = std::move(values);
           }
         } else if (keyword == "VECTORS" || keyword == "NORMALS" || keyword == "TENSORS") {
@@ -261,14 +270,14 @@ class VtkLegacyReader {
           (void)source_.token("field name");
           const std::size_t arrays = source_.count("field array count", 10000);
           for (std::size_t a = 0; a < arrays; ++a) {
-            (void)source_.token("field array name");
+            const std::string name(source_.token("field array name"));
             const std::size_t components = source_.count("field components", 1000000);
             const std::size_t tuples = source_.count("field tuples", kMaxCount);
             const std::string type(source_.token("field data type"));
             end_of_header_line();
             std::vector<double> values = read_reals(components * tuples, type, "FIELD data");
             if (cells && labels.empty() && components == 1 && tuples == cell_count &&
-                kIntegerTypes.count(type) > 0) {
+                wanted(name, type)) {
               labels = std::move(values);
             }
             if (source_.peek_token() == "METADATA") {
@@ -285,7 +294,22 @@ class VtkLegacyReader {
         keyword = std::string(source_.next_token());
       }
     } catch (const InputError& error) {
+      if (!label_array_.empty()) {
+        throw;  // the caller asked for labels from here
+      }
       builder_.skip(std::string("unreadable attribute data (") + error.what() + ")");
+    }
+    if (!label_array_.empty()) {
+      if (labels.empty()) {
+        source_.fail_without_line("no one-component cell array named '" + label_array_ +
+                                  "' for region labels");
+      }
+      for (double label : labels) {
+        if (std::abs(label) > 2e9 || label != std::floor(label)) {
+          source_.fail_without_line("region label " + std::to_string(label) + " in '" +
+                                    label_array_ + "' is not a whole number");
+        }
+      }
     }
     return labels;
   }
@@ -414,12 +438,13 @@ class VtkLegacyReader {
   Source& source_;
   MeshBuilder builder_;
   bool binary_ = false;
+  std::string label_array_;
 };
 
 }  // namespace
 
-RawMesh read_vtk_legacy(Source& source) {
-  VtkLegacyReader reader(source);
+RawMesh read_vtk_legacy(Source& source, const std::string& label_array) {
+  VtkLegacyReader reader(source, label_array);
   return reader.read();
 }
 

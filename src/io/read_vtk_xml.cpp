@@ -58,7 +58,8 @@ std::size_t base64_chars(std::size_t bytes) {
 
 class VtkXmlReader {
  public:
-  explicit VtkXmlReader(Source& source) : source_(source), builder_(source) {
+  VtkXmlReader(Source& source, std::string label_array)
+      : source_(source), builder_(source), label_array_(std::move(label_array)) {
     source_.disable_line_numbers();  // the cursor does not walk the XML: name elements instead
   }
 
@@ -246,22 +247,35 @@ class VtkXmlReader {
     }
   }
 
-  /// Region labels per cell: the first one-component integer CellData array (a "subdomain
-  /// index", "region" or "gmsh:physical" array), or none.
+  /// Region labels per cell: the CellData array named by the caller, else the first
+  /// one-component integer one (a "subdomain index", "region" or "gmsh:physical" array), or
+  /// none.
   std::vector<double> region_labels(const pugi::xml_node& piece, std::size_t cell_count) {
+    std::string names;
     for (const pugi::xml_node array : piece.child("CellData").children("DataArray")) {
+      const std::string name = array.attribute("Name").as_string();
+      names += (names.empty() ? "" : ", ") + name;
       const std::string type = array.attribute("type").as_string();
       const bool integer = type.rfind("Int", 0) == 0 || type.rfind("UInt", 0) == 0;
-      if (!integer || array.attribute("NumberOfComponents").as_int(1) != 1) {
+      const bool named = !label_array_.empty() && name == label_array_;
+      if ((!label_array_.empty() && !named) || (!named && !integer) ||
+          array.attribute("NumberOfComponents").as_int(1) != 1) {
+        if (named) {
+          fail_at(array, "cell array '" + name + "' has several components: not region labels");
+        }
         continue;
       }
       std::vector<double> labels = values(array, cell_count, "region labels");
       for (double label : labels) {
-        if (std::abs(label) > 2e9) {
-          fail_at(array, "region label " + std::to_string(label) + " is out of range");
+        if (std::abs(label) > 2e9 || label != std::floor(label)) {
+          fail_at(array, "region label " + std::to_string(label) + " is not a whole number");
         }
       }
       return labels;
+    }
+    if (!label_array_.empty()) {
+      fail_at(piece, "no cell array named '" + label_array_ + "' for region labels (cell arrays: " +
+                         (names.empty() ? std::string("none") : names) + ")");
     }
     return {};
   }
@@ -517,12 +531,13 @@ class VtkXmlReader {
   bool swap_ = false;
   bool compressed_ = false;
   std::size_t header_bytes_ = 4;
+  std::string label_array_;
 };
 
 }  // namespace
 
-RawMesh read_vtk_xml(Source& source) {
-  VtkXmlReader reader(source);
+RawMesh read_vtk_xml(Source& source, const std::string& label_array) {
+  VtkXmlReader reader(source, label_array);
   return reader.read();
 }
 

@@ -44,8 +44,9 @@ class MeshBuilder {
 RawMesh read_gmsh(Source& source);
 RawMesh read_tetgen(Source& node_source, Source* ele_source);
 RawMesh read_medit(Source& source);
-RawMesh read_vtk_legacy(Source& source);
-RawMesh read_vtk_xml(Source& source);
+/// `label_array`: the cell array to take as region labels (empty: the first integer one).
+RawMesh read_vtk_legacy(Source& source, const std::string& label_array = {});
+RawMesh read_vtk_xml(Source& source, const std::string& label_array = {});
 RawMesh read_obj(Source& source);
 RawMesh read_stl(Source& source);
 RawMesh read_ply(Source& source);

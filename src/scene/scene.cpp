@@ -382,16 +382,19 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     context.fail("mesh", "is required: {\"file\": PATH} or {\"box\": {...}}");
   }
   {
-    const ObjectReader mesh(context, top.at("mesh"), "mesh", {"file", "scale", "box"});
+    const ObjectReader mesh(context, top.at("mesh"), "mesh", {"file", "scale", "labels", "box"});
     if (mesh.has("file") == mesh.has("box")) {
       context.fail("mesh", "give exactly one of \"file\" and \"box\"");
     }
     if (mesh.has("file")) {
       scene.mesh_file = resolve(context, mesh.string("file", ""));
       scene.mesh_scale = mesh.positive("scale", 1.0);
+      scene.mesh_labels = mesh.string("labels", "");
     } else {
-      if (mesh.has("scale")) {
-        context.fail("mesh.scale", "applies to a mesh file only");
+      for (const char* key : {"scale", "labels"}) {
+        if (mesh.has(key)) {
+          context.fail(std::string("mesh.") + key, "applies to a mesh file only");
+        }
       }
       const ObjectReader box(context, mesh.at("box"), "mesh.box",
                              {"cells", "size", "origin", "tets_per_cell"});

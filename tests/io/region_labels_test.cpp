@@ -93,6 +93,45 @@ TEST(RegionLabels, LegacyVtkCellDataScalarsOrFieldArrays) {
             (std::vector<int>{0, 0}));
 }
 
+TEST(RegionLabels, AVtkLabelArrayChosenByName) {
+  BoxGridOptions options;
+  options.cells = {1, 1, 1};
+  const TetMesh grid = make_box_grid(options);
+  VtuFields fields;
+  fields.cell_data.push_back({"material", 1, std::vector<std::int32_t>{1, 1, 1, 2, 2, 2}});
+  fields.cell_data.push_back({"subdomain", 1, std::vector<std::int32_t>{7, 7, 8, 8, 9, 9}});
+  fields.cell_data.push_back({"quality", 1, std::vector<double>{0.5, 0.5, 0.5, 0.5, 0.5, 0.5}});
+  const auto path = test::scratch_dir("labels-named") / "named.vtu";
+  write_vtu(path, grid, {}, fields);
+  const auto labels = [&](const std::string& name) {
+    const TetMesh mesh = read_tet_mesh(path, ReadOptions{name}).mesh;
+    return std::vector<int>(mesh.tet_labels().begin(), mesh.tet_labels().end());
+  };
+  EXPECT_EQ(labels(""), (std::vector<int>{1, 1, 1, 2, 2, 2}));  // the first integer array
+  EXPECT_EQ(labels("subdomain"), (std::vector<int>{7, 7, 8, 8, 9, 9}));
+  try {
+    (void)labels("regions");
+    FAIL();
+  } catch (const InputError& error) {
+    const std::string what = error.what();
+    EXPECT_NE(what.find("no cell array named 'regions'"), std::string::npos) << what;
+    EXPECT_NE(what.find("material, subdomain, quality"), std::string::npos) << what;
+  }
+  // A named array of fractions is not labels.
+  fields.cell_data.back() = {"quality", 1, std::vector<double>{0.5, 1, 1, 1, 1, 1}};
+  write_vtu(path, grid, {}, fields);
+  EXPECT_THROW((void)labels("quality"), InputError);
+  // The same in a legacy file.
+  const std::string legacy =
+      "# vtk DataFile Version 3.0\ntwo\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n"
+      "0 0 0 1 0 0 0 1 0 0 0 1 1 1 1\nCELLS 2 10\n4 0 1 2 3\n4 1 2 3 4\nCELL_TYPES 2\n10 10\n"
+      "CELL_DATA 2\nSCALARS a int 1\nLOOKUP_TABLE default\n1 2\nSCALARS b int 1\n"
+      "LOOKUP_TABLE default\n5 6\n";
+  const auto vtk = write_text("named.vtk", legacy);
+  EXPECT_EQ(read_tet_mesh(vtk, ReadOptions{"b"}).mesh.tet_label(1), 6);
+  EXPECT_THROW((void)read_tet_mesh(vtk, ReadOptions{"c"}), InputError);
+}
+
 TEST(RegionLabels, EveryWriterWritesThemBack) {
   BoxGridOptions options;
   options.cells = {4, 2, 2};

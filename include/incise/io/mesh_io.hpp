@@ -41,8 +41,17 @@ struct RawMesh {
   MeshFormat format = MeshFormat::kUnknown;
 };
 
+/// Choices a reader cannot make from the file alone.
+struct ReadOptions {
+  /// The VTK cell array (.vtu, .vtk) to take as region labels, by name; empty: the first
+  /// one-component integer cell array. A named array that is missing or not whole numbers is
+  /// an error naming the arrays the file has.
+  std::string label_array;
+};
+
 /// Reads any supported file as it is (ids checked against the point count).
-[[nodiscard]] RawMesh read_raw_mesh(const std::filesystem::path& path);
+[[nodiscard]] RawMesh read_raw_mesh(const std::filesystem::path& path,
+                                    const ReadOptions& options = {});
 
 struct TetMeshReadResult {
   TetMesh mesh;
@@ -53,7 +62,8 @@ struct TetMeshReadResult {
 
 /// Reads a tetrahedral mesh. Points used by no tetrahedron are dropped (and noted) so that
 /// every vertex carries mass. Throws InputError when the file holds no tetrahedra.
-[[nodiscard]] TetMeshReadResult read_tet_mesh(const std::filesystem::path& path);
+[[nodiscard]] TetMeshReadResult read_tet_mesh(const std::filesystem::path& path,
+                                              const ReadOptions& options = {});
 
 struct SurfaceMesh {
   std::vector<Vec3> points;

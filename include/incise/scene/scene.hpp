@@ -91,6 +91,7 @@ struct SceneDescription {
   std::string description;
   std::optional<std::filesystem::path> mesh_file;
   double mesh_scale = 1.0;    ///< metres per file unit (files carry no units)
+  std::string mesh_labels;    ///< VTK cell array giving region labels (empty: the first integer)
   BoxGridOptions box;         ///< used when mesh_file is empty
   std::string material_name;  ///< preset name, or "custom"
   Material material;          ///< of every tetrahedron no entry of `materials` selects
