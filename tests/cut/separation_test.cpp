@@ -16,6 +16,7 @@
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/validate.hpp"
+#include "incise/meshing/tetrahedralize.hpp"
 #include "test_support.hpp"
 
 namespace incise {
@@ -160,6 +161,41 @@ INSTANTIATE_TEST_SUITE_P(DataMeshes, FullCut,
                          ::testing::Combine(::testing::Range<std::size_t>(0, 9),
                                             ::testing::Values(24, 240)),
                          full_cut_name);
+
+TEST(FullCut, SeparatesMeshesMadeFromSurfaces) {
+  // Meshes a user makes with `incise mesh` from surfaces in ../shared/data: the SOFA liver's
+  // OBJ surface as it is, and the neonatal scalp (STL) remeshed coarse. Full cuts at 24 and
+  // 240 poses separate them, valid and conservative after every pose.
+  if (!std::filesystem::exists(test::data_dir())) {
+    GTEST_SKIP() << "no ../shared/data";
+  }
+  struct Source {
+    const char* file;
+    double edge_length;  // surface units; 0: keep the surface
+  };
+  for (const Source& source :
+       {Source{"sofa/liver.obj", 0.0}, Source{"eit-mesher/NNscalp.stl", 12.0}}) {
+    TetrahedralizeOptions options;
+    if (source.edge_length > 0.0) {
+      options.remesh = TetrahedralizeOptions::Remesh::kAlways;
+      options.remesh_edge_length = source.edge_length;
+    }
+    const TetMesh made = tetrahedralize(read_surface(test::data_file(source.file)), options).mesh;
+    for (int poses : {24, 240}) {
+      SCOPED_TRACE(std::string(source.file) + ", " + std::to_string(poses) + " poses");
+      TetMesh mesh = made;
+      const Box box = bounds(mesh);
+      const double plane_y = box.low.y() + 0.513 * (box.high.y() - box.low.y());
+      cut_checked(mesh, sweep_along_x(box, 0.513, 1.1, poses), poses > 24 ? 8 : 1);
+      const Pieces pieces = pieces_across(mesh, plane_y);
+      EXPECT_GE(pieces.by_faces, 2);
+      EXPECT_EQ(pieces.by_vertices, pieces.by_faces);
+      for (std::size_t p = 0; p < pieces.volumes.size(); ++p) {
+        EXPECT_NE(pieces.sides[p], 0) << "piece " << p << " spans the cut";
+      }
+    }
+  }
+}
 
 class PartialCut : public ::testing::TestWithParam<std::size_t> {};
 
