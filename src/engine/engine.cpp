@@ -439,6 +439,9 @@ std::vector<Triangle> Engine::cut_surface() const {
 const std::optional<BladePose>& Engine::blade() const {
   return parts_->blade;
 }
+const MaterialMap* Engine::materials() const {
+  return parts_->model->material_map();
+}
 const Integrator& Engine::integrator() const {
   return *parts_->integrator;
 }

@@ -45,6 +45,15 @@ void VtuSeriesSink::write(const Engine& engine) {
   VtuFields fields;
   fields.point_data.push_back({"displacement", 3, std::move(displacement)});
   fields.point_data.push_back({"velocity", 3, std::move(velocity)});
+  // A body of several materials shows which is where (ParaView: colour by "material").
+  if (const MaterialMap* materials = engine.materials();
+      materials != nullptr && materials->table().size() > 1) {
+    std::vector<std::int32_t> ids(mesh.tet_count());
+    for (std::size_t t = 0; t < ids.size(); ++t) {
+      ids[t] = materials->id(static_cast<TetId>(t));
+    }
+    fields.cell_data.push_back({"material", 1, std::move(ids)});
+  }
   // Global frame numbers: a resumed run continues the same series.
   const std::string file = fmt::format("{}_{:06d}.vtu", name_, engine.frame());
   write_vtu(dir_ / file, mesh, state.x.values(), fields);

@@ -103,6 +103,36 @@ TEST(Materials, ARegionThatSelectsNothingIsAnError) {
   }
 }
 
+TEST(Materials, TheExampleSceneShowsEachMaterialInItsFrames) {
+  // skin_over_fat.json: the top centimetre skin, the rest fat; the frames carry a "material"
+  // cell array (read back as the file's region labels), cut tetrahedra keeping theirs.
+  Engine engine(
+      load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "skin_over_fat.json"));
+  ASSERT_NE(engine.materials(), nullptr);
+  ASSERT_EQ(engine.materials()->table().size(), 2u);
+  const auto dir = test::scratch_dir("skin-over-fat");
+  VtuSeriesSink series(dir, "frame", 40, 60);
+  engine.add_sink(series);
+  (void)run(engine, 60);
+  ASSERT_GT(engine.mesh().tet_count(), 576u);  // the scalpel is in
+  const TetMesh frame = read_tet_mesh(dir / "frame_000060.vtu").mesh;
+  ASSERT_EQ(frame.tet_count(), engine.mesh().tet_count());
+  double skin = 0.0;
+  for (std::size_t t = 0; t < frame.tet_count(); ++t) {
+    const auto tet = static_cast<TetId>(t);
+    EXPECT_EQ(frame.tet_label(tet), engine.materials()->id(tet));
+    if (frame.tet_label(tet) == 1) {
+      skin += signed_volume(engine.mesh(), tet);  // at rest (the frame holds positions)
+      double z = 0.0;
+      for (VertexId v : frame.tet(tet)) {
+        z += 0.25 * engine.mesh().rest_position(v).z();
+      }
+      EXPECT_GE(z, 0.03 - 1e-12);  // skin stays where the scene put it, through the cut
+    }
+  }
+  EXPECT_NEAR(skin, 0.04 * 0.06 * 0.01, 1e-12);  // m^3: the top centimetre, cut or not
+}
+
 TEST(Materials, RegionLabelsSurviveReadCutWriteRead) {
   // A labelled grid (left half 2, right half 5) cut across both halves: children keep their
   // parent's label, so each region keeps its volume exactly, in every format read back.

@@ -93,6 +93,8 @@ class Engine {
   /// The blade at the end of the last frame, if the tool was on.
   [[nodiscard]] const std::optional<BladePose>& blade() const;
   [[nodiscard]] const Integrator& integrator() const;
+  /// The materials of the body (table and one per tetrahedron), or null if the model keeps none.
+  [[nodiscard]] const MaterialMap* materials() const;
   [[nodiscard]] double total_mass() const;  ///< kg
   /// The integrator's largest stable step on this scene (s; infinity for implicit schemes).
   [[nodiscard]] double stability_limit() const;

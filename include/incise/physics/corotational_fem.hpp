@@ -82,6 +82,7 @@ class CorotationalFemModel final : public ForceModel,
   [[nodiscard]] const Material& material() const { return materials_.table().front(); }
   [[nodiscard]] const LameParameters& lame() const { return lames_.front(); }
   [[nodiscard]] const MaterialMap& materials() const { return materials_; }
+  [[nodiscard]] const MaterialMap* material_map() const override { return &materials_; }
   /// Lame parameters of an element's material.
   [[nodiscard]] const LameParameters& lame(TetId tet) const { return lames_[materials_.id(tet)]; }
   [[nodiscard]] const CorotationalFemParameters& parameters() const { return parameters_; }

@@ -8,6 +8,7 @@
 
 #include "incise/physics/block_sparse.hpp"
 #include "incise/physics/dynamic_system.hpp"
+#include "incise/physics/material_map.hpp"
 
 namespace incise {
 
@@ -74,6 +75,9 @@ class ForceModel {
   [[nodiscard]] virtual double elastic_energy(std::span<const Vec3> x) const = 0;
   /// Upper bound on the highest natural angular frequency at rest (rad/s), for step limits.
   [[nodiscard]] virtual double max_vertex_frequency() const = 0;
+
+  /// The body's materials (a table and a material per tetrahedron), when the model keeps one.
+  [[nodiscard]] virtual const MaterialMap* material_map() const { return nullptr; }
 
   /// Optional capabilities: null when the model does not offer them.
   [[nodiscard]] virtual const VertexForces* vertex_forces() const { return nullptr; }

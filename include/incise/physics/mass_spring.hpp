@@ -67,6 +67,7 @@ class MassSpringModel final : public ForceModel,
   /// The first material (the only one of a uniform body).
   [[nodiscard]] const Material& material() const { return materials_.table().front(); }
   [[nodiscard]] const MaterialMap& materials() const { return materials_; }
+  [[nodiscard]] const MaterialMap* material_map() const override { return &materials_; }
 
   // MeshObserver: collects the vertices whose mass or springs an edit changed.
   void on_vertex_added(const TetMesh& mesh, VertexId vertex, const VertexOrigin& origin) override;
