@@ -88,11 +88,13 @@ Runner add_run_command(CLI::App& app) {
   auto checkpoint = std::make_shared<std::string>();
   auto checkpoint_every = std::make_shared<int>(0);
   auto resume_path = std::make_shared<std::string>();
-  command->add_option("--checkpoint", *checkpoint,
-                      "Write the complete state here (atomically) at the end, and every "
-                      "--checkpoint-every frames");
+  auto* checkpoint_option =
+      command->add_option("--checkpoint", *checkpoint,
+                          "Write the complete state here (atomically) at the end, and every "
+                          "--checkpoint-every frames");
   command->add_option("--checkpoint-every", *checkpoint_every, "Frames between checkpoints")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::PositiveNumber)
+      ->needs(checkpoint_option);
   command
       ->add_option("--resume", *resume_path,
                    "Continue the run saved in this checkpoint (its scene is stored in it): "
