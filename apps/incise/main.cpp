@@ -25,7 +25,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {
-    return app.exit(error);
+    // --help and --version exit 0; a bad command line is an error like any other (exit 2),
+    // not CLI11's own codes.
+    return app.exit(error) == 0 ? 0 : incise::app::kExitError;
   }
   try {
     for (auto& [command, runner] : runners) {
