@@ -13,6 +13,12 @@
 
 namespace incise::test {
 
+/// A scene that diverges: symplectic Euler at 20 times its stability limit on a small block.
+inline constexpr const char* kDivergingScene = R"({
+    "mesh": {"box": {"cells": [2, 2, 2], "size": [0.01, 0.01, 0.01]}},
+    "integrator": {"type": "symplectic-euler", "dt": 0.002},
+    "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}], "gravity": [0, 0, -9.81], "frames": 200})";
+
 /// ../shared/data beside the project root (override with INCISE_DATA_DIR).
 inline std::filesystem::path data_dir() {
   if (const char* dir = std::getenv("INCISE_DATA_DIR")) {

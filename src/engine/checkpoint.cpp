@@ -62,15 +62,11 @@ void Engine::save_checkpoint(const std::filesystem::path& path) const {
   out.tag("end");
 
   const std::string& payload = out.bytes();
-  std::string file(kMagic);
-  const auto append = [&file](const auto& value) {
-    file.append(reinterpret_cast<const char*>(&value), sizeof(value));
-  };
-  append(kVersion);
-  append(static_cast<std::uint64_t>(payload.size()));
-  append(checksum(payload));
-  file += payload;
-  write_file_atomically(path, file);
+  StateWriter header;
+  header.value(kVersion);
+  header.value(static_cast<std::uint64_t>(payload.size()));
+  header.value(checksum(payload));
+  write_file_atomically(path, std::string(kMagic) + header.bytes() + payload);
 }
 
 std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {

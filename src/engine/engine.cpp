@@ -289,8 +289,11 @@ std::string Engine::Parts::measure(FrameRecord& record) const {
   return {};
 }
 
-void Engine::Parts::publish() {
-  if (!surface || surface->mesh_revision != mesh.revision()) {
+const std::shared_ptr<const SurfaceTopology>& Engine::Parts::current_surface() {
+  // A move can mark faces on the cut without editing the mesh: the cutter's moves count too.
+  const std::size_t moves = cutter ? cutter->stats().moves : 0;
+  if (!surface || surface->mesh_revision != mesh.revision() || surface_moves != moves) {
+    surface_moves = moves;
     auto topology = std::make_shared<SurfaceTopology>();
     topology->mesh_revision = mesh.revision();
     for (const BoundaryFace& face : boundary_faces(mesh)) {
@@ -300,11 +303,15 @@ void Engine::Parts::publish() {
     }
     surface = std::move(topology);
   }
+  return surface;
+}
+
+void Engine::Parts::publish() {
   auto snapshot = std::make_shared<Snapshot>();
   snapshot->frame = last.frame;
   snapshot->time = state.time;
   snapshot->positions.assign(state.x.values().begin(), state.x.values().end());
-  snapshot->surface = surface;
+  snapshot->surface = current_surface();
   snapshot->blade = blade;
   snapshot->cd = last.cd;
   snapshot->gc = last.gc;
@@ -426,12 +433,12 @@ const SubdivisionCutter* Engine::cutter() const {
   return parts_->cutter.get();
 }
 std::vector<Triangle> Engine::cut_surface() const {
+  // The boundary the snapshots publish, built once per mesh revision for both.
+  const SurfaceTopology& surface = *parts_->current_surface();
   std::vector<Triangle> triangles;
-  if (parts_->cutter) {
-    for (const BoundaryFace& face : boundary_faces(parts_->mesh)) {
-      if (parts_->cutter->cut_faces().is_cut(face.tet, face.local_face)) {
-        triangles.push_back(face.vertices);
-      }
+  for (std::size_t k = 0; k < surface.triangles.size(); ++k) {
+    if (surface.on_cut[k] != 0) {
+      triangles.push_back(surface.triangles[k]);
     }
   }
   return triangles;

@@ -40,8 +40,11 @@ struct Engine::Parts {
   bool publishing = false;
   SnapshotChannel channel;
   std::shared_ptr<const SurfaceTopology> surface;
+  std::size_t surface_moves = 0;  ///< cutter moves when `surface` was built
 
   std::string measure(FrameRecord& record) const;
+  /// The boundary with its cut faces marked, rebuilt only when the mesh or the cut changed.
+  const std::shared_ptr<const SurfaceTopology>& current_surface();
   void publish();
 };
 

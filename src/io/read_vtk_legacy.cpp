@@ -124,12 +124,14 @@ class VtkLegacyReader {
   }
 
   /// FIELD name n, then n arrays "name components tuples type" with their values (ParaView
-  /// writes TIME and CYCLE this way right after DATASET). Not needed for the mesh.
-  void skip_field() {
+  /// writes TIME and CYCLE this way right after DATASET). Calls visit(name, components,
+  /// tuples, type, values) for each array; `skip_field` keeps none of them.
+  template <typename Visit>
+  void read_field(Visit visit) {
     (void)source_.token("field name");
     const std::size_t arrays = source_.count("field array count", 10000);
     for (std::size_t a = 0; a < arrays; ++a) {
-      (void)source_.token("field array name");
+      const std::string name(source_.token("field array name"));
       const std::size_t components = source_.count("field components", 1000000);
       const std::size_t tuples = source_.count("field tuples", kMaxCount);
       const std::string type(source_.token("field data type"));
@@ -137,12 +139,16 @@ class VtkLegacyReader {
       if (type == "string") {
         source_.fail("string arrays in FIELD data are not supported");
       }
-      (void)read_reals(components * tuples, type, "FIELD data");
+      visit(name, components, tuples, type, read_reals(components * tuples, type, "FIELD data"));
       if (source_.peek_token() == "METADATA") {
         (void)source_.next_token();
         skip_metadata();
       }
     }
+  }
+  void skip_field() {
+    read_field([](const std::string&, std::size_t, std::size_t, const std::string&,
+                  const std::vector<double>&) {});
   }
 
   /// Binary data starts right after the line of its header; ASCII data may follow anywhere.
@@ -267,24 +273,13 @@ class VtkLegacyReader {
           end_of_header_line();
           (void)read_reals(dimension * count, type, "TEXTURE_COORDINATES");
         } else if (keyword == "FIELD") {
-          (void)source_.token("field name");
-          const std::size_t arrays = source_.count("field array count", 10000);
-          for (std::size_t a = 0; a < arrays; ++a) {
-            const std::string name(source_.token("field array name"));
-            const std::size_t components = source_.count("field components", 1000000);
-            const std::size_t tuples = source_.count("field tuples", kMaxCount);
-            const std::string type(source_.token("field data type"));
-            end_of_header_line();
-            std::vector<double> values = read_reals(components * tuples, type, "FIELD data");
+          read_field([&](const std::string& name, std::size_t components, std::size_t tuples,
+                         const std::string& type, const std::vector<double>& values) {
             if (cells && labels.empty() && components == 1 && tuples == cell_count &&
                 wanted(name, type)) {
-              labels = std::move(values);
+              labels = values;
             }
-            if (source_.peek_token() == "METADATA") {
-              (void)source_.next_token();
-              skip_metadata();
-            }
-          }
+          });
         } else if (keyword == "METADATA") {
           skip_metadata();
         } else {

@@ -128,11 +128,11 @@ namespace {
 /// axis (the segment's direction or two perpendiculars) separates them by more than round-off.
 /// Most tetrahedra near a long segment fail it, and CGAL's exact test is the costly part.
 bool segment_may_meet_tet(const Vec3& p, const Vec3& q, const std::array<Vec3, 4>& tet) {
+  // Relative to p, so the projections keep their precision far from the origin.
   const Vec3 d = q - p;
   const double length = d.norm();
   const Vec3 axis = d / length;
   const Vec3 u = axis.unitOrthogonal();
-  const Vec3 w = axis.cross(u);
   std::array<Vec3, 4> corners;
   double scale = length;
   for (std::size_t k = 0; k < 4; ++k) {
@@ -140,17 +140,9 @@ bool segment_may_meet_tet(const Vec3& p, const Vec3& q, const std::array<Vec3, 4
     scale = std::max(scale, corners[k].cwiseAbs().maxCoeff());
   }
   const double slack = 1e-9 * scale;
-  // The segment projects to [0, length] on its axis and to the point 0 on the perpendiculars.
-  const std::array<std::pair<Vec3, double>, 3> axes{{{axis, length}, {u, 0.0}, {w, 0.0}}};
-  for (const auto& [direction, high_end] : axes) {
-    double low = std::numeric_limits<double>::infinity();
-    double high = -low;
-    for (const Vec3& c : corners) {
-      const double x = c.dot(direction);
-      low = std::min(low, x);
-      high = std::max(high, x);
-    }
-    if (low > high_end + slack || high < -slack) {
+  const std::array<Vec3, 2> segment{Vec3::Zero(), d};
+  for (const Vec3& direction : {axis, u, axis.cross(u)}) {
+    if (separated_along(direction, segment, corners, slack)) {
       return false;
     }
   }

@@ -168,11 +168,7 @@ TEST(Engine, EachIntegratorKnowsWhetherItIsImplicitAndItsStabilityLimit) {
 }
 
 TEST(Engine, ADivergedFrameIsNotHandedToSinksAndStepStops) {
-  SceneDescription scene = parse_scene(R"({
-    "mesh": {"box": {"cells": [2, 2, 2], "size": [0.01, 0.01, 0.01]}},
-    "integrator": {"type": "symplectic-euler", "dt": 0.002},
-    "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}], "gravity": [0, 0, -9.81], "frames": 200})",
-                                       "diverging.json");
+  SceneDescription scene = parse_scene(test::kDivergingScene, "diverging.json");
   Engine engine(scene);
   struct Counter final : FrameSink {
     int frames = 0;

@@ -82,21 +82,22 @@ TEST(Predicates, DistanceToTriangleMatchesBruteForce) {
   }
 }
 
+/// A point in [-2, 2]^3: on the integer grid (touching cases are common), or anywhere.
+Vec3 random_point(std::mt19937& rng, bool integer) {
+  std::uniform_int_distribution<int> grid(-2, 2);
+  std::uniform_real_distribution<double> real(-2.0, 2.0);
+  return integer ? Vec3(grid(rng), grid(rng), grid(rng)) : Vec3(real(rng), real(rng), real(rng));
+}
+
 TEST(Predicates, SegmentTetAgreesWithEndpointsAndFacesExactly) {
   // A segment meets a closed tetrahedron exactly when an end lies in it or it meets one of its
   // faces (both exact predicates). Small integer coordinates make segments through vertices,
   // along edges and in face planes common: there the floating-point clip must defer to the
   // exact test.
   std::mt19937 rng(7);
-  std::uniform_int_distribution<int> grid(-2, 2);
-  std::uniform_real_distribution<double> real(-2.0, 2.0);
   int hits = 0;
   for (int trial = 0; trial < 20000; ++trial) {
-    const bool integer = trial % 2 == 0;
-    const auto point = [&] {
-      return integer ? Vec3(grid(rng), grid(rng), grid(rng))
-                     : Vec3(real(rng), real(rng), real(rng));
-    };
+    const auto point = [&] { return random_point(rng, trial % 2 == 0); };
     std::array<Vec3, 4> t{point(), point(), point(), point()};
     if (orient3d(t[0], t[1], t[2], t[3]) == Sign::kZero) {
       continue;
@@ -123,15 +124,9 @@ TEST(Predicates, TriangleTetAgreesWithEdgesExactly) {
   // of the tetrahedron's edges meets the triangle: the filters before the exact test must not
   // change a single answer, on integer grids (touching cases) as on random points.
   std::mt19937 rng(11);
-  std::uniform_int_distribution<int> grid(-2, 2);
-  std::uniform_real_distribution<double> real(-2.0, 2.0);
   int hits = 0;
   for (int trial = 0; trial < 20000; ++trial) {
-    const bool integer = trial % 2 == 0;
-    const auto point = [&] {
-      return integer ? Vec3(grid(rng), grid(rng), grid(rng))
-                     : Vec3(real(rng), real(rng), real(rng));
-    };
+    const auto point = [&] { return random_point(rng, trial % 2 == 0); };
     const std::array<Vec3, 4> t{point(), point(), point(), point()};
     const std::array<Vec3, 3> tri{point(), point(), point()};
     if (orient3d(t[0], t[1], t[2], t[3]) == Sign::kZero ||

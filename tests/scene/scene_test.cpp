@@ -219,12 +219,7 @@ TEST(Simulation, SameSceneSameBytes) {
 }
 
 TEST(Simulation, DivergenceStopsAndKeepsWrittenFrames) {
-  // Symplectic Euler at 20 times its stability limit.
-  SceneDescription scene = parse_scene(R"({
-    "mesh": {"box": {"cells": [2, 2, 2], "size": [0.01, 0.01, 0.01]}},
-    "integrator": {"type": "symplectic-euler", "dt": 0.002},
-    "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}], "gravity": [0, 0, -9.81], "frames": 200})",
-                                       "diverging.json");
+  SceneDescription scene = parse_scene(test::kDivergingScene, "diverging.json");
   Engine engine(scene);
   ASSERT_FALSE(engine.warnings().empty());
   EXPECT_NE(engine.warnings().front().find("stability limit"), std::string::npos);
