@@ -1,5 +1,6 @@
 // incise run [SCENE] [--frames N] [--out DIR] [--report FILE] [--threads N] [--tool CSV]
-// [--record-tool CSV]: runs a scene headless, a short loop over the engine->
+// [--record-tool CSV] [--render DIR [--render-every N] [--size WxH] [--mode faces|wire|cut]
+// [--video FILE.mp4]]: runs a scene headless, a short loop over the engine.
 
 #include <fmt/format.h>
 #include <tbb/global_control.h>
@@ -12,12 +13,18 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <sstream>
+#include <tuple>
 
 #include "commands.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/solve/integrators.hpp"
+#include "incise/view/render_sink.hpp"
+#ifdef INCISE_HAVE_GL
+#include "incise/render/offscreen.hpp"
+#endif
 
 namespace incise::app {
 namespace {
@@ -61,6 +68,25 @@ class Progress {
   bool terminal_;
 };
 
+/// "WxH" (pixels) -> (W, H); an InputError naming the option otherwise.
+std::pair<int, int> parse_size(const std::string& text) {
+  int width = 0;
+  int height = 0;
+  char separator = 0;
+  std::istringstream stream(text);
+  if (!(stream >> width >> separator >> height) || (separator != 'x' && separator != 'X') ||
+      !stream.eof() || width < 16 || height < 16 || width > 8192 || height > 8192) {
+    throw InputError("--size " + text + ": expected WxH, e.g. 800x600, each side 16 to 8192");
+  }
+  return {width, height};
+}
+
+/// Pictures of the run, when asked for: the offscreen renderer and its sink.
+struct Pictures {
+  std::unique_ptr<ImageRenderer> renderer;
+  std::optional<RenderSink> sink;
+};
+
 }  // namespace
 
 Runner add_run_command(CLI::App& app) {
@@ -100,6 +126,33 @@ Runner add_run_command(CLI::App& app) {
                    "Continue the run saved in this checkpoint (its scene is stored in it): "
                    "--frames more frames (default: the rest of the scene's), frames numbered on")
       ->check(CLI::ExistingFile);
+  auto render_dir = std::make_shared<std::string>();
+  auto render_every = std::make_shared<int>(1);
+  auto size = std::make_shared<std::string>("800x600");
+  auto mode = std::make_shared<std::string>("faces");
+  auto video = std::make_shared<std::string>();
+  auto highlight = std::make_shared<bool>(false);
+  auto* render_option = command->add_option(
+      "--render", *render_dir,
+      "Render frames offscreen (OpenGL through EGL, no display needed) to DIR/frame_NNNNNN.png");
+  command->add_option("--render-every", *render_every, "Frames between pictures (default 1)")
+      ->check(CLI::PositiveNumber)
+      ->needs(render_option);
+  command->add_option("--size", *size, "Picture size WxH in pixels (default 800x600)")
+      ->needs(render_option);
+  command
+      ->add_option("--mode", *mode,
+                   "faces (textured), wire (edges over faces) or cut (cut faces only), as the "
+                   "seed's demo keys F, G, C")
+      ->needs(render_option);
+  command
+      ->add_option("--video", *video,
+                   "Also write the pictures as an MP4 (H.264) through ffmpeg (30 frames/s)")
+      ->needs(render_option);
+  command
+      ->add_flag("--highlight-active", *highlight,
+                 "Outline the tetrahedra the blade is in (the seed's active tetrahedra)")
+      ->needs(render_option);
   auto threads = std::make_shared<int>(0);
   command
       ->add_option("--threads", *threads,
@@ -156,6 +209,29 @@ Runner add_run_command(CLI::App& app) {
     if (!checkpoint->empty()) {
       engine->add_sink(checkpoints.emplace(*checkpoint, *checkpoint_every));
     }
+    Pictures pictures;
+    if (!render_dir->empty()) {
+      PictureOptions options;
+      options.dir = *render_dir;
+      options.every = *render_every;
+      options.last_frame = first_frame + frame_count;
+      std::tie(options.render.width, options.render.height) = parse_size(*size);
+      const auto render_mode = parse_render_mode(*mode);
+      if (!render_mode) {
+        throw InputError("--mode " + *mode + ": expected faces, wire or cut");
+      }
+      options.render.mode = *render_mode;
+      options.highlight_active = *highlight;
+      if (!video->empty()) {
+        options.video = *video;
+      }
+#ifdef INCISE_HAVE_GL
+      pictures.renderer = std::make_unique<OffscreenRenderer>();
+#else
+      throw InputError("--render: this incise was built without OpenGL (-DINCISE_WITH_GL=ON)");
+#endif
+      engine->add_sink(pictures.sink.emplace(*pictures.renderer, options));
+    }
     Progress progress(first_frame, first_frame + frame_count);
     const auto start = Clock::now();
     auto elapsed = [&start] { return seconds_since(start); };
@@ -195,6 +271,10 @@ Runner add_run_command(CLI::App& app) {
           last.time, last.kinetic_energy, last.max_displacement, last.tets);
     }
     std::cout << "ParaView series: " << series.pvd().string() << "\n";
+    if (pictures.sink) {
+      std::cout << fmt::format("pictures: {} in {}{}\n", pictures.sink->pictures().size(),
+                               *render_dir, video->empty() ? "" : ", video: " + *video);
+    }
 
     if (!report_path->empty()) {
       nlohmann::ordered_json report;

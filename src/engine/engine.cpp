@@ -296,10 +296,15 @@ const std::shared_ptr<const SurfaceTopology>& Engine::Parts::current_surface() {
     surface_moves = moves;
     auto topology = std::make_shared<SurfaceTopology>();
     topology->mesh_revision = mesh.revision();
+    topology->version = surface ? surface->version + 1 : 1;
     for (const BoundaryFace& face : boundary_faces(mesh)) {
       topology->triangles.push_back(face.vertices);
       topology->on_cut.push_back(
           cutter && cutter->cut_faces().is_cut(face.tet, face.local_face) ? 1 : 0);
+    }
+    topology->rest_positions.resize(mesh.vertex_count());
+    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+      topology->rest_positions[v] = mesh.rest_position(static_cast<VertexId>(v));
     }
     surface = std::move(topology);
   }
@@ -442,6 +447,9 @@ std::vector<Triangle> Engine::cut_surface() const {
     }
   }
   return triangles;
+}
+std::shared_ptr<const SurfaceTopology> Engine::surface() const {
+  return parts_->current_surface();
 }
 const std::optional<BladePose>& Engine::blade() const {
   return parts_->blade;

@@ -368,10 +368,10 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     what = what.substr(what.find(':') == std::string::npos ? 0 : what.rfind(": ") + 2);
     context.fail_line(line, "malformed JSON: " + what);
   }
-  const ObjectReader top(
-      context, root, "",
-      {"description", "mesh", "material", "materials", "model", "damping", "integrator", "fixed",
-       "displacements", "forces", "gravity", "frames", "frame_dt", "output", "tool", "cutter"});
+  const ObjectReader top(context, root, "",
+                         {"description", "mesh", "material", "materials", "model", "damping",
+                          "integrator", "fixed", "displacements", "forces", "gravity", "frames",
+                          "frame_dt", "output", "tool", "cutter", "camera"});
   SceneDescription scene;
   scene.file = file;
   scene.source_text = json_text;
@@ -655,6 +655,28 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     scene.vtu_every = output.integer("vtu_every", 1, 1, 100000000);
   } else {
     scene.output_dir = resolve(context, "out");
+  }
+
+  if (top.has("camera")) {
+    const ObjectReader camera(context, top.at("camera"), "camera", {"eye", "target", "up", "fov"});
+    if (!camera.has("eye") || !camera.has("target")) {
+      context.fail("camera", "needs \"eye\" and \"target\": [x, y, z] (m)");
+    }
+    CameraSpec spec;
+    spec.eye = camera.vec3("eye", Vec3::Zero());
+    spec.target = camera.vec3("target", Vec3::Zero());
+    spec.up = camera.vec3("up", Vec3::UnitZ());
+    spec.fov_degrees = camera.positive("fov", 35.0);
+    if ((spec.eye - spec.target).norm() == 0.0) {
+      context.fail("camera.eye", "must differ from camera.target");
+    }
+    if (spec.up.norm() == 0.0 || (spec.eye - spec.target).cross(spec.up).norm() == 0.0) {
+      context.fail("camera.up", "must be a direction not along the line of sight");
+    }
+    if (spec.fov_degrees >= 170.0) {
+      context.fail("camera.fov", "must be below 170 degrees");
+    }
+    scene.camera = spec;
   }
   return scene;
 }

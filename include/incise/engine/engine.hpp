@@ -90,6 +90,9 @@ class Engine {
   [[nodiscard]] const SubdivisionCutter* cutter() const;
   /// The boundary triangles that lie on a cut (outward, vertex ids), empty without a cutter.
   [[nodiscard]] std::vector<Triangle> cut_surface() const;
+  /// The boundary surface with its cut faces marked and the rest positions (the one the
+  /// snapshots publish), built once per mesh revision and cutter move.
+  [[nodiscard]] std::shared_ptr<const SurfaceTopology> surface() const;
   /// The blade at the end of the last frame, if the tool was on.
   [[nodiscard]] const std::optional<BladePose>& blade() const;
   [[nodiscard]] const Integrator& integrator() const;

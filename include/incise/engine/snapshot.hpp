@@ -19,8 +19,12 @@ namespace incise {
 /// marked when it lies on a cut. Shared by consecutive snapshots while the mesh is unchanged.
 struct SurfaceTopology {
   std::uint64_t mesh_revision = 0;
+  /// Grows with every rebuild (a cutter's move can re-mark faces without editing the mesh).
+  std::uint64_t version = 0;
   std::vector<Triangle> triangles;
   std::vector<std::uint8_t> on_cut;  ///< 1: a face the cut opened; 0: the exterior
+  /// Rest positions of every mesh vertex (m): where solid textures are looked up.
+  std::vector<Vec3> rest_positions;
 };
 
 struct Snapshot {

@@ -85,6 +85,14 @@ struct ToolSpec {
   SplitMode split = SplitMode::kMinimal;  ///< kGeneric: the seed's 1:17 style, for comparison
 };
 
+/// Where pictures of the scene are taken from (`camera` key); absent: fitted to the body.
+struct CameraSpec {
+  Vec3 eye;     ///< m
+  Vec3 target;  ///< m
+  Vec3 up = Vec3::UnitZ();
+  double fov_degrees = 35.0;  ///< vertical field of view
+};
+
 struct SceneDescription {
   std::filesystem::path file;  ///< empty for the built-in default scene
   std::string source_text;     ///< the JSON it was parsed from (checkpoints carry it)
@@ -110,6 +118,7 @@ struct SceneDescription {
   ToolSpec tool;
   std::filesystem::path output_dir = "out";
   int vtu_every = 1;  ///< write every n-th frame (the first and last always)
+  std::optional<CameraSpec> camera;
 };
 
 /// The blade pose at time t (s): linear interpolation between path poses, clamped at the ends.

@@ -1,0 +1,32 @@
+#pragma once
+// Drawing without a display: an OpenGL 3.3 core context from EGL on Mesa's surfaceless
+// platform (llvmpipe where there is no GPU), rendering into a multisampled framebuffer and
+// read back as an Image. For `incise run --render`, scripted pictures and CI.
+//
+// A context is current on the thread that made it; use one OffscreenRenderer per thread.
+
+#include <memory>
+#include <string>
+
+#include "incise/render/image.hpp"
+#include "incise/render/renderer.hpp"
+
+namespace incise {
+
+class OffscreenRenderer final : public ImageRenderer {
+ public:
+  /// Throws Error saying what is missing when EGL or OpenGL 3.3 cannot be had.
+  OffscreenRenderer();
+  ~OffscreenRenderer() override;
+
+  /// Draws one frame at options.width x options.height and reads it back.
+  [[nodiscard]] Image render(const RenderInput& input, const RenderOptions& options) override;
+  /// The OpenGL renderer behind it, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) / 4.5 (Core ...)".
+  [[nodiscard]] const std::string& device() const;
+
+ private:
+  struct Context;
+  std::unique_ptr<Context> context_;
+};
+
+}  // namespace incise

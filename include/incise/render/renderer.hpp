@@ -1,0 +1,151 @@
+#pragma once
+// What the renderer draws and how, independent of the graphics API: a body's boundary
+// surface (exterior and cut faces, each with its own solid texture looked up at rest-space
+// coordinates), the blade, and highlighted segments. A RenderBackend puts it on screen:
+// OpenGL (gl_backend.hpp) or the null backend of the tests. The render module depends on
+// the mesh's types only, not on physics or the engine.
+//
+// Buffers follow the surface: its topology and texture coordinates are uploaded again only
+// when its revision changes; positions are streamed every frame.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "incise/core/types.hpp"
+#include "incise/render/camera.hpp"
+#include "incise/render/image.hpp"
+
+namespace incise {
+
+/// The seed's demo keys: F (faces), G (wireframe over faces), C (cut faces only).
+enum class RenderMode : std::uint8_t { kFaces, kWire, kCut };
+[[nodiscard]] std::string_view name_of(RenderMode mode);
+/// "faces", "wire" or "cut"; nullopt otherwise.
+[[nodiscard]] std::optional<RenderMode> parse_render_mode(std::string_view name);
+
+/// One frame's scene. Spans must stay valid during render().
+struct RenderInput {
+  /// Changes whenever triangles, cut marks or rest positions change (a mesh revision).
+  std::uint64_t surface_revision = 0;
+  std::span<const Triangle> triangles;   ///< outward, ids into positions
+  std::span<const std::uint8_t> on_cut;  ///< per triangle: 1 on a cut, 0 exterior
+  std::span<const Vec3> rest_positions;  ///< per vertex (m): where the texture is looked up
+  std::span<const Vec3> positions;       ///< per vertex, current (m)
+  /// The blade as a segment, tip then base (m), if the tool is on.
+  std::optional<std::array<Vec3, 2>> blade;
+  /// Lines drawn on top (active tetrahedra, cut edges), m.
+  std::span<const std::array<Vec3, 2>> highlights;
+};
+
+struct RenderOptions {
+  int width = 800;  ///< pixels
+  int height = 600;
+  RenderMode mode = RenderMode::kFaces;
+  Camera camera;
+  /// Rest-space length of one tile of the solid textures (m).
+  double texture_period = 0.02;
+  Rgba background{38, 42, 52, 255};
+  bool draw_blade = true;
+};
+
+/// The CPU side of the surface's buffers: built once per surface revision.
+struct SurfaceBuffers {
+  std::uint64_t revision = 0;
+  std::vector<VertexId> vertices;      ///< the surface's mesh vertices, in buffer order
+  std::vector<std::uint32_t> indices;  ///< into `vertices`: exterior triangles, then cut ones
+  std::size_t exterior_triangles = 0;
+  std::size_t cut_triangles = 0;
+  std::vector<float> texture_coordinates;  ///< 3 per buffer vertex: rest position / period
+};
+
+/// Builds the buffers of `input`'s surface. Throws InputError naming the triangle if it
+/// refers to a vertex that has no position, or a rest position is not finite.
+[[nodiscard]] SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_period);
+/// Current positions of the buffer's vertices, 3 floats each.
+void gather_positions(const SurfaceBuffers& buffers, std::span<const Vec3> positions,
+                      std::vector<float>& out);
+
+/// Everything but the surface a backend needs to draw one frame.
+struct DrawCall {
+  int width = 0;
+  int height = 0;
+  RenderMode mode = RenderMode::kFaces;
+  Eigen::Matrix4f view_projection;
+  Eigen::Vector3f eye;
+  Rgba background;
+  std::vector<float> blade_quad;  ///< two triangles, 18 floats; empty without a blade
+  std::vector<float> lines;       ///< 6 floats per segment
+};
+
+class RenderBackend {
+ public:
+  RenderBackend() = default;
+  RenderBackend(const RenderBackend&) = delete;
+  RenderBackend& operator=(const RenderBackend&) = delete;
+  virtual ~RenderBackend() = default;
+  virtual void upload_surface(const SurfaceBuffers& buffers) = 0;
+  virtual void upload_positions(std::span<const float> xyz) = 0;
+  virtual void draw(const DrawCall& call) = 0;
+};
+
+/// Records what it was given: for tests on machines without OpenGL.
+class NullBackend final : public RenderBackend {
+ public:
+  void upload_surface(const SurfaceBuffers& buffers) override {
+    ++surface_uploads;
+    surface = buffers;
+  }
+  void upload_positions(std::span<const float> xyz) override {
+    ++position_uploads;
+    positions.assign(xyz.begin(), xyz.end());
+  }
+  void draw(const DrawCall& call) override {
+    ++draws;
+    last_call = call;
+  }
+  int surface_uploads = 0;
+  int position_uploads = 0;
+  int draws = 0;
+  SurfaceBuffers surface;
+  std::vector<float> positions;
+  DrawCall last_call;
+};
+
+class Renderer {
+ public:
+  explicit Renderer(RenderBackend& backend) : backend_(&backend) {}
+  /// Draws one frame through the backend.
+  void render(const RenderInput& input, const RenderOptions& options);
+  /// The current positions' box of the surface last drawn (empty before the first frame).
+  [[nodiscard]] const Bounds& bounds() const { return bounds_; }
+  [[nodiscard]] const SurfaceBuffers& buffers() const { return buffers_; }
+
+ private:
+  RenderBackend* backend_;
+  bool uploaded_ = false;
+  double uploaded_period_ = 0.0;
+  SurfaceBuffers buffers_;
+  std::vector<float> positions_;
+  Bounds bounds_;
+};
+
+/// Anything that turns a frame into a picture (the offscreen OpenGL renderer; fakes in tests).
+class ImageRenderer {
+ public:
+  ImageRenderer() = default;
+  ImageRenderer(const ImageRenderer&) = delete;
+  ImageRenderer& operator=(const ImageRenderer&) = delete;
+  virtual ~ImageRenderer() = default;
+  [[nodiscard]] virtual Image render(const RenderInput& input, const RenderOptions& options) = 0;
+};
+
+/// The box around the current positions of every vertex a triangle uses.
+[[nodiscard]] Bounds surface_bounds(std::span<const Triangle> triangles,
+                                    std::span<const Vec3> positions);
+
+}  // namespace incise

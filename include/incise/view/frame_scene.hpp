@@ -1,0 +1,36 @@
+#pragma once
+// What the renderer draws of a running engine: its boundary surface (cut faces marked, rest
+// positions for the solid textures), current positions, the blade and optional highlights,
+// taken either on the engine's thread or from a published snapshot on any other.
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "incise/engine/engine.hpp"
+#include "incise/render/renderer.hpp"
+
+namespace incise {
+
+/// Owns (or shares) everything a RenderInput points to.
+struct FrameScene {
+  std::shared_ptr<const SurfaceTopology> surface;
+  std::span<const Vec3> positions;  ///< the engine's, or `snapshot`'s
+  std::shared_ptr<const Snapshot> snapshot;
+  std::optional<std::array<Vec3, 2>> blade;
+  std::vector<std::array<Vec3, 2>> highlights;
+  [[nodiscard]] RenderInput input() const;
+};
+
+/// The engine's current frame; `highlight_active` adds the edges of the cutter's active
+/// tetrahedra (the ones the blade is in). Only on the engine's thread, between steps.
+[[nodiscard]] FrameScene frame_scene(const Engine& engine, bool highlight_active = false);
+/// A published snapshot: safe on any thread.
+[[nodiscard]] FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot);
+
+/// The scene's camera (its `camera` key), else one fitted to `body` for the given aspect.
+[[nodiscard]] Camera scene_camera(const SceneDescription& scene, const Bounds& body, double aspect);
+
+}  // namespace incise

@@ -1,0 +1,168 @@
+#include "incise/render/renderer.hpp"
+
+#include <array>
+#include <cmath>
+#include <string>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+
+namespace {
+
+constexpr std::array<std::pair<RenderMode, std::string_view>, 3> kModeNames{{
+    {RenderMode::kFaces, "faces"},
+    {RenderMode::kWire, "wire"},
+    {RenderMode::kCut, "cut"},
+}};
+
+void push(std::vector<float>& out, const Vec3& p) {
+  out.push_back(static_cast<float>(p.x()));
+  out.push_back(static_cast<float>(p.y()));
+  out.push_back(static_cast<float>(p.z()));
+}
+
+/// The blade as a ribbon facing the camera: the segment widened across the view.
+std::vector<float> blade_ribbon(const std::array<Vec3, 2>& blade, const Vec3& eye, double width) {
+  const Vec3& tip = blade[0];
+  const Vec3& base = blade[1];
+  const Vec3 along = base - tip;
+  Vec3 across = along.cross(0.5 * (tip + base) - eye);
+  if (across.norm() < 1e-12 || along.norm() < 1e-12) {
+    return {};  // seen end-on, or no length: nothing to draw
+  }
+  across = 0.5 * width * across.normalized();
+  std::vector<float> quad;
+  for (const Vec3& p : {Vec3(tip - across), Vec3(base - across), Vec3(base + across),
+                        Vec3(tip - across), Vec3(base + across), Vec3(tip + across)}) {
+    push(quad, p);
+  }
+  return quad;
+}
+
+}  // namespace
+
+std::string_view name_of(RenderMode mode) {
+  for (const auto& [value, name] : kModeNames) {
+    if (value == mode) {
+      return name;
+    }
+  }
+  return "?";
+}
+
+std::optional<RenderMode> parse_render_mode(std::string_view name) {
+  for (const auto& [value, known] : kModeNames) {
+    if (known == name) {
+      return value;
+    }
+  }
+  return std::nullopt;
+}
+
+SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_period) {
+  INCISE_ASSERT(input.on_cut.size() == input.triangles.size(), "one cut mark per triangle");
+  INCISE_ASSERT(texture_period > 0.0, "texture period must be positive");
+  SurfaceBuffers buffers;
+  buffers.revision = input.surface_revision;
+  const std::size_t vertex_count = input.positions.size();
+  std::vector<std::uint32_t> slot(vertex_count, ~std::uint32_t{0});
+  const auto slot_of = [&](std::size_t triangle, VertexId v) {
+    if (v < 0 || static_cast<std::size_t>(v) >= vertex_count ||
+        static_cast<std::size_t>(v) >= input.rest_positions.size()) {
+      throw InputError("surface triangle " + std::to_string(triangle) + " refers to vertex " +
+                       std::to_string(v) + ", which has no position");
+    }
+    auto& s = slot[static_cast<std::size_t>(v)];
+    if (s == ~std::uint32_t{0}) {
+      const Vec3& rest = input.rest_positions[static_cast<std::size_t>(v)];
+      if (!rest.allFinite()) {
+        throw InputError("vertex " + std::to_string(v) + " has no finite rest position");
+      }
+      s = static_cast<std::uint32_t>(buffers.vertices.size());
+      buffers.vertices.push_back(v);
+      // Texture coordinates in tiles of the solid texture (it repeats).
+      push(buffers.texture_coordinates, rest / texture_period);
+    }
+    return s;
+  };
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::uint8_t wanted = pass == 0 ? 0 : 1;
+    for (std::size_t t = 0; t < input.triangles.size(); ++t) {
+      if ((input.on_cut[t] != 0 ? 1 : 0) != wanted) {
+        continue;
+      }
+      for (VertexId v : input.triangles[t]) {
+        buffers.indices.push_back(slot_of(t, v));
+      }
+      ++(pass == 0 ? buffers.exterior_triangles : buffers.cut_triangles);
+    }
+  }
+  return buffers;
+}
+
+void gather_positions(const SurfaceBuffers& buffers, std::span<const Vec3> positions,
+                      std::vector<float>& out) {
+  out.clear();
+  out.reserve(3 * buffers.vertices.size());
+  for (VertexId v : buffers.vertices) {
+    push(out, positions[static_cast<std::size_t>(v)]);
+  }
+}
+
+Bounds surface_bounds(std::span<const Triangle> triangles, std::span<const Vec3> positions) {
+  Bounds box;
+  for (const Triangle& triangle : triangles) {
+    for (VertexId v : triangle) {
+      box.add(positions[static_cast<std::size_t>(v)]);
+    }
+  }
+  return box;
+}
+
+void Renderer::render(const RenderInput& input, const RenderOptions& options) {
+  if (!uploaded_ || buffers_.revision != input.surface_revision ||
+      uploaded_period_ != options.texture_period) {
+    buffers_ = build_surface_buffers(input, options.texture_period);
+    backend_->upload_surface(buffers_);
+    uploaded_ = true;
+    uploaded_period_ = options.texture_period;
+  }
+  gather_positions(buffers_, input.positions, positions_);
+  for (float p : positions_) {
+    if (!std::isfinite(p)) {
+      throw InputError("a surface vertex has no finite position: nothing to draw");
+    }
+  }
+  backend_->upload_positions(positions_);
+
+  bounds_ = surface_bounds(input.triangles, input.positions);
+  Bounds scene = bounds_;
+  if (input.blade) {
+    scene.add((*input.blade)[0]);
+    scene.add((*input.blade)[1]);
+  }
+  if (scene.empty()) {
+    scene.add(options.camera.target);
+  }
+  DrawCall call;
+  call.width = options.width;
+  call.height = options.height;
+  call.mode = options.mode;
+  const double aspect = static_cast<double>(options.width) / options.height;
+  call.view_projection =
+      (projection_matrix(options.camera, aspect, scene) * view_matrix(options.camera))
+          .cast<float>();
+  call.eye = options.camera.eye.cast<float>();
+  call.background = options.background;
+  if (options.draw_blade && input.blade) {
+    call.blade_quad = blade_ribbon(*input.blade, options.camera.eye, 0.02 * scene.radius());
+  }
+  for (const auto& segment : input.highlights) {
+    push(call.lines, segment[0]);
+    push(call.lines, segment[1]);
+  }
+  backend_->draw(call);
+}
+
+}  // namespace incise

@@ -1,0 +1,72 @@
+#include "incise/view/frame_scene.hpp"
+
+#include "incise/cut/subdivision_cutter.hpp"
+
+namespace incise {
+
+namespace {
+
+std::array<Vec3, 2> segment(const BladePose& pose) {
+  return {pose.tip, pose.base};
+}
+
+}  // namespace
+
+RenderInput FrameScene::input() const {
+  RenderInput input;
+  input.surface_revision = surface->version;
+  input.triangles = surface->triangles;
+  input.on_cut = surface->on_cut;
+  input.rest_positions = surface->rest_positions;
+  input.positions = positions;
+  input.blade = blade;
+  input.highlights = highlights;
+  return input;
+}
+
+FrameScene frame_scene(const Engine& engine, bool highlight_active) {
+  FrameScene scene;
+  scene.surface = engine.surface();
+  scene.positions = engine.positions();
+  if (engine.blade()) {
+    scene.blade = segment(*engine.blade());
+  }
+  if (highlight_active && engine.cutter() != nullptr) {
+    const TetMesh& mesh = engine.mesh();
+    for (TetId tet : engine.cutter()->active_tets()) {
+      const Tet& v = mesh.tet(tet);
+      for (int a = 0; a < 4; ++a) {
+        for (int b = a + 1; b < 4; ++b) {
+          scene.highlights.push_back({scene.positions[static_cast<std::size_t>(v[a])],
+                                      scene.positions[static_cast<std::size_t>(v[b])]});
+        }
+      }
+    }
+  }
+  return scene;
+}
+
+FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot) {
+  FrameScene scene;
+  scene.surface = snapshot->surface;
+  scene.positions = snapshot->positions;
+  if (snapshot->blade) {
+    scene.blade = segment(*snapshot->blade);
+  }
+  scene.snapshot = std::move(snapshot);
+  return scene;
+}
+
+Camera scene_camera(const SceneDescription& scene, const Bounds& body, double aspect) {
+  if (!scene.camera) {
+    return fit_camera(body, aspect);
+  }
+  Camera camera;
+  camera.eye = scene.camera->eye;
+  camera.target = scene.camera->target;
+  camera.up = scene.camera->up;
+  camera.fov_y_degrees = scene.camera->fov_degrees;
+  return camera;
+}
+
+}  // namespace incise
