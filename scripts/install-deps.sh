@@ -21,7 +21,13 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # the FEM peer in bench/ (Bullet's deformable solver)
   libbullet-dev
+  # pictures: PNG files, OpenGL 3.3 offscreen through EGL on Mesa (llvmpipe without a GPU)
+  libpng-dev libegl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
+  # the interactive viewer: a GLFW window with Dear ImGui panels; Xvfb runs it in CI
+  libglfw3-dev libimgui-dev xvfb xauth
 )
+# Video (incise run --video) uses the ffmpeg program when it is on PATH; it is not installed
+# here (about 90 packages): apt-get install ffmpeg.
 
 missing=()
 for package in "${packages[@]}"; do

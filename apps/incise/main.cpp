@@ -1,5 +1,6 @@
 // incise: command line for cutting and deforming 3-D soft tissue.
 
+#include <csignal>
 #include <iostream>
 #include <map>
 
@@ -7,6 +8,8 @@
 #include "incise/core/error.hpp"
 
 int main(int argc, char** argv) {
+  // A pipe whose reader died (ffmpeg writing a video) is an error to report, not a kill.
+  std::signal(SIGPIPE, SIG_IGN);
   CLI::App app{"incise: interactive cutting and deformation of 3-D soft tissue"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "incise 0.1.0");

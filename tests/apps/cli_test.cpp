@@ -350,5 +350,55 @@ TEST(Cli, FemScenesRunAndGiveTheSameFramesWhateverTheThreadCount) {
   EXPECT_NEAR(json["max_displacement"].template get<double>(), 1.31e-3, 0.03e-3);
 }
 
+/// Width and height from a PNG's IHDR chunk (bytes 16-23, big-endian), or {0, 0}.
+std::pair<int, int> png_size(const std::filesystem::path& path) {
+  const std::string bytes = slurp(path);
+  if (bytes.size() < 24 || bytes.compare(1, 3, "PNG") != 0) {
+    return {0, 0};
+  }
+  const auto word = [&](std::size_t at) {
+    int value = 0;
+    for (std::size_t k = 0; k < 4; ++k) {
+      value = value * 256 + static_cast<unsigned char>(bytes[at + k]);
+    }
+    return value;
+  };
+  return {word(16), word(20)};
+}
+
+TEST(Cli, RunRendersPicturesOfTheDefaultScene) {
+  const auto dir = test::scratch_dir("render");
+  const CommandResult run =
+      incise("run --frames 10 --out " + (dir / "out").string() + " --render " +
+             (dir / "png").string() + " --render-every 5 --size 160x120 --mode cut");
+  if (run.code != 0 && run.err.find("offscreen rendering") != std::string::npos &&
+      std::getenv("INCISE_REQUIRE_GL") == nullptr) {
+    GTEST_SKIP() << "no OpenGL here: " << run.err;
+  }
+  ASSERT_EQ(run.code, 0) << run.err;
+  for (const char* name : {"frame_000000.png", "frame_000005.png", "frame_000010.png"}) {
+    EXPECT_EQ(png_size(dir / "png" / name), std::make_pair(160, 120)) << name;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "png" / "frame_000001.png"));
+  EXPECT_NE(run.out.find("pictures: 3"), std::string::npos) << run.out;
+}
+
+TEST(Cli, RunRefusesBadPictureOptionsByName) {
+  const auto dir = test::scratch_dir("render-bad");
+  const std::string render =
+      " --frames 1 --out " + (dir / "out").string() + " --render " + (dir / "png").string();
+  for (const auto& [arguments, named] : std::vector<std::pair<std::string, std::string>>{
+           {render + " --size 10x", "--size"},
+           {render + " --size 4x4", "--size"},
+           {render + " --mode sideways", "--mode"},
+           {" --frames 1 --size 100x100", "--render"},
+           {" --frames 1 --video a.mp4", "--render"}}) {
+    const CommandResult run = incise("run" + arguments);
+    EXPECT_EQ(run.code, 2) << arguments;
+    EXPECT_NE(run.err.find(named), std::string::npos) << arguments << ": " << run.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "png" / "frame_000000.png"));
+}
+
 }  // namespace
 }  // namespace incise

@@ -1,0 +1,153 @@
+// Offscreen OpenGL pictures (EGL, Mesa's surfaceless platform): the default scene drawn as a
+// user would see it. Skipped where no OpenGL can be had, unless INCISE_REQUIRE_GL is set (CI
+// sets it: there the pictures must be made).
+
+#include "incise/render/offscreen.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <memory>
+
+#include "incise/view/frame_scene.hpp"
+#include "incise/view/render_sink.hpp"
+#include "test_support.hpp"
+
+namespace incise {
+namespace {
+
+std::unique_ptr<OffscreenRenderer> make_renderer() {
+  try {
+    return std::make_unique<OffscreenRenderer>();
+  } catch (const Error& error) {
+    if (std::getenv("INCISE_REQUIRE_GL") != nullptr) {
+      ADD_FAILURE() << "INCISE_REQUIRE_GL is set and: " << error.what();
+    }
+    return nullptr;
+  }
+}
+
+#define REQUIRE_RENDERER(name)                                   \
+  const auto name = make_renderer();                             \
+  if (!(name)) {                                                 \
+    GTEST_SKIP() << "no OpenGL 3.3 through EGL on this machine"; \
+  }
+
+Rgba background() {
+  return RenderOptions{}.background;
+}
+
+/// A pixel of cut tissue: deep red, unlike the background, the grey blade and the pale
+/// exterior.
+bool cut_coloured(const Rgba& p) {
+  return p.r > 40 && p.r > 2 * p.g && p.r > 2 * p.b;
+}
+
+template <typename Predicate>
+std::size_t count(const Image& image, const Predicate& predicate) {
+  std::size_t n = 0;
+  for (const Rgba& p : image.pixels()) {
+    n += predicate(p) ? 1 : 0;
+  }
+  return n;
+}
+
+std::size_t body_pixels(const Image& image) {
+  std::size_t n = 0;
+  for (const Rgba& p : image.pixels()) {
+    n += p == background() ? 0 : 1;
+  }
+  return n;
+}
+
+/// The default scene run with pictures of its first and last frame in `mode`.
+std::pair<Image, Image> first_and_last(OffscreenRenderer& renderer, RenderMode mode,
+                                       const std::string& name) {
+  const auto dir = test::scratch_dir(name);
+  SceneDescription scene = default_scene();
+  Engine engine(scene);
+  PictureOptions options;
+  options.dir = dir;
+  options.every = 1000;
+  options.render.width = 320;
+  options.render.height = 240;
+  options.render.mode = mode;
+  RenderSink sink(renderer, options);
+  engine.add_sink(sink);
+  (void)run(engine, scene.frames);
+  EXPECT_EQ(sink.pictures().size(), 2u);
+  return {read_png(sink.pictures().front()), read_png(sink.pictures().back())};
+}
+
+TEST(Offscreen, TheDefaultSceneIsDrawnAndNotBlank) {
+  REQUIRE_RENDERER(renderer);
+  EXPECT_FALSE(renderer->device().empty());
+  const auto [first, last] = first_and_last(*renderer, RenderMode::kFaces, "faces");
+  for (const Image* image : {&first, &last}) {
+    const double share =
+        static_cast<double>(body_pixels(*image)) / static_cast<double>(image->pixels().size());
+    EXPECT_GT(share, 0.15) << "the body fills too little of the picture";
+    EXPECT_LT(share, 0.9);
+  }
+}
+
+TEST(Offscreen, CutModeShowsNoCutFaceBeforeTheCutAndTheWoundAfter) {
+  REQUIRE_RENDERER(renderer);
+  const auto [first, last] = first_and_last(*renderer, RenderMode::kCut, "cut");
+  EXPECT_EQ(count(first, cut_coloured), 0u);
+  EXPECT_GT(count(last, cut_coloured), 300u);
+  // Only cut faces are drawn in this mode: the exterior's pale pink tissue is nowhere (the
+  // blade is grey-blue, b >= r).
+  const auto pale_pink = [](const Rgba& p) { return p.r > 120 && 2 * p.g > p.r && p.r > p.b + 25; };
+  EXPECT_EQ(count(last, pale_pink), 0u);
+  EXPECT_GT(count(first_and_last(*renderer, RenderMode::kFaces, "pink").first, pale_pink), 2000u);
+}
+
+TEST(Offscreen, FacesModeChangesWhereTheCutOpened) {
+  REQUIRE_RENDERER(renderer);
+  const auto [cut_first, cut_last] = first_and_last(*renderer, RenderMode::kCut, "cut-region");
+  const auto [first, last] = first_and_last(*renderer, RenderMode::kFaces, "faces-region");
+  // Where the wound shows in cut mode, the textured picture changed between first and last.
+  std::size_t wound = 0;
+  std::size_t changed = 0;
+  for (std::size_t i = 0; i < cut_last.pixels().size(); ++i) {
+    if (!cut_coloured(cut_last.pixels()[i])) {
+      continue;
+    }
+    ++wound;
+    const Rgba& a = first.pixels()[i];
+    const Rgba& b = last.pixels()[i];
+    changed += std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b) > 30 ? 1 : 0;
+  }
+  ASSERT_GT(wound, 300u);
+  EXPECT_GT(changed, wound / 4);
+  EXPECT_GT(count(last, cut_coloured), count(first, cut_coloured));
+}
+
+TEST(Offscreen, TheSameFrameGivesTheSamePictureAtAnySizeAsked) {
+  REQUIRE_RENDERER(renderer);
+  Engine engine(default_scene());
+  for (int k = 0; k < 40; ++k) {
+    ASSERT_TRUE(engine.step());
+  }
+  const FrameScene scene = frame_scene(engine, true);
+  RenderOptions options;
+  options.width = 200;
+  options.height = 150;
+  options.mode = RenderMode::kWire;
+  options.camera = fit_camera(surface_bounds(scene.surface->triangles, scene.positions), 4.0 / 3);
+  const Image a = renderer->render(scene.input(), options);
+  options.width = 64;
+  options.height = 48;
+  const Image small = renderer->render(scene.input(), options);
+  EXPECT_EQ(small.width(), 64);
+  EXPECT_EQ(small.height(), 48);
+  options.width = 200;
+  options.height = 150;
+  const Image b = renderer->render(scene.input(), options);
+  EXPECT_EQ(a.pixels(), b.pixels());
+  EXPECT_GT(body_pixels(a), 2000u);
+}
+
+}  // namespace
+}  // namespace incise
