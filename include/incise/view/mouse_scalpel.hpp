@@ -1,0 +1,65 @@
+#pragma once
+// The scalpel in the user's hand: a press picks a point on the body's surface; while the
+// button is held the blade follows the cursor on the plane through that point facing the
+// camera, reaching `depth` into the body; scrolling changes the depth. Pure geometry, and a
+// tool-pose source that hands the blade from the scene's own path to the mouse.
+
+#include <memory>
+#include <optional>
+#include <span>
+
+#include "incise/engine/tool_pose_source.hpp"
+#include "incise/render/camera.hpp"
+
+namespace incise {
+
+struct Ray {
+  Vec3 origin;
+  Vec3 direction;  ///< unit
+};
+
+/// The ray from the eye through a point of the picture, in normalised device coordinates
+/// (x right, y up, both in [-1, 1]).
+[[nodiscard]] Ray cursor_ray(const Camera& camera, double aspect, double x, double y);
+
+struct SurfaceHit {
+  Vec3 point;
+  std::size_t triangle = 0;
+  double distance = 0.0;  ///< along the ray (m)
+};
+
+/// The nearest triangle the ray meets (either side), if any.
+[[nodiscard]] std::optional<SurfaceHit> pick_surface(const Ray& ray,
+                                                     std::span<const Triangle> triangles,
+                                                     std::span<const Vec3> positions);
+
+/// The blade for a cursor ray, with the stroke anchored at `anchor` (the picked point): it
+/// crosses the plane through the anchor facing the camera where the ray does, leaning away
+/// from the viewer along the ray and a little down the screen so it is seen as a line; the
+/// tip `depth` past the plane, the base `handle` before it (m).
+[[nodiscard]] BladePose scalpel_pose(const Camera& camera, const Ray& cursor, const Vec3& anchor,
+                                     double depth, double handle);
+
+/// The scene's own tool path until the user takes the blade; from then on the live pose
+/// (lifted until the first press). Thread rule as LiveToolPose's for live().
+class HandOverTool final : public ToolPoseSource {
+ public:
+  explicit HandOverTool(std::unique_ptr<ToolPoseSource> scripted)
+      : scripted_(std::move(scripted)) {}
+  void take() { taken_ = true; }
+  [[nodiscard]] bool taken() const { return taken_; }
+  [[nodiscard]] LiveToolPose& live() { return live_; }
+  [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override {
+    if (taken_) {
+      return live_.pose(frame, time);
+    }
+    return scripted_ ? scripted_->pose(frame, time) : std::nullopt;
+  }
+
+ private:
+  std::unique_ptr<ToolPoseSource> scripted_;
+  LiveToolPose live_;
+  bool taken_ = false;
+};
+
+}  // namespace incise

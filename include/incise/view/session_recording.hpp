@@ -1,0 +1,75 @@
+#pragma once
+// A viewer session as the physics saw it, to replay without a window: for each (re)start,
+// the scene it ran and, frame by frame, the blade pose the engine took (or none: the tool
+// lifted), plus the UI actions with their frame numbers. `incise run --replay FILE` rebuilds
+// the last segment's engine and feeds it the same poses: the same final mesh, bit for bit.
+//
+// File format: JSON lines. The first line is {"incise_session": 1}; then for each segment a
+// {"frame": 0, "start": {"scene_file": PATH, "scene": TEXT}} line, and lines
+// {"frame": N, "pose": [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]} (s, m),
+// {"frame": N, "lift": true} and {"frame": N, "action": NAME, "value": TEXT}.
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "incise/engine/engine.hpp"
+
+namespace incise {
+
+struct SessionAction {
+  int frame = 0;
+  std::string name;  ///< play, pause, step, mode, highlight, screenshot, ...
+  std::string value;
+};
+
+struct SessionSegment {
+  std::filesystem::path scene_file;  ///< empty: the built-in default scene
+  std::string scene_text;
+  std::vector<std::optional<BladePose>> poses;  ///< index: frame (0: the start)
+  std::vector<SessionAction> actions;
+  /// The scene, parsed as it was run (relative paths against scene_file's folder).
+  [[nodiscard]] SceneDescription scene() const;
+  [[nodiscard]] int frames() const { return static_cast<int>(poses.size()) - 1; }
+};
+
+struct SessionRecording {
+  std::vector<SessionSegment> segments;
+};
+
+/// Writes atomically; errors name the file.
+void write_session(const std::filesystem::path& path, const SessionRecording& recording);
+/// Errors name the file and line.
+[[nodiscard]] SessionRecording read_session(const std::filesystem::path& path);
+
+/// Records a segment of `recording` from the engine it is added to: the scene, the start pose
+/// and each frame's pose. Add one to each engine the viewer makes (a reset starts another).
+class SessionRecorder final : public FrameSink {
+ public:
+  explicit SessionRecorder(SessionRecording& recording) : recording_(&recording) {}
+  void begin(const Engine& engine) override;
+  bool frame(const Engine& engine, const FrameRecord& record) override;
+  /// A UI action at the engine's current frame.
+  void action(int frame, std::string name, std::string value = {});
+
+ private:
+  SessionRecording* recording_;
+};
+
+/// The poses of a recorded segment, frame by frame; the tool is lifted after its end.
+class RecordedToolPoses final : public ToolPoseSource {
+ public:
+  explicit RecordedToolPoses(std::vector<std::optional<BladePose>> poses)
+      : poses_(std::move(poses)) {}
+  [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override;
+
+ private:
+  std::vector<std::optional<BladePose>> poses_;
+};
+
+/// An engine that replays `segment`: its scene, fed its poses (run segment.frames() frames).
+[[nodiscard]] std::unique_ptr<Engine> replay_engine(const SessionSegment& segment);
+
+}  // namespace incise

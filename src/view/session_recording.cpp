@@ -1,0 +1,194 @@
+#include "incise/view/session_recording.hpp"
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+
+namespace {
+
+using Json = nlohmann::json;
+
+Json pose_json(const BladePose& pose) {
+  return Json::array({pose.time, pose.tip.x(), pose.tip.y(), pose.tip.z(), pose.base.x(),
+                      pose.base.y(), pose.base.z()});
+}
+
+}  // namespace
+
+SceneDescription SessionSegment::scene() const {
+  return parse_scene(scene_text, scene_file);
+}
+
+void write_session(const std::filesystem::path& path, const SessionRecording& recording) {
+  const std::filesystem::path temporary = path.string() + ".part";
+  {
+    std::ofstream out(temporary);
+    if (!out) {
+      throw InputError(path.string(), 0, "cannot write the session recording");
+    }
+    out << Json{{"incise_session", 1}}.dump() << "\n";
+    for (const SessionSegment& segment : recording.segments) {
+      out << Json{{"frame", 0},
+                  {"start",
+                   {{"scene_file", segment.scene_file.string()}, {"scene", segment.scene_text}}}}
+                 .dump()
+          << "\n";
+      // Poses and actions in frame order (actions of a frame after its pose).
+      std::size_t next_action = 0;
+      for (std::size_t frame = 0; frame < segment.poses.size(); ++frame) {
+        const auto& pose = segment.poses[frame];
+        out << (pose ? Json{{"frame", frame}, {"pose", pose_json(*pose)}}
+                     : Json{{"frame", frame}, {"lift", true}})
+                   .dump()
+            << "\n";
+        while (next_action < segment.actions.size() &&
+               segment.actions[next_action].frame <= static_cast<int>(frame)) {
+          const SessionAction& action = segment.actions[next_action++];
+          out << Json{{"frame", action.frame}, {"action", action.name}, {"value", action.value}}
+                     .dump()
+              << "\n";
+        }
+      }
+      for (; next_action < segment.actions.size(); ++next_action) {
+        const SessionAction& action = segment.actions[next_action];
+        out << Json{{"frame", action.frame}, {"action", action.name}, {"value", action.value}}
+                   .dump()
+            << "\n";
+      }
+    }
+    out.flush();
+    if (!out) {
+      throw InputError(path.string(), 0, "cannot write the session recording (disk full?)");
+    }
+  }
+  std::filesystem::rename(temporary, path);
+}
+
+SessionRecording read_session(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) {
+    throw InputError(path.string(), 0, "cannot open the session recording");
+  }
+  SessionRecording recording;
+  std::string text;
+  std::size_t line = 0;
+  const auto fail = [&](const std::string& message) {
+    throw InputError(path.string(), line, message);
+  };
+  while (std::getline(in, text)) {
+    ++line;
+    if (text.empty()) {
+      continue;
+    }
+    Json row;
+    try {
+      row = Json::parse(text);
+    } catch (const Json::exception& error) {
+      fail(std::string("not JSON: ") + error.what());
+    }
+    if (line == 1) {
+      if (!row.is_object() || !row.contains("incise_session")) {
+        fail("not an incise session recording (no {\"incise_session\": 1} header)");
+      }
+      if (row["incise_session"] != 1) {
+        fail("a session recording of a newer version");
+      }
+      continue;
+    }
+    if (!row.is_object() || !row.contains("frame") || !row["frame"].is_number_integer() ||
+        row["frame"].get<long long>() < 0) {
+      fail("each line needs \"frame\": a frame number");
+    }
+    const int frame = row["frame"].get<int>();
+    if (row.contains("start")) {
+      const Json& start = row["start"];
+      if (!start.is_object() || !start.contains("scene") || !start["scene"].is_string()) {
+        fail("\"start\" needs \"scene\": the scene's JSON text");
+      }
+      SessionSegment segment;
+      segment.scene_file = start.value("scene_file", std::string());
+      segment.scene_text = start["scene"].get<std::string>();
+      recording.segments.push_back(std::move(segment));
+      continue;
+    }
+    if (recording.segments.empty()) {
+      fail("a frame before any \"start\"");
+    }
+    SessionSegment& segment = recording.segments.back();
+    if (row.contains("action")) {
+      if (!row["action"].is_string()) {
+        fail("\"action\" must be a name");
+      }
+      segment.actions.push_back(
+          {frame, row["action"].get<std::string>(), row.value("value", std::string())});
+      continue;
+    }
+    if (frame != static_cast<int>(segment.poses.size())) {
+      fail("pose of frame " + std::to_string(frame) + " where frame " +
+           std::to_string(segment.poses.size()) + " was expected");
+    }
+    if (row.contains("lift")) {
+      segment.poses.emplace_back();
+    } else if (row.contains("pose")) {
+      const Json& p = row["pose"];
+      if (!p.is_array() || p.size() != 7 ||
+          !std::all_of(p.begin(), p.end(), [](const Json& v) { return v.is_number(); })) {
+        fail("\"pose\" must be 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+      }
+      segment.poses.push_back(BladePose{
+          p[0].get<double>(), Vec3(p[1].get<double>(), p[2].get<double>(), p[3].get<double>()),
+          Vec3(p[4].get<double>(), p[5].get<double>(), p[6].get<double>())});
+    } else {
+      fail("a line needs \"start\", \"pose\", \"lift\" or \"action\"");
+    }
+  }
+  if (line == 0) {
+    throw InputError(path.string(), 0, "empty session recording");
+  }
+  if (recording.segments.empty() || recording.segments.back().poses.empty()) {
+    throw InputError(path.string(), line, "the recording has no frames");
+  }
+  return recording;
+}
+
+void SessionRecorder::begin(const Engine& engine) {
+  SessionSegment segment;
+  segment.scene_file = engine.scene().file;
+  segment.scene_text = engine.scene().source_text;
+  segment.poses.push_back(engine.blade());
+  recording_->segments.push_back(std::move(segment));
+}
+
+bool SessionRecorder::frame(const Engine& engine, const FrameRecord& record) {
+  auto& poses = recording_->segments.back().poses;
+  INCISE_ASSERT(record.frame == static_cast<int>(poses.size()), "frames recorded out of order");
+  poses.push_back(engine.blade());
+  return false;
+}
+
+void SessionRecorder::action(int frame, std::string name, std::string value) {
+  INCISE_ASSERT(!recording_->segments.empty(), "an action before the session started");
+  recording_->segments.back().actions.push_back({frame, std::move(name), std::move(value)});
+}
+
+std::optional<BladePose> RecordedToolPoses::pose(int frame, double /*time*/) {
+  if (frame < 0 || static_cast<std::size_t>(frame) >= poses_.size()) {
+    return std::nullopt;
+  }
+  return poses_[static_cast<std::size_t>(frame)];
+}
+
+std::unique_ptr<Engine> replay_engine(const SessionSegment& segment) {
+  SceneDescription scene = segment.scene();
+  if (scene.tool.cutter == CutterKind::kNone) {
+    scene.tool.cutter = CutterKind::kSubdivision;  // the viewer's scalpel cuts any scene
+  }
+  auto engine = std::make_unique<Engine>(scene);
+  engine->set_tool_source(std::make_unique<RecordedToolPoses>(segment.poses));
+  return engine;
+}
+
+}  // namespace incise
