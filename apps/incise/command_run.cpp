@@ -13,15 +13,16 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <sstream>
 #include <tuple>
 
+#include "command_options.hpp"
 #include "commands.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/solve/integrators.hpp"
 #include "incise/view/render_sink.hpp"
+#include "incise/view/session_recording.hpp"
 #ifdef INCISE_HAVE_GL
 #include "incise/render/offscreen.hpp"
 #endif
@@ -67,19 +68,6 @@ class Progress {
   int last_;
   bool terminal_;
 };
-
-/// "WxH" (pixels) -> (W, H); an InputError naming the option otherwise.
-std::pair<int, int> parse_size(const std::string& text) {
-  int width = 0;
-  int height = 0;
-  char separator = 0;
-  std::istringstream stream(text);
-  if (!(stream >> width >> separator >> height) || (separator != 'x' && separator != 'X') ||
-      !stream.eof() || width < 16 || height < 16 || width > 8192 || height > 8192) {
-    throw InputError("--size " + text + ": expected WxH, e.g. 800x600, each side 16 to 8192");
-  }
-  return {width, height};
-}
 
 /// Pictures of the run, when asked for: the offscreen renderer and its sink.
 struct Pictures {
@@ -153,6 +141,12 @@ Runner add_run_command(CLI::App& app) {
       ->add_flag("--highlight-active", *highlight,
                  "Outline the tetrahedra the blade is in (the seed's active tetrahedra)")
       ->needs(render_option);
+  auto replay_path = std::make_shared<std::string>();
+  command
+      ->add_option("--replay", *replay_path,
+                   "Replay a session recorded by incise view --record: its scene (as it was "
+                   "run) fed the same tool poses; the same final mesh, bit for bit")
+      ->check(CLI::ExistingFile);
   auto threads = std::make_shared<int>(0);
   command
       ->add_option("--threads", *threads,
@@ -171,7 +165,20 @@ Runner add_run_command(CLI::App& app) {
                        "give no scene file with it");
     }
     std::unique_ptr<Engine> engine;
-    if (!resume_path->empty()) {
+    int replay_frames = -1;
+    if (!replay_path->empty() && (!resume_path->empty() || !tool_path->empty())) {
+      throw InputError(*replay_path, 0, "--replay takes neither --resume nor --tool");
+    }
+    if (!replay_path->empty()) {
+      const SessionRecording recording = read_session(*replay_path);
+      const SessionSegment& segment = recording.segments.back();
+      if (!scene_path->empty() && load_scene(*scene_path).source_text != segment.scene_text) {
+        std::cerr << "warning: " << *scene_path << " differs from the scene recorded in "
+                  << *replay_path << "; the recorded one is replayed\n";
+      }
+      engine = replay_engine(segment);
+      replay_frames = segment.frames();
+    } else if (!resume_path->empty()) {
       engine = Engine::resume(*resume_path);
     } else {
       SceneDescription fresh = scene_path->empty() ? default_scene() : load_scene(*scene_path);
@@ -183,7 +190,9 @@ Runner add_run_command(CLI::App& app) {
     const SceneDescription& scene = engine->scene();
     const std::string name = scene.file.empty() ? "default" : scene.file.stem().string();
     const int first_frame = engine->frame();
-    const int frame_count = *frames >= 0 ? *frames : std::max(0, scene.frames - first_frame);
+    const int frame_count = *frames >= 0        ? *frames
+                            : replay_frames >= 0 ? replay_frames
+                                                 : std::max(0, scene.frames - first_frame);
     const std::filesystem::path output =
         out->empty() ? scene.output_dir : std::filesystem::path(*out);
     if (!tool_path->empty()) {
@@ -216,11 +225,7 @@ Runner add_run_command(CLI::App& app) {
       options.every = *render_every;
       options.last_frame = first_frame + frame_count;
       std::tie(options.render.width, options.render.height) = parse_size(*size);
-      const auto render_mode = parse_render_mode(*mode);
-      if (!render_mode) {
-        throw InputError("--mode " + *mode + ": expected faces, wire or cut");
-      }
-      options.render.mode = *render_mode;
+      options.render.mode = parse_mode(*mode);
       options.highlight_active = *highlight;
       if (!video->empty()) {
         options.video = *video;

@@ -21,5 +21,6 @@ Runner add_generate_command(CLI::App& app);
 Runner add_mesh_command(CLI::App& app);
 Runner add_run_command(CLI::App& app);
 Runner add_cut_command(CLI::App& app);
+Runner add_view_command(CLI::App& app);
 
 }  // namespace incise::app

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   add(incise::app::add_mesh_command);
   add(incise::app::add_run_command);
   add(incise::app::add_cut_command);
+  add(incise::app::add_view_command);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

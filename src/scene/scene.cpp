@@ -645,9 +645,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     }
     scene.tool.split = cutter.choice<SplitMode>("split", SplitMode::kMinimal, kSplits, "split");
   }
-  if (scene.tool.cutter != CutterKind::kNone && scene.tool.poses.empty()) {
-    context.fail("cutter", "a cutter needs a tool: add \"tool\": {\"blade_path\": CSV}");
-  }
+  // A cutter without a tool path is kept for a live tool (the viewer's mouse, a device).
 
   if (top.has("output")) {
     const ObjectReader output(context, top.at("output"), "output", {"dir", "vtu_every"});

@@ -1,0 +1,418 @@
+#include "viewer.hpp"
+
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <imgui_impl_glfw.h>
+#include <imgui_impl_opengl3.h>
+
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
+#include "incise/render/gl_backend.hpp"
+#include "incise/view/frame_scene.hpp"
+
+namespace incise::app {
+
+namespace {
+
+std::string glfw_error;  // the last GLFW error, for the message when a window cannot be had
+
+Viewer& viewer_of(GLFWwindow* window) {
+  return *static_cast<Viewer*>(glfwGetWindowUserPointer(window));
+}
+
+constexpr std::size_t kTimingFrames = 240;
+
+void push(std::deque<float>& series, double value) {
+  series.push_back(static_cast<float>(value));
+  if (series.size() > kTimingFrames) {
+    series.pop_front();
+  }
+}
+
+}  // namespace
+
+struct Viewer::Graphics {
+  GlBackend backend;
+  Renderer renderer{backend};
+};
+
+Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
+  glfwSetErrorCallback([](int, const char* description) { glfw_error = description; });
+  if (glfwInit() != GLFW_TRUE) {
+    throw Error("incise view needs a display (X11 or Wayland); without one run it under "
+                "xvfb-run, or use incise run --render for pictures. GLFW: " +
+                glfw_error);
+  }
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  glfwWindowHint(GLFW_SAMPLES, 4);
+  window_ = glfwCreateWindow(options_.width, options_.height, "incise", nullptr, nullptr);
+  if (window_ == nullptr) {
+    glfwTerminate();
+    throw Error("incise view cannot open an OpenGL 3.3 window: " + glfw_error);
+  }
+  glfwMakeContextCurrent(window_);
+  glfwSwapInterval(options_.exit_after >= 0 ? 0 : 1);
+  glfwSetWindowUserPointer(window_, this);
+  // Installed before ImGui's, which chain to them.
+  glfwSetScrollCallback(window_, [](GLFWwindow* window, double, double y) {
+    viewer_of(window).on_scroll(y);
+  });
+  glfwSetKeyCallback(window_, [](GLFWwindow* window, int key, int, int action, int) {
+    if (action == GLFW_PRESS) {
+      viewer_of(window).on_key(key);
+    }
+  });
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini left in the user's folder
+  ImGui::StyleColorsDark();
+  ImGui_ImplGlfw_InitForOpenGL(window_, true);
+  ImGui_ImplOpenGL3_Init("#version 330 core");
+  graphics_ = std::make_unique<Graphics>();
+
+  if (options_.replay) {
+    replay_ = read_session(*options_.replay);
+    scene_ = replay_->segments.back().scene();
+  } else {
+    scene_ = options_.scene_file ? load_scene(*options_.scene_file) : default_scene();
+  }
+  render_.mode = options_.mode;
+  settings_.young_modulus = static_cast<float>(scene_.material.young_modulus);
+  settings_.poisson_ratio = static_cast<float>(scene_.material.poisson_ratio);
+  settings_.density = static_cast<float>(scene_.material.density);
+  settings_.integrator = static_cast<int>(scene_.integrator.type);
+  settings_.dt = static_cast<float>(scene_.integrator.dt);
+  settings_.split = static_cast<int>(scene_.tool.split);
+  start_engine();
+}
+
+Viewer::~Viewer() {
+  engine_.reset();
+  graphics_.reset();
+  ImGui_ImplOpenGL3_Shutdown();
+  ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext();
+  glfwDestroyWindow(window_);
+  glfwTerminate();
+}
+
+void Viewer::start_engine() {
+  engine_.reset();  // its sinks go before they are replaced
+  hand_ = nullptr;
+  if (replay_) {
+    engine_ = replay_engine(replay_->segments.back());
+  } else {
+    SceneDescription scene = scene_;
+    if (scene.tool.cutter == CutterKind::kNone) {
+      scene.tool.cutter = CutterKind::kSubdivision;  // the scalpel cuts any scene
+    }
+    engine_ = std::make_unique<Engine>(scene);
+    auto tool = std::make_unique<HandOverTool>(
+        scene.tool.poses.empty() ? nullptr : std::make_unique<ScriptedToolPath>(scene.tool.poses));
+    hand_ = tool.get();
+    engine_->set_tool_source(std::move(tool));
+  }
+  if (options_.record) {
+    engine_->add_sink(recorder_.emplace(recording_));
+  }
+  if (options_.out) {
+    const std::string name = scene_.file.empty() ? "default" : scene_.file.stem().string();
+    series_ = std::make_unique<VtuSeriesSink>(*options_.out, name, 1 << 30);
+    engine_->add_sink(*series_);
+  }
+  if (!camera_fitted_) {
+    const FrameScene scene = frame_scene(*engine_);
+    render_.camera =
+        scene_camera(engine_->scene(), surface_bounds(scene.surface->triangles, scene.positions),
+                     aspect());
+    camera_fitted_ = true;
+  }
+  depth_ = 0.3 * body_radius();
+  anchor_.reset();
+  for (auto* series : {&timing_.cd, &timing_.gc, &timing_.rx, &timing_.rd}) {
+    series->clear();
+  }
+}
+
+double Viewer::body_radius() const {
+  const FrameScene scene = frame_scene(*engine_);
+  return surface_bounds(scene.surface->triangles, scene.positions).radius();
+}
+
+double Viewer::aspect() const {
+  int width = 0;
+  int height = 0;
+  glfwGetFramebufferSize(window_, &width, &height);
+  return height > 0 ? static_cast<double>(width) / height : 1.0;
+}
+
+void Viewer::action(const std::string& name, const std::string& value) {
+  if (recorder_) {
+    recorder_->action(engine_->frame(), name, value);
+  }
+}
+
+void Viewer::on_key(int key) {
+  keys_.push_back(key);
+}
+
+void Viewer::step_engine() {
+  if (engine_->diverged()) {
+    playing_ = false;
+    return;
+  }
+  if (!engine_->step()) {
+    playing_ = false;
+    message_ = engine_->divergence();
+    return;
+  }
+  ++frames_played_;
+  const FrameRecord& record = engine_->last_frame();
+  push(timing_.cd, 1e3 * record.cd);
+  push(timing_.gc, 1e3 * record.gc);
+  push(timing_.rx, 1e3 * record.rx);
+  push(timing_.rd, draw_ms_);
+  if (replay_) {
+    // The replayed session's view changes, at their frames.
+    for (const SessionAction& recorded : replay_->segments.back().actions) {
+      if (recorded.frame == engine_->frame() && recorded.name == "mode") {
+        render_.mode = parse_render_mode(recorded.value).value_or(render_.mode);
+      } else if (recorded.frame == engine_->frame() && recorded.name == "highlight") {
+        highlight_active_ = recorded.value == "on";
+      }
+    }
+  }
+}
+
+void Viewer::handle_mouse() {
+  const ImGuiIO& io = ImGui::GetIO();
+  double x = 0.0;
+  double y = 0.0;
+  glfwGetCursorPos(window_, &x, &y);
+  int width = 1;
+  int height = 1;
+  glfwGetWindowSize(window_, &width, &height);
+  const double nx = 2.0 * x / std::max(width, 1) - 1.0;
+  const double ny = 1.0 - 2.0 * y / std::max(height, 1);
+  const bool left = glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+  const bool right = glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+  const bool middle = glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
+  const Ray ray = cursor_ray(render_.camera, aspect(), nx, ny);
+  const bool free = !io.WantCaptureMouse;
+
+  if (free && left && !anchor_ && !dragging_camera_) {
+    // A press on the body takes the scalpel; beside it, the camera.
+    const FrameScene scene = frame_scene(*engine_);
+    const auto hit = hand_ != nullptr
+                         ? pick_surface(ray, scene.surface->triangles, scene.positions)
+                         : std::nullopt;
+    if (hit) {
+      anchor_ = hit->point;
+      if (!hand_->taken()) {
+        hand_->take();
+        action("take");
+      }
+    } else {
+      dragging_camera_ = true;
+    }
+  }
+  if (free && (right || middle) && !anchor_) {
+    dragging_camera_ = true;
+  }
+  if (scroll_ != 0.0) {
+    if (anchor_) {
+      depth_ *= std::pow(1.15, scroll_);  // scroll sets how deep the blade reaches
+    } else if (free) {
+      zoom(render_.camera, std::pow(0.9, scroll_));
+    }
+    scroll_ = 0.0;
+  }
+  if (anchor_ && hand_ != nullptr) {
+    if (left) {
+      hand_->live().set(
+          scalpel_pose(render_.camera, ray, *anchor_, depth_, 0.6 * body_radius()));
+    } else {
+      hand_->live().lift();
+      anchor_.reset();
+    }
+  }
+  if (dragging_camera_) {
+    const double dx = (x - last_x_) / std::max(height, 1);
+    const double dy = (y - last_y_) / std::max(height, 1);
+    const bool shift = glfwGetKey(window_, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS;
+    if (middle || (right && shift)) {
+      pan(render_.camera, -dx, dy);
+    } else {
+      orbit(render_.camera, -3.0 * dx, 3.0 * dy);
+    }
+    if (!left && !right && !middle) {
+      dragging_camera_ = false;
+    }
+  }
+  last_x_ = x;
+  last_y_ = y;
+}
+
+void Viewer::draw_scene() {
+  const auto start = Clock::now();
+  int width = 0;
+  int height = 0;
+  glfwGetFramebufferSize(window_, &width, &height);
+  if (width <= 0 || height <= 0) {
+    return;  // minimised
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  render_.width = width;
+  render_.height = height;
+  const FrameScene scene = frame_scene(*engine_, highlight_active_);
+  graphics_->renderer.render(scene.input(), render_);
+  glFinish();  // what the frame costs, not what the driver queued
+  draw_ms_ = 1e3 * seconds_since(start);
+}
+
+void Viewer::save_screenshot(const std::filesystem::path& path) {
+  int width = 0;
+  int height = 0;
+  glfwGetFramebufferSize(window_, &width, &height);
+  Image image(width, height);
+  glReadBuffer(GL_BACK);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, image.pixels().data());
+  image.flip_rows();
+  for (Rgba& pixel : image.pixels()) {
+    pixel.a = 255;
+  }
+  write_png(path, image);
+  message_ = "saved " + path.string();
+  action("screenshot", path.string());
+}
+
+void Viewer::apply_settings() {
+  nlohmann::json root = nlohmann::json::parse(scene_.source_text);
+  root["material"] = {{"young_modulus", settings_.young_modulus},
+                      {"poisson_ratio", settings_.poisson_ratio},
+                      {"density", settings_.density}};
+  if (!root.contains("integrator") || !root["integrator"].is_object()) {
+    root["integrator"] = nlohmann::json::object();
+  }
+  root["integrator"]["type"] = name_of(static_cast<IntegratorKind>(settings_.integrator));
+  root["integrator"]["dt"] = settings_.dt;
+  if (!root.contains("cutter") || !root["cutter"].is_object()) {
+    root["cutter"] = {{"type", "subdivision"}};
+  }
+  root["cutter"]["split"] = name_of(static_cast<SplitMode>(settings_.split));
+  if (root.contains("frame_dt") && root["frame_dt"].is_number() &&
+      std::fmod(root["frame_dt"].get<double>(), settings_.dt) > 1e-12) {
+    root.erase("frame_dt");  // a frame is then one step of the new dt
+  }
+  try {
+    SceneDescription scene = parse_scene(root.dump(2), scene_.file);
+    scene_ = std::move(scene);
+    action("reset", "settings");
+    start_engine();
+    message_ = "settings applied";
+  } catch (const Error& error) {
+    message_ = error.what();
+  }
+}
+
+int Viewer::run() {
+  bool screenshot_saved = false;
+  while (glfwWindowShouldClose(window_) == 0) {
+    glfwPollEvents();
+    ImGui_ImplOpenGL3_NewFrame();
+    ImGui_ImplGlfw_NewFrame();
+    ImGui::NewFrame();
+    const bool keyboard_free = !ImGui::GetIO().WantCaptureKeyboard;
+    while (!keys_.empty()) {
+      const int key = keys_.front();
+      keys_.pop_front();
+      if (!keyboard_free) {
+        continue;
+      }
+      const auto set_mode = [this](RenderMode mode) {
+        render_.mode = mode;
+        action("mode", std::string(name_of(mode)));
+      };
+      switch (key) {
+        case GLFW_KEY_F: set_mode(RenderMode::kFaces); break;
+        case GLFW_KEY_G: set_mode(RenderMode::kWire); break;
+        case GLFW_KEY_C: set_mode(RenderMode::kCut); break;
+        case GLFW_KEY_H:
+          highlight_active_ = !highlight_active_;
+          action("highlight", highlight_active_ ? "on" : "off");
+          break;
+        case GLFW_KEY_SPACE:
+          playing_ = !playing_;
+          action(playing_ ? "play" : "pause");
+          break;
+        case GLFW_KEY_N: step_once_ = true; break;
+        case GLFW_KEY_R:
+          action("reset");
+          start_engine();
+          break;
+        case GLFW_KEY_P: pending_screenshot_ = "incise_screenshot.png"; break;
+        case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(window_, GLFW_TRUE); break;
+        default: break;
+      }
+    }
+    handle_mouse();
+    if (playing_ || step_once_) {
+      if (step_once_) {
+        action("step");
+      }
+      step_engine();
+      step_once_ = false;
+    }
+    draw_scene();
+    const bool done = options_.exit_after >= 0 && engine_->frame() >= options_.exit_after;
+    if (pending_screenshot_) {
+      save_screenshot(*pending_screenshot_);
+      pending_screenshot_.reset();
+    }
+    if (done && options_.screenshot) {
+      save_screenshot(*options_.screenshot);
+      screenshot_saved = true;
+    }
+    draw_panels();
+    ImGui::Render();
+    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+    glfwSwapBuffers(window_);
+    if (done) {
+      break;
+    }
+    if (engine_->diverged() && options_.exit_after >= 0) {
+      break;  // scripted: nothing more will happen
+    }
+  }
+  if (options_.screenshot && !screenshot_saved) {
+    draw_scene();
+    save_screenshot(*options_.screenshot);
+  }
+  engine_->finish();
+  if (options_.record) {
+    write_session(*options_.record, recording_);
+  }
+  std::cerr << "incise view: " << engine_->frame() << " frames";
+  if (options_.record) {
+    std::cerr << ", session recorded to " << options_.record->string();
+  }
+  std::cerr << "\n";
+  if (engine_->diverged()) {
+    std::cerr << "error: " << engine_->divergence() << "\n";
+    return 3;
+  }
+  return 0;
+}
+
+}  // namespace incise::app

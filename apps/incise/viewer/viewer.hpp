@@ -1,0 +1,107 @@
+#pragma once
+// `incise view`: a GLFW window with the body drawn by the OpenGL renderer, Dear ImGui panels
+// (play, pause, step, reset; settings; mesh statistics; per-stage timing plot) and the mouse
+// scalpel. One thread: each drawn frame steps the engine once while playing, so a session is
+// the same frames whatever the frame rate, and a recording replays it exactly.
+
+#include <array>
+#include <deque>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "incise/engine/engine.hpp"
+#include "incise/render/renderer.hpp"
+#include "incise/view/mouse_scalpel.hpp"
+#include "incise/view/session_recording.hpp"
+
+struct GLFWwindow;
+
+namespace incise::app {
+
+struct ViewerOptions {
+  std::optional<std::filesystem::path> scene_file;  ///< none: the default scene
+  std::optional<std::filesystem::path> replay;
+  std::optional<std::filesystem::path> record;
+  std::optional<std::filesystem::path> screenshot;  ///< saved at exit
+  std::optional<std::filesystem::path> out;  ///< the first and last frame as a .vtu series
+  int exit_after = -1;                       ///< frames to play, then exit
+  int width = 1280;
+  int height = 800;
+  RenderMode mode = RenderMode::kFaces;
+};
+
+class Viewer {
+ public:
+  explicit Viewer(ViewerOptions options);
+  ~Viewer();
+  Viewer(const Viewer&) = delete;
+  Viewer& operator=(const Viewer&) = delete;
+  /// Runs until the window closes or exit_after frames have played; returns the exit code.
+  int run();
+
+  // Called from GLFW callbacks.
+  void on_scroll(double amount) { scroll_ += amount; }
+  void on_key(int key);
+
+ private:
+  struct Timing {
+    std::deque<float> cd, gc, rx, rd;  ///< ms, the last frames
+  };
+  void start_engine();  ///< (re)builds the engine from scene_ (or the replay)
+  void step_engine();
+  void handle_mouse();
+  void draw_scene();
+  void draw_panels();
+  void save_screenshot(const std::filesystem::path& path);
+  void action(const std::string& name, const std::string& value = {});
+  void apply_settings();
+  [[nodiscard]] double body_radius() const;
+  [[nodiscard]] double aspect() const;
+
+  ViewerOptions options_;
+  GLFWwindow* window_ = nullptr;
+  struct Graphics;
+  std::unique_ptr<Graphics> graphics_;
+
+  SceneDescription scene_;
+  std::optional<SessionRecording> replay_;
+  std::unique_ptr<Engine> engine_;
+  HandOverTool* hand_ = nullptr;  ///< owned by engine_; null while replaying
+  std::unique_ptr<FrameSink> series_;
+  SessionRecording recording_;
+  std::optional<SessionRecorder> recorder_;
+
+  RenderOptions render_;
+  bool camera_fitted_ = false;
+  bool highlight_active_ = false;
+  bool playing_ = true;
+  bool step_once_ = false;
+  int frames_played_ = 0;
+  std::string message_;  ///< the last error or note shown in the panel
+
+  // Mouse: the scalpel while the left button is held on the body, else the camera.
+  std::optional<Vec3> anchor_;
+  double depth_ = 0.0;  ///< m
+  bool dragging_camera_ = false;
+  double last_x_ = 0.0;
+  double last_y_ = 0.0;
+  double scroll_ = 0.0;
+  std::deque<int> keys_;
+  std::optional<std::filesystem::path> pending_screenshot_;
+
+  // Settings being edited (applied with a reset).
+  struct Settings {
+    float young_modulus = 0;  ///< Pa
+    float poisson_ratio = 0;
+    float density = 0;  ///< kg/m^3
+    int integrator = 0;
+    float dt = 0;  ///< s
+    int split = 0;
+  } settings_;
+  Timing timing_;
+  double draw_ms_ = 0.0;
+};
+
+}  // namespace incise::app
