@@ -190,7 +190,7 @@ Runner add_run_command(CLI::App& app) {
     const SceneDescription& scene = engine->scene();
     const std::string name = scene.file.empty() ? "default" : scene.file.stem().string();
     const int first_frame = engine->frame();
-    const int frame_count = *frames >= 0        ? *frames
+    const int frame_count = *frames >= 0         ? *frames
                             : replay_frames >= 0 ? replay_frames
                                                  : std::max(0, scene.frames - first_frame);
     const std::filesystem::path output =

@@ -16,8 +16,9 @@ namespace incise::app {
 
 Runner add_view_command(CLI::App& app) {
   auto* command = app.add_subcommand(
-      "view", "Open the interactive viewer: play the scene, cut with the mouse (no scene: the "
-              "default one)");
+      "view",
+      "Open the interactive viewer: play the scene, cut with the mouse (no scene: the "
+      "default one)");
   auto scene_path = std::make_shared<std::string>();
   auto replay = std::make_shared<std::string>();
   auto record = std::make_shared<std::string>();
@@ -72,8 +73,9 @@ Runner add_view_command(CLI::App& app) {
     Viewer viewer(options);
     return viewer.run();
 #else
-    throw InputError("incise view: this incise was built without the viewer "
-                     "(-DINCISE_WITH_VIEWER=ON needs GLFW and Dear ImGui)");
+    throw InputError(
+        "incise view: this incise was built without the viewer "
+        "(-DINCISE_WITH_VIEWER=ON needs GLFW and Dear ImGui)");
 #endif
   };
 }

@@ -93,11 +93,17 @@ SubdivisionCutter::Contact SubdivisionCutter::detect(
 void SubdivisionCutter::record_swept(const std::vector<std::array<Vec3, 3>>& triangles,
                                      const Contact& contact) {
   move_rest_triangles_.clear();
+  // Triangles are tagged with the sweep that made them: consecutive tags are consecutive
+  // pieces of one sheet (a move in which the blade stood still adds nothing and no tag).
+  const std::size_t before = swept_->size();
+  const auto tag = static_cast<std::int64_t>(stats_.sweeps);
   if (positions_ == nullptr) {
     for (const auto& triangle : triangles) {
-      swept_->add(triangle);
+      swept_->add(triangle, Vec3::Constant(-std::numeric_limits<double>::max()),
+                  Vec3::Constant(std::numeric_limits<double>::max()), tag);
       move_rest_triangles_.push_back(triangle);
     }
+    stats_.sweeps += swept_->size() > before ? 1 : 0;
     return;
   }
   for (TetId t : contact.touched) {
@@ -126,10 +132,11 @@ void SubdivisionCutter::record_swept(const std::vector<std::array<Vec3, 3>>& tri
       for (int k = 0; k < 3; ++k) {
         image[k] = mesh_.rest_position(v[0]) + to_rest * (triangle[k] - position(v[0]));
       }
-      swept_->add(image, low - margin, high + margin);
+      swept_->add(image, low - margin, high + margin, tag);
       move_rest_triangles_.push_back(image);
     }
   }
+  stats_.sweeps += swept_->size() > before ? 1 : 0;
 }
 
 void SubdivisionCutter::classify(const Contact& contact, const BladePose& pose) {

@@ -22,6 +22,16 @@ namespace incise {
 
 using namespace cutter_detail;  // NOLINT(google-build-using-namespace): the cutter's own helpers
 
+namespace {
+
+/// How far (a fraction of its longest edge) a face's centroid may lie off a curved swept
+/// surface when its corners lie on it.
+constexpr double kSweptSurfaceBulge = 0.05;
+/// The most blade moves one face is checked across for a continuous sheet.
+constexpr std::int64_t kMostMovesAcrossAFace = 4096;
+
+}  // namespace
+
 std::size_t SubdivisionCutter::separate(VertexId vertex) {
   // Group the tetrahedra around the vertex: two are joined when they share a face through the
   // vertex that is not a cut face.
@@ -184,10 +194,29 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
     }
     allowed = std::max(allowed, offset);
   }
-  const std::int64_t nearest =
-      swept_->nearest(centroid(p), allowed * (1.0 + 1e-9) + round_off, nullptr);
+  std::int64_t nearest = swept_->nearest(centroid(p), allowed * (1.0 + 1e-9) + round_off, nullptr);
   if (nearest < 0) {
-    return false;
+    // A blade that turns as it moves (any hand, the mouse) sweeps a curved surface, flat only
+    // move by move: a face with its corners on it bulges off it in between by a small fraction
+    // of its size. That is allowed where the corners lie on one continuous sheet, swept by
+    // consecutive moves that all pass near the face; a face bridging two sheets (a path that
+    // comes back near itself) is not taken.
+    const double bulge = sheet_bulge(p, corners);
+    if (bulge <= 0.0) {
+      return false;
+    }
+    double off = 0.0;
+    nearest = swept_->nearest(centroid(p), bulge, &off);
+    if (nearest < 0) {
+      return false;
+    }
+    // Both tetrahedra farther off the sheet than the face bulges, each on its side: a flat one
+    // lying along the sheet stays whole on one side rather than being cut out of both.
+    const auto& plane = swept_->triangle(static_cast<std::size_t>(nearest));
+    const Vec3 normal = (plane[1] - plane[0]).cross(plane[2] - plane[0]).normalized();
+    const double here = normal.dot(centroid(rest_corners(mesh_, tet)) - plane[0]);
+    const double there = normal.dot(centroid(rest_corners(mesh_, neighbor)) - plane[0]);
+    return std::min(std::abs(here), std::abs(there)) > 2.0 * off && (here > 0.0) != (there > 0.0);
   }
   // Sides: each tetrahedron is on the side of its centroid (one side per tetrahedron, so a flat
   // one whose corners all lie on the cut joins one side and is not cut out of both; a thin
@@ -195,6 +224,35 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
   const auto& plane = swept_->triangle(static_cast<std::size_t>(nearest));
   return side_of(centroid(rest_corners(mesh_, tet)), plane) !=
          side_of(centroid(rest_corners(mesh_, neighbor)), plane);
+}
+
+double SubdivisionCutter::sheet_bulge(const std::array<Vec3, 3>& face,
+                                      const std::array<VertexId, 3>& corners) const {
+  std::int64_t first = std::numeric_limits<std::int64_t>::max();
+  std::int64_t last = std::numeric_limits<std::int64_t>::min();
+  const double size = longest_edge(face);
+  const double round_off = 1e-9 * size;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const std::int64_t nearest =
+        swept_->nearest(face[k], cut_offset_[corners[k]] * (1.0 + 1e-9) + round_off, nullptr);
+    if (nearest < 0) {
+      return 0.0;
+    }
+    const std::int64_t move = swept_->tag(static_cast<std::size_t>(nearest));
+    first = std::min(first, move);
+    last = std::max(last, move);
+  }
+  if (last - first > kMostMovesAcrossAFace) {
+    return 0.0;
+  }
+  // Every move from the first corner's to the last one's passes within the face's size.
+  const std::vector<std::int64_t> near = swept_->tags_within(centroid(face), size);
+  const auto begin = std::lower_bound(near.begin(), near.end(), first);
+  const auto end = std::upper_bound(near.begin(), near.end(), last);
+  if (end - begin != last - first + 1) {
+    return 0.0;
+  }
+  return kSweptSurfaceBulge * size;
 }
 
 std::vector<VertexId> SubdivisionCutter::mark_cut_faces() {
@@ -318,7 +376,9 @@ double SubdivisionCutter::face_reach(TetId tet, int local_face) const {
   for (int k = 0; k < 3; ++k) {
     offset = std::max(offset, cut_offset_[v[face[k]]]);
   }
-  return offset * (1.0 + 1e-9) + 1e-9 * longest_edge(rest_face(mesh_, tet, local_face));
+  // As far as a face on a curved sheet may bulge off it (sheet_bulge), so its side is found.
+  const double size = longest_edge(rest_face(mesh_, tet, local_face));
+  return std::max(offset * (1.0 + 1e-9) + 1e-9 * size, kSweptSurfaceBulge * size);
 }
 
 int SubdivisionCutter::swept_side(TetId tet, const Vec3& near_point, double radius) const {

@@ -23,7 +23,8 @@ std::uint64_t TriangleIndex::key(int level, const Cell& cell) {
          part(cell[2]);
 }
 
-void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const Vec3& box_high) {
+void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const Vec3& box_high,
+                        std::int64_t tag) {
   const Vec3 low = t[0].cwiseMin(t[1]).cwiseMin(t[2]).cwiseMax(box_low);
   const Vec3 high = t[0].cwiseMax(t[1]).cwiseMax(t[2]).cwiseMin(box_high);
   if ((low.array() > high.array()).any()) {
@@ -56,7 +57,7 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
     levels_.push_back(level);
   }
   const auto index = static_cast<std::uint32_t>(triangles_.size());
-  triangles_.push_back({t, box_low, box_high});
+  triangles_.push_back({t, box_low, box_high, tag});
   const double size = cell_size(level);
   // A cell meets the triangle only if its centre is within half its diagonal of it.
   const double reach2 = 0.75 * size * size * (1.0 + 1e-9);
@@ -162,6 +163,18 @@ bool TriangleIndex::any_within(const Vec3& point, double radius) const {
   return found;
 }
 
+std::vector<std::int64_t> TriangleIndex::tags_within(const Vec3& point, double radius) const {
+  std::vector<std::int64_t> tags;
+  const double radius2 = radius * radius;
+  within(point, radius, [&](std::uint32_t index, double) {
+    tags.push_back(triangles_[index].tag);
+    return radius2;  // every triangle within the radius
+  });
+  std::sort(tags.begin(), tags.end());
+  tags.erase(std::unique(tags.begin(), tags.end()), tags.end());
+  return tags;
+}
+
 void TriangleIndex::save_state(StateWriter& out) const {
   out.tag("swept triangles");
   out.value(finest_);
@@ -176,7 +189,7 @@ void TriangleIndex::load_state(StateReader& in) {
   levels_.clear();
   cells_.clear();
   for (const Stored& s : stored) {
-    add(s.corners, s.low, s.high);
+    add(s.corners, s.low, s.high, s.tag);
   }
   if (triangles_.size() != stored.size()) {
     in.fail("swept triangles", "a stored triangle was not accepted again");

@@ -22,14 +22,17 @@ class TriangleIndex {
   explicit TriangleIndex(double finest = 1.0) : finest_(finest) {}
   void set_finest_cell(double finest) { finest_ = finest; }
 
-  /// Adds a triangle, visible to queries only inside the box [low, high] (m).
+  /// Adds a triangle, visible to queries only inside the box [low, high] (m), with a tag the
+  /// caller chooses (the cutter's move number).
   void add(const std::array<Vec3, 3>& triangle,
            const Vec3& low = Vec3::Constant(-std::numeric_limits<double>::max()),
-           const Vec3& high = Vec3::Constant(std::numeric_limits<double>::max()));
+           const Vec3& high = Vec3::Constant(std::numeric_limits<double>::max()),
+           std::int64_t tag = 0);
   [[nodiscard]] std::size_t size() const { return triangles_.size(); }
   [[nodiscard]] const std::array<Vec3, 3>& triangle(std::size_t index) const {
     return triangles_[index].corners;
   }
+  [[nodiscard]] std::int64_t tag(std::size_t index) const { return triangles_[index].tag; }
   /// The triangles and their boxes; loading files them again in the same order.
   void save_state(StateWriter& out) const;
   void load_state(StateReader& in);
@@ -39,12 +42,15 @@ class TriangleIndex {
   [[nodiscard]] std::int64_t nearest(const Vec3& point, double radius, double* distance) const;
   /// Whether a stored triangle lies within `radius` (m) of `point`.
   [[nodiscard]] bool any_within(const Vec3& point, double radius) const;
+  /// The tags of every stored triangle within `radius` (m) of `point`, sorted, each once.
+  [[nodiscard]] std::vector<std::int64_t> tags_within(const Vec3& point, double radius) const;
 
  private:
   struct Stored {
     std::array<Vec3, 3> corners;
     Vec3 low;  ///< where it is valid (m)
     Vec3 high;
+    std::int64_t tag = 0;
   };
   using Cell = Eigen::Array<long, 3, 1>;
   [[nodiscard]] static std::uint64_t key(int level, const Cell& cell);

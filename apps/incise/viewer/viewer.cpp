@@ -46,9 +46,10 @@ struct Viewer::Graphics {
 Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
   glfwSetErrorCallback([](int, const char* description) { glfw_error = description; });
   if (glfwInit() != GLFW_TRUE) {
-    throw Error("incise view needs a display (X11 or Wayland); without one run it under "
-                "xvfb-run, or use incise run --render for pictures. GLFW: " +
-                glfw_error);
+    throw Error(
+        "incise view needs a display (X11 or Wayland); without one run it under "
+        "xvfb-run, or use incise run --render for pictures. GLFW: " +
+        glfw_error);
   }
   glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
   glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
@@ -64,9 +65,8 @@ Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
   glfwSwapInterval(options_.exit_after >= 0 ? 0 : 1);
   glfwSetWindowUserPointer(window_, this);
   // Installed before ImGui's, which chain to them.
-  glfwSetScrollCallback(window_, [](GLFWwindow* window, double, double y) {
-    viewer_of(window).on_scroll(y);
-  });
+  glfwSetScrollCallback(
+      window_, [](GLFWwindow* window, double, double y) { viewer_of(window).on_scroll(y); });
   glfwSetKeyCallback(window_, [](GLFWwindow* window, int key, int, int action, int) {
     if (action == GLFW_PRESS) {
       viewer_of(window).on_key(key);
@@ -132,9 +132,8 @@ void Viewer::start_engine() {
   }
   if (!camera_fitted_) {
     const FrameScene scene = frame_scene(*engine_);
-    render_.camera =
-        scene_camera(engine_->scene(), surface_bounds(scene.surface->triangles, scene.positions),
-                     aspect());
+    render_.camera = scene_camera(
+        engine_->scene(), surface_bounds(scene.surface->triangles, scene.positions), aspect());
     camera_fitted_ = true;
   }
   depth_ = 0.3 * body_radius();
@@ -213,9 +212,8 @@ void Viewer::handle_mouse() {
   if (free && left && !anchor_ && !dragging_camera_) {
     // A press on the body takes the scalpel; beside it, the camera.
     const FrameScene scene = frame_scene(*engine_);
-    const auto hit = hand_ != nullptr
-                         ? pick_surface(ray, scene.surface->triangles, scene.positions)
-                         : std::nullopt;
+    const auto hit = hand_ != nullptr ? pick_surface(ray, scene.surface->triangles, scene.positions)
+                                      : std::nullopt;
     if (hit) {
       anchor_ = hit->point;
       if (!hand_->taken()) {
@@ -239,8 +237,7 @@ void Viewer::handle_mouse() {
   }
   if (anchor_ && hand_ != nullptr) {
     if (left) {
-      hand_->live().set(
-          scalpel_pose(render_.camera, ray, *anchor_, depth_, 0.6 * body_radius()));
+      hand_->live().set(scalpel_pose(render_.camera, ray, *anchor_, depth_, 0.6 * body_radius()));
     } else {
       hand_->live().lift();
       anchor_.reset();
@@ -345,9 +342,15 @@ int Viewer::run() {
         action("mode", std::string(name_of(mode)));
       };
       switch (key) {
-        case GLFW_KEY_F: set_mode(RenderMode::kFaces); break;
-        case GLFW_KEY_G: set_mode(RenderMode::kWire); break;
-        case GLFW_KEY_C: set_mode(RenderMode::kCut); break;
+        case GLFW_KEY_F:
+          set_mode(RenderMode::kFaces);
+          break;
+        case GLFW_KEY_G:
+          set_mode(RenderMode::kWire);
+          break;
+        case GLFW_KEY_C:
+          set_mode(RenderMode::kCut);
+          break;
         case GLFW_KEY_H:
           highlight_active_ = !highlight_active_;
           action("highlight", highlight_active_ ? "on" : "off");
@@ -356,14 +359,21 @@ int Viewer::run() {
           playing_ = !playing_;
           action(playing_ ? "play" : "pause");
           break;
-        case GLFW_KEY_N: step_once_ = true; break;
+        case GLFW_KEY_N:
+          step_once_ = true;
+          break;
         case GLFW_KEY_R:
           action("reset");
           start_engine();
           break;
-        case GLFW_KEY_P: pending_screenshot_ = "incise_screenshot.png"; break;
-        case GLFW_KEY_ESCAPE: glfwSetWindowShouldClose(window_, GLFW_TRUE); break;
-        default: break;
+        case GLFW_KEY_P:
+          pending_screenshot_ = "incise_screenshot.png";
+          break;
+        case GLFW_KEY_ESCAPE:
+          glfwSetWindowShouldClose(window_, GLFW_TRUE);
+          break;
+        default:
+          break;
       }
     }
     handle_mouse();

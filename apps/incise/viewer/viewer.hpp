@@ -25,8 +25,8 @@ struct ViewerOptions {
   std::optional<std::filesystem::path> replay;
   std::optional<std::filesystem::path> record;
   std::optional<std::filesystem::path> screenshot;  ///< saved at exit
-  std::optional<std::filesystem::path> out;  ///< the first and last frame as a .vtu series
-  int exit_after = -1;                       ///< frames to play, then exit
+  std::optional<std::filesystem::path> out;         ///< the first and last frame as a .vtu series
+  int exit_after = -1;                              ///< frames to play, then exit
   int width = 1280;
   int height = 800;
   RenderMode mode = RenderMode::kFaces;

@@ -135,8 +135,9 @@ void Viewer::draw_panels() {
   if (!message_.empty()) {
     ImGui::TextWrapped("%s", message_.c_str());
   }
-  ImGui::TextDisabled("left: cut on the body, orbit beside it; right: orbit; middle or "
-                      "shift+right: pan; wheel: zoom, blade depth while cutting");
+  ImGui::TextDisabled(
+      "left: cut on the body, orbit beside it; right: orbit; middle or "
+      "shift+right: pan; wheel: zoom, blade depth while cutting");
   ImGui::End();
 }
 

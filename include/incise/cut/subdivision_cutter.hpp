@@ -73,6 +73,7 @@ struct CutStats {
   std::size_t candidate_tets = 0;  ///< tets the swept surface touched in the last move
   // Totals.
   std::size_t moves = 0;
+  std::size_t sweeps = 0;  ///< moves that swept some surface inside the body (the blade moved)
   std::size_t edges_split = 0;
   std::size_t vertices_snapped = 0;
   std::size_t vertices_duplicated = 0;
@@ -218,6 +219,11 @@ class SubdivisionCutter {
   /// Whether an interior face with all corners on the cut lies on the swept surface and parts
   /// the tetrahedra on its two sides (decided at rest).
   [[nodiscard]] bool parts_across_surface(TetId tet, int local_face, TetId neighbor) const;
+  /// How far (m) the face may bulge off the swept surface: 0 unless its corners lie on one
+  /// continuous sheet (their nearest swept triangles come from moves that all pass near the
+  /// face), else a small fraction of the face's size.
+  [[nodiscard]] double sheet_bulge(const std::array<Vec3, 3>& face,
+                                   const std::array<VertexId, 3>& corners) const;
   /// Thin regions that this move's cut faces would cut out (volume over cut area below the snap
   /// distance: slivers along the cut, not pieces the blade enclosed) are given back to the
   /// side they share most cut area with, by taking back the marks between them.
