@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "incise/render/image.hpp"
 #include "test_support.hpp"
 
 namespace incise {
@@ -398,6 +399,64 @@ TEST(Cli, RunRefusesBadPictureOptionsByName) {
     EXPECT_NE(run.err.find(named), std::string::npos) << arguments << ": " << run.err;
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "png" / "frame_000000.png"));
+}
+
+/// A pixel of cut tissue in a picture: deep red, unlike background, blade and exterior.
+std::size_t cut_pixels(const std::filesystem::path& png) {
+  std::size_t n = 0;
+  const Image image = read_png(png);
+  for (const Rgba& p : image.pixels()) {
+    n += p.r > 40 && p.r > 2 * p.g && p.r > 2 * p.b ? 1 : 0;
+  }
+  return n;
+}
+
+bool have_xvfb() {
+  return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
+}
+
+TEST(Cli, ViewReplaysAHandMadeCutUnderXvfbAndRunReplaysItBitForBit) {
+  // tests/data/mouse_cut.jsonl: incise view on the default scene, recorded with the mouse (the
+  // scene's own cut, then a diagonal stroke by hand at frame 80), 116 frames.
+  if (!have_xvfb()) {
+    if (std::getenv("INCISE_REQUIRE_GL") != nullptr) {
+      FAIL() << "INCISE_REQUIRE_GL is set and xvfb-run is missing (apt-get install xvfb)";
+    }
+    GTEST_SKIP() << "no xvfb-run here";
+  }
+  const auto dir = test::scratch_dir("view");
+  const std::string recording = std::string(INCISE_SOURCE_DIR) + "/tests/data/mouse_cut.jsonl";
+  const std::string xvfb = "xvfb-run -a -s '-screen 0 1280x1024x24' ";
+  const auto view = [&](const std::string& arguments) {
+    const std::string command = xvfb + INCISE_EXECUTABLE + " view --replay " + recording +
+                                " --size 640x480 " + arguments + " >" +
+                                (dir / "view.out").string() + " 2>&1";
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  ASSERT_EQ(view("--exit-after 0 --mode cut --screenshot " + (dir / "first.png").string()), 0)
+      << slurp(dir / "view.out");
+  ASSERT_EQ(view("--exit-after 116 --mode cut --screenshot " + (dir / "last.png").string() +
+                 " --out " + (dir / "view").string()),
+            0)
+      << slurp(dir / "view.out");
+  EXPECT_EQ(cut_pixels(dir / "first.png"), 0u);
+  EXPECT_GT(cut_pixels(dir / "last.png"), 300u);
+  // Without a window, the same recording gives the same final mesh, byte for byte.
+  const CommandResult run =
+      incise("run --replay " + recording + " --out " + (dir / "run").string());
+  ASSERT_EQ(run.code, 0) << run.err;
+  const std::string from_view = slurp(dir / "view" / "default_000116.vtu");
+  EXPECT_GT(from_view.size(), 1000u);
+  EXPECT_EQ(from_view, slurp(dir / "run" / "default_000116.vtu"));
+}
+
+TEST(Cli, ReplayRefusesABadRecordingByLine) {
+  const auto dir = test::scratch_dir("bad-replay");
+  std::ofstream(dir / "bad.jsonl") << "{\"incise_session\": 1}\n{\"frame\": 0}\n";
+  const CommandResult run = incise("run --replay " + (dir / "bad.jsonl").string());
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("bad.jsonl:2"), std::string::npos) << run.err;
 }
 
 }  // namespace

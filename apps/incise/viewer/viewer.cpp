@@ -377,7 +377,8 @@ int Viewer::run() {
       }
     }
     handle_mouse();
-    if (playing_ || step_once_) {
+    const bool reached = options_.exit_after >= 0 && engine_->frame() >= options_.exit_after;
+    if ((playing_ || step_once_) && !reached) {
       if (step_once_) {
         action("step");
       }
