@@ -13,7 +13,9 @@ incise="$root/build/release/apps/incise"
 data="$root/../shared/data"
 
 echo "== incise run: the default scene (the seed's Fig. 10: a scalpel cuts the 576-tet block, the wound opens)"
-"$incise" run --out "$out/default" --report "$out/default-report.json"
+"$incise" run --out "$out/default" --report "$out/default-report.json" \
+  --render "$out/default/pictures" --render-every 10
+echo "   pictures of the cut: $out/default/pictures/frame_000150.png (offscreen OpenGL)"
 echo "== incise generate box (the seed's 4 x 6 x 4-cell block, 576 tetrahedra)"
 "$incise" generate box --cells 4 6 4 --size 0.04 0.06 0.04 --tets-per-cell 6 -o "$out/block.vtu"
 "$incise" info "$out/block.vtu"
@@ -26,5 +28,5 @@ if [ -d "$data" ]; then
 else
   echo "(../shared/data not found: skipped the real-mesh part)"
 fi
-echo "== outputs (open the .vtu files in ParaView): $out"
+echo "== outputs (open the .vtu files in ParaView; cut by hand with: build/release/apps/incise view): $out"
 ls -l "$out"
