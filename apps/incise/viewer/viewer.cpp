@@ -325,7 +325,15 @@ void Viewer::apply_settings() {
 
 int Viewer::run() {
   bool screenshot_saved = false;
+  // Frame times (s) of the frames that stepped the physics: the whole loop iteration
+  // (events, physics, drawing, panels, swap), physics alone and the 3-D drawing.
+  double loop_seconds = 0.0;
+  double physics_seconds = 0.0;
+  double draw_seconds = 0.0;
+  int timed_frames = 0;
   while (glfwWindowShouldClose(window_) == 0) {
+    const auto loop_start = Clock::now();
+    bool stepped = false;
     glfwPollEvents();
     ImGui_ImplOpenGL3_NewFrame();
     ImGui_ImplGlfw_NewFrame();
@@ -382,8 +390,10 @@ int Viewer::run() {
       if (step_once_) {
         action("step");
       }
+      const int before = engine_->frame();
       step_engine();
       step_once_ = false;
+      stepped = engine_->frame() != before;
     }
     draw_scene();
     const bool done = options_.exit_after >= 0 && engine_->frame() >= options_.exit_after;
@@ -399,6 +409,13 @@ int Viewer::run() {
     ImGui::Render();
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
     glfwSwapBuffers(window_);
+    if (stepped) {
+      const FrameRecord& record = engine_->last_frame();
+      loop_seconds += seconds_since(loop_start);
+      physics_seconds += record.cd + record.gc + record.rx;
+      draw_seconds += 1e-3 * draw_ms_;
+      ++timed_frames;
+    }
     if (done) {
       break;
     }
@@ -415,6 +432,12 @@ int Viewer::run() {
     write_session(*options_.record, recording_);
   }
   std::cerr << "incise view: " << engine_->frame() << " frames";
+  if (timed_frames > 0) {
+    const double n = timed_frames;
+    std::cerr << ", " << 1e3 * loop_seconds / n << " ms per frame (" << n / loop_seconds
+              << " frames/s: physics " << 1e3 * physics_seconds / n << " ms, drawing "
+              << 1e3 * draw_seconds / n << " ms)";
+  }
   if (options_.record) {
     std::cerr << ", session recorded to " << options_.record->string();
   }
