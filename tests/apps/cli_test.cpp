@@ -459,5 +459,31 @@ TEST(Cli, ReplayRefusesABadRecordingByLine) {
   EXPECT_NE(run.err.find("bad.jsonl:2"), std::string::npos) << run.err;
 }
 
+TEST(Cli, RunWritesAVideoThroughFfmpegOrSaysItIsMissing) {
+  const auto dir = test::scratch_dir("video");
+  const std::string arguments = "run --frames 12 --out " + (dir / "out").string() + " --render " +
+                                (dir / "png").string() + " --size 161x121 --video " +
+                                (dir / "cut.mp4").string();
+  // Without ffmpeg on PATH: a clear error before anything is drawn.
+  const std::string command = "PATH=" + (dir / "empty").string() + " " + INCISE_EXECUTABLE + " " +
+                              arguments + " 2>" + (dir / "err").string() + " >/dev/null";
+  const int status = std::system(command.c_str());
+  EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 2);
+  EXPECT_NE(slurp(dir / "err").find("needs the ffmpeg program"), std::string::npos)
+      << slurp(dir / "err");
+  if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "ffmpeg is not installed here (apt-get install ffmpeg)";
+  }
+  const CommandResult run = incise(arguments);
+  if (run.code != 0 && run.err.find("offscreen rendering") != std::string::npos &&
+      std::getenv("INCISE_REQUIRE_GL") == nullptr) {
+    GTEST_SKIP() << "no OpenGL here";
+  }
+  ASSERT_EQ(run.code, 0) << run.err;
+  const std::string video = slurp(dir / "cut.mp4");
+  ASSERT_GT(video.size(), 1000u);
+  EXPECT_EQ(video.substr(4, 4), "ftyp");  // an MP4 container
+}
+
 }  // namespace
 }  // namespace incise
