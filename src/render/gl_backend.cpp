@@ -5,7 +5,9 @@
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>
 
+#include <array>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "incise/core/error.hpp"
@@ -239,15 +241,19 @@ void GlBackend::draw(const DrawCall& call) {
     glUniform3f(colour, 0.78F, 0.80F, 0.84F);
     glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(call.blade_quad.size() / 3));
   }
-  if (!call.lines.empty()) {
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(call.lines.size() * sizeof(float)),
-                 call.lines.data(), GL_STREAM_DRAW);
-    glDisable(GL_DEPTH_TEST);  // highlights show through the body
-    glUniform1i(shading, 2);
-    glUniform3f(colour, 1.0F, 0.85F, 0.1F);
-    glDrawArrays(GL_LINES, 0, static_cast<GLsizei>(call.lines.size() / 3));
-    glEnable(GL_DEPTH_TEST);
+  glDisable(GL_DEPTH_TEST);  // highlights show through the body
+  glUniform1i(shading, 2);
+  for (const auto& [lines, rgb] : {std::pair{&call.lines, std::array{1.0F, 0.85F, 0.1F}},
+                                   std::pair{&call.cut_lines, std::array{0.1F, 0.9F, 1.0F}}}) {
+    if (lines->empty()) {
+      continue;
+    }
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(lines->size() * sizeof(float)),
+                 lines->data(), GL_STREAM_DRAW);
+    glUniform3f(colour, rgb[0], rgb[1], rgb[2]);
+    glDrawArrays(GL_LINES, 0, static_cast<GLsizei>(lines->size() / 3));
   }
+  glEnable(GL_DEPTH_TEST);
   glBindVertexArray(0);
   if (const GLenum error = glGetError(); error != GL_NO_ERROR) {
     throw Error("OpenGL error " + std::to_string(error) + " while drawing a frame");

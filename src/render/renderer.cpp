@@ -162,6 +162,10 @@ void Renderer::render(const RenderInput& input, const RenderOptions& options) {
     push(call.lines, segment[0]);
     push(call.lines, segment[1]);
   }
+  for (const auto& segment : input.cut_edges) {
+    push(call.cut_lines, segment[0]);
+    push(call.cut_lines, segment[1]);
+  }
   backend_->draw(call);
 }
 

@@ -21,6 +21,7 @@ RenderInput FrameScene::input() const {
   input.positions = positions;
   input.blade = blade;
   input.highlights = highlights;
+  input.cut_edges = cut_edges;
   return input;
 }
 
@@ -37,8 +38,10 @@ FrameScene frame_scene(const Engine& engine, bool highlight_active) {
       const Tet& v = mesh.tet(tet);
       for (int a = 0; a < 4; ++a) {
         for (int b = a + 1; b < 4; ++b) {
-          scene.highlights.push_back({scene.positions[static_cast<std::size_t>(v[a])],
-                                      scene.positions[static_cast<std::size_t>(v[b])]});
+          const std::array<Vec3, 2> edge{scene.positions[static_cast<std::size_t>(v[a])],
+                                         scene.positions[static_cast<std::size_t>(v[b])]};
+          const bool cut = engine.cutter()->on_cut(v[a]) && engine.cutter()->on_cut(v[b]);
+          (cut ? scene.cut_edges : scene.highlights).push_back(edge);
         }
       }
     }

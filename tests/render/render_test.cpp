@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "incise/cut/subdivision_cutter.hpp"
 #include "incise/render/camera.hpp"
 #include "incise/render/image.hpp"
 #include "incise/render/renderer.hpp"
@@ -167,6 +168,27 @@ TEST(Renderer, BuffersFollowEveryCutAndEveryFaceHasTextureCoordinates) {
   EXPECT_GT(surface_changes, 10);
   EXPECT_LT(surface_changes, 152);  // not re-uploaded when nothing changed
   EXPECT_FALSE(backend.last_call.blade_quad.empty());
+}
+
+TEST(Renderer, HighlightsTheActiveTetrahedraAndTheEdgesTheBladeHasCut) {
+  Engine engine(short_default(75));
+  for (int k = 0; k < 75; ++k) {
+    ASSERT_TRUE(engine.step());
+  }
+  ASSERT_FALSE(engine.cutter()->active_tets().empty());
+  const FrameScene plain = frame_scene(engine);
+  EXPECT_TRUE(plain.highlights.empty());
+  const FrameScene scene = frame_scene(engine, true);
+  EXPECT_EQ(scene.highlights.size() + scene.cut_edges.size(),
+            6 * engine.cutter()->active_tets().size());
+  EXPECT_FALSE(scene.cut_edges.empty());  // the blade is in the middle of the block
+  NullBackend backend;
+  Renderer renderer(backend);
+  RenderOptions options;
+  options.camera = fit_camera(surface_bounds(scene.surface->triangles, scene.positions), 1.0);
+  renderer.render(scene.input(), options);
+  EXPECT_EQ(backend.last_call.lines.size(), 6 * scene.highlights.size());
+  EXPECT_EQ(backend.last_call.cut_lines.size(), 6 * scene.cut_edges.size());
 }
 
 TEST(Renderer, ATriangleOutsideThePositionsIsAnErrorNamingIt) {

@@ -38,8 +38,10 @@ struct RenderInput {
   std::span<const Vec3> positions;       ///< per vertex, current (m)
   /// The blade as a segment, tip then base (m), if the tool is on.
   std::optional<std::array<Vec3, 2>> blade;
-  /// Lines drawn on top (active tetrahedra, cut edges), m.
+  /// Lines drawn on top: the active tetrahedra's edges (yellow) and the edges on the cut
+  /// among them (cyan), m.
   std::span<const std::array<Vec3, 2>> highlights;
+  std::span<const std::array<Vec3, 2>> cut_edges;
 };
 
 struct RenderOptions {
@@ -80,6 +82,7 @@ struct DrawCall {
   Rgba background;
   std::vector<float> blade_quad;  ///< two triangles, 18 floats; empty without a blade
   std::vector<float> lines;       ///< 6 floats per segment
+  std::vector<float> cut_lines;   ///< 6 floats per segment, drawn in a second colour
 };
 
 class RenderBackend {

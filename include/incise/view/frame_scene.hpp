@@ -21,11 +21,13 @@ struct FrameScene {
   std::shared_ptr<const Snapshot> snapshot;
   std::optional<std::array<Vec3, 2>> blade;
   std::vector<std::array<Vec3, 2>> highlights;
+  std::vector<std::array<Vec3, 2>> cut_edges;
   [[nodiscard]] RenderInput input() const;
 };
 
 /// The engine's current frame; `highlight_active` adds the edges of the cutter's active
-/// tetrahedra (the ones the blade is in). Only on the engine's thread, between steps.
+/// tetrahedra (the ones the blade is in), and apart those of them on the cut (both ends on
+/// it: the edges the blade has cut through). Only on the engine's thread, between steps.
 [[nodiscard]] FrameScene frame_scene(const Engine& engine, bool highlight_active = false);
 /// A published snapshot: safe on any thread.
 [[nodiscard]] FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot);
