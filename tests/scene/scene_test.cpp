@@ -148,6 +148,49 @@ TEST(SceneParsing, CorotationalFemKeys) {
       std::string::npos);
 }
 
+TEST(SceneParsing, CameraKey) {
+  const SceneDescription scene = parse_scene(
+      R"({"mesh": {"box": {"cells": [2, 2, 2]}},
+          "camera": {"eye": [0.1, -0.2, 0.3], "target": [0, 0, 0.01], "fov": 40}})",
+      "scene.json");
+  ASSERT_TRUE(scene.camera.has_value());
+  EXPECT_EQ(scene.camera->eye, Vec3(0.1, -0.2, 0.3));
+  EXPECT_EQ(scene.camera->target, Vec3(0, 0, 0.01));
+  EXPECT_EQ(scene.camera->up, Vec3::UnitZ());
+  EXPECT_EQ(scene.camera->fov_degrees, 40.0);
+  EXPECT_FALSE(parse_scene(kMinimal, "scene.json").camera.has_value());
+  const std::string box = R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "camera": )";
+  EXPECT_NE(error_of(box + R"({"eye": [1, 0, 0]}})").find("camera"), std::string::npos);
+  EXPECT_NE(error_of(box + R"({"eye": [1, 0, 0], "target": [1, 0, 0]}})").find("camera.eye"),
+            std::string::npos);
+  EXPECT_NE(error_of(box + R"({"eye": [0, 0, 1], "target": [0, 0, 0]}})").find("camera.up"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(box + R"({"eye": [1, 0, 0], "target": [0, 0, 0], "fov": 180}})").find("camera.fov"),
+      std::string::npos);
+  EXPECT_NE(error_of(box + R"({"eye": [1, 0, 0], "target": [0, 0, 0], "zoom": 2}})").find("zoom"),
+            std::string::npos);
+}
+
+TEST(SceneParsing, ACutterWithoutAToolWaitsForALiveOne) {
+  const SceneDescription scene =
+      parse_scene(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "cutter": {"type": "subdivision"}})",
+                  "scene.json");
+  EXPECT_EQ(scene.tool.cutter, CutterKind::kSubdivision);
+  EXPECT_TRUE(scene.tool.poses.empty());
+  Engine engine(scene);
+  auto live = std::make_unique<LiveToolPose>();
+  LiveToolPose& hand = *live;
+  engine.set_tool_source(std::move(live));
+  const std::size_t tets = engine.mesh().tet_count();
+  for (int k = 0; k <= 10; ++k) {
+    const double x = -0.002 + 0.0022 * k;
+    hand.set({0.0, Vec3(x, 0.013, 0.01), Vec3(x, 0.013, 0.05)});
+    ASSERT_TRUE(engine.step());
+  }
+  EXPECT_GT(engine.mesh().tet_count(), tets);
+}
+
 TEST(SceneParsing, MalformedJsonNamesTheLine) {
   const std::string message =
       error_of("{\n  \"mesh\": {\"box\": {\"cells\": [2, 2, 2]}},\n  \"frames\": 10,\n}\n");
