@@ -12,6 +12,7 @@
 
 #include "cutter_helpers.hpp"
 #include "incise/core/error.hpp"
+#include "incise/cut/separation.hpp"
 #include "incise/cut/subdivision_cutter.hpp"
 #include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
@@ -33,66 +34,10 @@ constexpr std::int64_t kMostMovesAcrossAFace = 4096;
 }  // namespace
 
 std::size_t SubdivisionCutter::separate(VertexId vertex) {
-  // Group the tetrahedra around the vertex: two are joined when they share a face through the
-  // vertex that is not a cut face.
-  const std::vector<TetId> around(mesh_.vertex_tets(vertex).begin(),
-                                  mesh_.vertex_tets(vertex).end());
-  if (around.size() < 2) {
-    return 0;
-  }
-  std::vector<std::size_t> parent(around.size());
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](std::size_t i) {
-    while (parent[i] != i) {
-      parent[i] = parent[parent[i]];
-      i = parent[i];
-    }
-    return i;
-  };
-  std::map<TetId, std::size_t> index;
-  for (std::size_t i = 0; i < around.size(); ++i) {
-    index[around[i]] = i;
-  }
-  for (std::size_t i = 0; i < around.size(); ++i) {
-    const TetId t = around[i];
-    const int local = mesh_.local_index(t, vertex);
-    for (int f = 0; f < 4; ++f) {
-      if (f == local) {
-        continue;  // the face opposite the vertex does not contain it
-      }
-      const TetId neighbor = mesh_.tet_neighbors(t)[f];
-      if (neighbor < 0 || neighbor < t) {
-        continue;
-      }
-      if (marks_.is_cut(t, f)) {
-        continue;
-      }
-      const auto it = index.find(neighbor);
-      if (it != index.end()) {
-        parent[find(i)] = find(it->second);
-      }
-    }
-  }
-  std::map<std::size_t, std::vector<TetId>> groups;
-  for (std::size_t i = 0; i < around.size(); ++i) {
-    groups[find(i)].push_back(around[i]);
-  }
-  if (groups.size() < 2) {
-    return 0;
-  }
-  // The group holding the smallest tet id keeps the vertex; every other group gets a copy.
-  std::size_t copies = 0;
-  bool first = true;
-  for (auto& [root, tets] : groups) {
-    if (first) {
-      first = false;
-      continue;
-    }
-    (void)mesh_.duplicate_vertex(vertex, tets);
-    separated_.push_back(vertex);
-    ++copies;
-  }
-  return copies;
+  const std::vector<VertexId> copies = separate_at_cut_faces(
+      mesh_, vertex, [this](TetId tet, int face) { return marks_.is_cut(tet, face); });
+  separated_.insert(separated_.end(), copies.size(), vertex);
+  return copies.size();
 }
 
 void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
@@ -102,7 +47,6 @@ void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
   // Every round rescans the whole neighbourhood touched so far: separating one vertex can pinch
   // an edge between two others.
   for (int round = 0; round < 64; ++round) {
-    std::vector<std::pair<VertexId, VertexId>> pinched;
     std::sort(vertices.begin(), vertices.end());
     vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
     // Groups around a vertex that now touch only along edges come apart first.
@@ -113,32 +57,8 @@ void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
     for (auto v = first_copy; static_cast<std::size_t>(v) < mesh_.vertex_count(); ++v) {
       vertices.push_back(v);
     }
-    for (VertexId v : vertices) {
-      if (static_cast<std::size_t>(v) >= mesh_.vertex_count()) {
-        continue;
-      }
-      std::map<VertexId, int> boundary_faces;
-      for (TetId t : mesh_.vertex_tets(v)) {
-        const Tet& tet = mesh_.tet(t);
-        for (int f = 0; f < 4; ++f) {
-          if (mesh_.tet_neighbors(t)[f] != kBoundaryFace || f == mesh_.local_index(t, v)) {
-            continue;
-          }
-          for (int k : tet_local::kFaces[f]) {
-            if (tet[k] != v) {
-              ++boundary_faces[tet[k]];
-            }
-          }
-        }
-      }
-      for (const auto& [w, count] : boundary_faces) {
-        if (count > 2 && (on_cut_[v] != 0 || on_cut_[w] != 0)) {
-          pinched.emplace_back(std::min(v, w), std::max(v, w));
-        }
-      }
-    }
-    std::sort(pinched.begin(), pinched.end());
-    pinched.erase(std::unique(pinched.begin(), pinched.end()), pinched.end());
+    const std::vector<std::pair<VertexId, VertexId>> pinched =
+        pinched_edges(mesh_, vertices, [this](VertexId v) { return on_cut_[v] != 0; });
     if (pinched.empty()) {
       return;
     }

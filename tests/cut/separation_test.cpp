@@ -5,6 +5,8 @@
 // Every tetrahedral mesh in ../shared/data (SOFA, SOFA-MOR, PBD, libigl), plus random blade
 // walks over randomly perturbed grids and real meshes.
 
+#include "incise/cut/separation.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -356,6 +358,44 @@ TEST(TwistingBlade, AFullCutSeparatesAndAPartialCutOpensAlongItsWholeLength) {
     // The wound: about 2 cm deep along the 4 cm block, both faces opened.
     EXPECT_GT(cutter.stats().cut_area, 0.8 * 0.04 * 0.02);
   }
+}
+
+TEST(SeparateAtCutFaces, OpensABodyAlongAnyCutFacePredicate) {
+  // What another cutter (XFEM) reuses: no subdivision cutter here, only a rule for which faces
+  // are cut. Faces lying in the plane x = 0.02 of the 4 x 6 x 4-cell block part it in two.
+  BoxGridOptions options;
+  options.cells = {4, 6, 4};
+  options.size = Vec3(0.04, 0.06, 0.04);
+  TetMesh mesh = make_box_grid(options);
+  const double volume = total_volume(mesh);
+  const auto in_plane = [&](TetId tet, int face) {
+    for (int k : tet_local::kFaces[face]) {
+      if (std::abs(mesh.rest_position(mesh.tet(tet)[k]).x() - 0.02) > 1e-12) {
+        return false;
+      }
+    }
+    return true;
+  };
+  std::vector<VertexId> on_plane;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    if (std::abs(mesh.rest_position(static_cast<VertexId>(v)).x() - 0.02) < 1e-12) {
+      on_plane.push_back(static_cast<VertexId>(v));
+    }
+  }
+  ASSERT_EQ(on_plane.size(), 7u * 5u);
+  std::size_t copies = 0;
+  for (VertexId v : on_plane) {
+    copies += separate_at_cut_faces(mesh, v, in_plane).size();
+  }
+  EXPECT_EQ(copies, on_plane.size());  // every vertex of the plane, once
+  EXPECT_TRUE(validate(mesh).ok());
+  EXPECT_NEAR(total_volume(mesh), volume, 1e-15);
+  const Pieces pieces = pieces_across(mesh, 0.0);
+  EXPECT_EQ(pieces.by_faces, 2);
+  EXPECT_EQ(pieces.by_vertices, 2);
+  EXPECT_TRUE(pinched_edges(mesh, on_plane, [](VertexId) { return true; }).empty());
+  // A predicate that cuts nothing separates nothing.
+  EXPECT_TRUE(separate_at_cut_faces(mesh, 0, [](TetId, int) { return false; }).empty());
 }
 
 TEST(RandomBladeWalks, KeepEveryInvariantAfterEveryPose) {
