@@ -321,6 +321,16 @@ void Engine::Parts::publish() {
   snapshot->cd = last.cd;
   snapshot->gc = last.gc;
   snapshot->rx = last.rx;
+  snapshot->tets = mesh.tet_count();
+  if (cutter) {
+    for (TetId t : cutter->active_tets()) {
+      ActiveTet active{mesh.tet(t), 0};
+      for (int k = 0; k < 4; ++k) {
+        active.on_cut |= static_cast<std::uint8_t>(cutter->on_cut(active.vertices[k]) ? 1 << k : 0);
+      }
+      snapshot->active.push_back(active);
+    }
+  }
   channel.publish(std::move(snapshot));
 }
 

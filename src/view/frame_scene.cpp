@@ -49,12 +49,25 @@ FrameScene frame_scene(const Engine& engine, bool highlight_active) {
   return scene;
 }
 
-FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot) {
+FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot, bool highlight_active) {
   FrameScene scene;
   scene.surface = snapshot->surface;
   scene.positions = snapshot->positions;
   if (snapshot->blade) {
     scene.blade = segment(*snapshot->blade);
+  }
+  if (highlight_active) {
+    for (const ActiveTet& tet : snapshot->active) {
+      for (int a = 0; a < 4; ++a) {
+        for (int b = a + 1; b < 4; ++b) {
+          const std::array<Vec3, 2> edge{
+              scene.positions[static_cast<std::size_t>(tet.vertices[a])],
+              scene.positions[static_cast<std::size_t>(tet.vertices[b])]};
+          const bool cut = ((tet.on_cut >> a) & 1) != 0 && ((tet.on_cut >> b) & 1) != 0;
+          (cut ? scene.cut_edges : scene.highlights).push_back(edge);
+        }
+      }
+    }
   }
   scene.snapshot = std::move(snapshot);
   return scene;

@@ -8,9 +8,11 @@
 #include <imgui_impl_glfw.h>
 #include <imgui_impl_opengl3.h>
 
+#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
@@ -97,6 +99,7 @@ Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
 }
 
 Viewer::~Viewer() {
+  thread_.reset();  // the physics stops before its sinks and engine go
   engine_.reset();
   graphics_.reset();
   ImGui_ImplOpenGL3_Shutdown();
@@ -107,6 +110,7 @@ Viewer::~Viewer() {
 }
 
 void Viewer::start_engine() {
+  thread_.reset();  // stopped: pending actions are recorded into the old segment
   engine_.reset();  // its sinks go before they are replaced
   hand_ = nullptr;
   if (replay_) {
@@ -130,8 +134,12 @@ void Viewer::start_engine() {
     series_ = std::make_unique<VtuSeriesSink>(*options_.out, name, 1 << 30);
     engine_->add_sink(*series_);
   }
+  integrator_name_ = std::string(engine_->integrator().name());
+  engine_->publish_snapshots(true);
+  snapshot_ = engine_->snapshots().latest();
+  seen_frame_ = snapshot_->frame;
   if (!camera_fitted_) {
-    const FrameScene scene = frame_scene(*engine_);
+    const FrameScene scene = frame_scene(snapshot_);
     render_.camera = scene_camera(
         engine_->scene(), surface_bounds(scene.surface->triangles, scene.positions), aspect());
     camera_fitted_ = true;
@@ -141,10 +149,13 @@ void Viewer::start_engine() {
   for (auto* series : {&timing_.cd, &timing_.gc, &timing_.rx, &timing_.rd}) {
     series->clear();
   }
+  // Interactive: paced to the scene's frame time; scripted (--exit-after): as fast as it goes.
+  thread_ = std::make_unique<EngineThread>(*engine_, playing_, options_.exit_after,
+                                           options_.exit_after < 0);
 }
 
 double Viewer::body_radius() const {
-  const FrameScene scene = frame_scene(*engine_);
+  const FrameScene scene = frame_scene(snapshot_);
   return surface_bounds(scene.surface->triangles, scene.positions).radius();
 }
 
@@ -156,8 +167,10 @@ double Viewer::aspect() const {
 }
 
 void Viewer::action(const std::string& name, const std::string& value) {
-  if (recorder_) {
-    recorder_->action(engine_->frame(), name, value);
+  if (recorder_ && thread_) {
+    // On the engine's thread, between frames: the action gets the frame it happened before.
+    thread_->run_on_engine(
+        [this, name, value](Engine& engine) { recorder_->action(engine.frame(), name, value); });
   }
 }
 
@@ -165,28 +178,28 @@ void Viewer::on_key(int key) {
   keys_.push_back(key);
 }
 
-void Viewer::step_engine() {
-  if (engine_->diverged()) {
-    playing_ = false;
+void Viewer::take_snapshot() {
+  snapshot_ = engine_->snapshots().latest();
+  if (snapshot_->frame == seen_frame_) {
     return;
   }
-  if (!engine_->step()) {
-    playing_ = false;
-    message_ = engine_->divergence();
-    return;
-  }
-  ++frames_played_;
-  const FrameRecord& record = engine_->last_frame();
-  push(timing_.cd, 1e3 * record.cd);
-  push(timing_.gc, 1e3 * record.gc);
-  push(timing_.rx, 1e3 * record.rx);
+  const int previous = seen_frame_;
+  seen_frame_ = snapshot_->frame;
+  physics_frames_ += std::max(0, seen_frame_ - previous);
+  push(timing_.cd, 1e3 * snapshot_->cd);
+  push(timing_.gc, 1e3 * snapshot_->gc);
+  push(timing_.rx, 1e3 * snapshot_->rx);
   push(timing_.rd, draw_ms_);
   if (replay_) {
-    // The replayed session's view changes, at their frames.
+    // The replayed session's view changes, at the frames they were made (or the first drawn
+    // after them).
     for (const SessionAction& recorded : replay_->segments.back().actions) {
-      if (recorded.frame == engine_->frame() && recorded.name == "mode") {
+      if (recorded.frame <= previous || recorded.frame > seen_frame_) {
+        continue;
+      }
+      if (recorded.name == "mode") {
         render_.mode = parse_render_mode(recorded.value).value_or(render_.mode);
-      } else if (recorded.frame == engine_->frame() && recorded.name == "highlight") {
+      } else if (recorded.name == "highlight") {
         highlight_active_ = recorded.value == "on";
       }
     }
@@ -211,7 +224,7 @@ void Viewer::handle_mouse() {
 
   if (free && left && !anchor_ && !dragging_camera_) {
     // A press on the body takes the scalpel; beside it, the camera.
-    const FrameScene scene = frame_scene(*engine_);
+    const FrameScene scene = frame_scene(snapshot_);
     const auto hit = hand_ != nullptr ? pick_surface(ray, scene.surface->triangles, scene.positions)
                                       : std::nullopt;
     if (hit) {
@@ -271,7 +284,7 @@ void Viewer::draw_scene() {
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   render_.width = width;
   render_.height = height;
-  const FrameScene scene = frame_scene(*engine_, highlight_active_);
+  const FrameScene scene = frame_scene(snapshot_, highlight_active_);
   graphics_->renderer.render(scene.input(), render_);
   glFinish();  // what the frame costs, not what the driver queued
   draw_ms_ = 1e3 * seconds_since(start);
@@ -325,15 +338,15 @@ void Viewer::apply_settings() {
 
 int Viewer::run() {
   bool screenshot_saved = false;
-  // Frame times (s) of the frames that stepped the physics: the whole loop iteration
-  // (events, physics, drawing, panels, swap), physics alone and the 3-D drawing.
-  double loop_seconds = 0.0;
-  double physics_seconds = 0.0;
+  // Drawn frames (events, drawing, panels, swap) and physics frames over the run's wall time.
   double draw_seconds = 0.0;
-  int timed_frames = 0;
+  int drawn_frames = 0;
+  const auto run_start = Clock::now();
   while (glfwWindowShouldClose(window_) == 0) {
-    const auto loop_start = Clock::now();
-    bool stepped = false;
+    const auto frame_start = std::chrono::steady_clock::now();
+    // Asked before the snapshot is taken: once finished, the snapshot is the last frame.
+    const bool finished = thread_->finished();
+    take_snapshot();
     glfwPollEvents();
     ImGui_ImplOpenGL3_NewFrame();
     ImGui_ImplGlfw_NewFrame();
@@ -364,11 +377,12 @@ int Viewer::run() {
           action("highlight", highlight_active_ ? "on" : "off");
           break;
         case GLFW_KEY_SPACE:
-          playing_ = !playing_;
-          action(playing_ ? "play" : "pause");
+          thread_->set_playing(!thread_->playing());
+          action(thread_->playing() ? "play" : "pause");
           break;
         case GLFW_KEY_N:
-          step_once_ = true;
+          action("step");
+          thread_->step_once();
           break;
         case GLFW_KEY_R:
           action("reset");
@@ -385,18 +399,14 @@ int Viewer::run() {
       }
     }
     handle_mouse();
-    const bool reached = options_.exit_after >= 0 && engine_->frame() >= options_.exit_after;
-    if ((playing_ || step_once_) && !reached) {
-      if (step_once_) {
-        action("step");
-      }
-      const int before = engine_->frame();
-      step_engine();
-      step_once_ = false;
-      stepped = engine_->frame() != before;
-    }
     draw_scene();
-    const bool done = options_.exit_after >= 0 && engine_->frame() >= options_.exit_after;
+    draw_seconds += 1e-3 * draw_ms_;
+    ++drawn_frames;
+    // The physics thread stops at exit_after, or earlier if the simulation diverged.
+    const bool done = options_.exit_after >= 0 && finished;
+    if (finished && options_.exit_after < 0 && message_.empty()) {
+      message_ = "the simulation diverged (the reason is printed at exit); reset with R";
+    }
     if (pending_screenshot_) {
       save_screenshot(*pending_screenshot_);
       pending_screenshot_.reset();
@@ -409,21 +419,20 @@ int Viewer::run() {
     ImGui::Render();
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
     glfwSwapBuffers(window_);
-    if (stepped) {
-      const FrameRecord& record = engine_->last_frame();
-      loop_seconds += seconds_since(loop_start);
-      physics_seconds += record.cd + record.gc + record.rx;
-      draw_seconds += 1e-3 * draw_ms_;
-      ++timed_frames;
-    }
     if (done) {
       break;
     }
-    if (engine_->diverged() && options_.exit_after >= 0) {
-      break;  // scripted: nothing more will happen
+    if (options_.exit_after < 0) {
+      // At most 60 drawn frames/s: without vsync (Xvfb, some drivers) drawing would take the
+      // cores the physics needs.
+      std::this_thread::sleep_until(frame_start + std::chrono::microseconds(16'667));
     }
   }
+  const double wall = seconds_since(run_start);
+  const double physics_rate = thread_->frames_per_second();
+  thread_->stop();  // the engine is this thread's again
   if (options_.screenshot && !screenshot_saved) {
+    snapshot_ = engine_->snapshots().latest();
     draw_scene();
     save_screenshot(*options_.screenshot);
   }
@@ -432,11 +441,10 @@ int Viewer::run() {
     write_session(*options_.record, recording_);
   }
   std::cerr << "incise view: " << engine_->frame() << " frames";
-  if (timed_frames > 0) {
-    const double n = timed_frames;
-    std::cerr << ", " << 1e3 * loop_seconds / n << " ms per frame (" << n / loop_seconds
-              << " frames/s: physics " << 1e3 * physics_seconds / n << " ms, drawing "
-              << 1e3 * draw_seconds / n << " ms)";
+  if (drawn_frames > 0 && wall > 0.0) {
+    std::cerr << "; drawn " << drawn_frames / wall << " frames/s (3-D drawing "
+              << 1e3 * draw_seconds / drawn_frames << " ms), physics " << physics_frames_ / wall
+              << " frames/s (" << physics_rate << " frames/s of stepping time)";
   }
   if (options_.record) {
     std::cerr << ", session recorded to " << options_.record->string();

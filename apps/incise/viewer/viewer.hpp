@@ -1,8 +1,10 @@
 #pragma once
 // `incise view`: a GLFW window with the body drawn by the OpenGL renderer, Dear ImGui panels
 // (play, pause, step, reset; settings; mesh statistics; per-stage timing plot) and the mouse
-// scalpel. One thread: each drawn frame steps the engine once while playing, so a session is
-// the same frames whatever the frame rate, and a recording replays it exactly.
+// scalpel. The physics steps on its own thread (EngineThread), paced to the scene's frame time;
+// the window draws the latest published snapshot, so a frame costs the larger of physics and
+// drawing, not their sum. A recording holds the pose each physics frame took, so it replays
+// exactly whatever the frame rates were.
 
 #include <array>
 #include <deque>
@@ -11,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "engine_thread.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/render/renderer.hpp"
 #include "incise/view/mouse_scalpel.hpp"
@@ -49,8 +52,8 @@ class Viewer {
   struct Timing {
     std::deque<float> cd, gc, rx, rd;  ///< ms, the last frames
   };
-  void start_engine();  ///< (re)builds the engine from scene_ (or the replay)
-  void step_engine();
+  void start_engine();   ///< (re)builds the engine from scene_ (or the replay) and its thread
+  void take_snapshot();  ///< the latest published frame, its timings and replayed actions
   void handle_mouse();
   void draw_scene();
   void draw_panels();
@@ -68,6 +71,11 @@ class Viewer {
   SceneDescription scene_;
   std::optional<SessionRecording> replay_;
   std::unique_ptr<Engine> engine_;
+  std::unique_ptr<EngineThread> thread_;  ///< declared after engine_: stopped before it goes
+  std::shared_ptr<const Snapshot> snapshot_;
+  int seen_frame_ = -1;
+  int physics_frames_ = 0;  ///< frames the physics stepped while the window was open
+  std::string integrator_name_;
   HandOverTool* hand_ = nullptr;  ///< owned by engine_; null while replaying
   std::unique_ptr<FrameSink> series_;
   SessionRecording recording_;
@@ -76,9 +84,7 @@ class Viewer {
   RenderOptions render_;
   bool camera_fitted_ = false;
   bool highlight_active_ = false;
-  bool playing_ = true;
-  bool step_once_ = false;
-  int frames_played_ = 0;
+  bool playing_ = true;  ///< whether a new engine starts playing
   std::string message_;  ///< the last error or note shown in the panel
 
   // Mouse: the scalpel while the left button is held on the body, else the camera.

@@ -7,7 +7,6 @@
 #include <array>
 #include <vector>
 
-#include "incise/cut/subdivision_cutter.hpp"
 #include "viewer.hpp"
 
 namespace incise::app {
@@ -31,14 +30,16 @@ void Viewer::draw_panels() {
   ImGui::SetNextWindowSize(ImVec2(330, 0), ImGuiCond_FirstUseEver);
   ImGui::Begin("incise");
   ImGui::Text("%s", scene_.file.empty() ? "default scene" : scene_.file.filename().c_str());
-  ImGui::Text("frame %d   t = %.3f s", engine_->frame(), engine_->time());
-  if (ImGui::Button(playing_ ? "Pause (space)" : "Play (space)")) {
-    playing_ = !playing_;
-    action(playing_ ? "play" : "pause");
+  ImGui::Text("frame %d   t = %.3f s", snapshot_->frame, snapshot_->time);
+  const bool playing = thread_->playing();
+  if (ImGui::Button(playing ? "Pause (space)" : "Play (space)")) {
+    thread_->set_playing(!playing);
+    action(playing ? "pause" : "play");
   }
   ImGui::SameLine();
   if (ImGui::Button("Step (N)")) {
-    step_once_ = true;
+    action("step");
+    thread_->step_once();
   }
   ImGui::SameLine();
   if (ImGui::Button("Reset (R)")) {
@@ -104,19 +105,16 @@ void Viewer::draw_panels() {
   }
 
   if (ImGui::CollapsingHeader("Mesh", ImGuiTreeNodeFlags_DefaultOpen)) {
-    const TetMesh& mesh = engine_->mesh();
-    const auto surface = engine_->surface();
+    const SurfaceTopology& surface = *snapshot_->surface;
     std::size_t cut = 0;
-    for (std::uint8_t mark : surface->on_cut) {
+    for (std::uint8_t mark : surface.on_cut) {
       cut += mark;
     }
-    ImGui::Text("%zu vertices, %zu tetrahedra", mesh.vertex_count(), mesh.tet_count());
-    ImGui::Text("%zu surface triangles, %zu on the cut", surface->triangles.size(), cut);
+    ImGui::Text("%zu vertices, %zu tetrahedra", snapshot_->positions.size(), snapshot_->tets);
+    ImGui::Text("%zu surface triangles, %zu on the cut", surface.triangles.size(), cut);
     ImGui::Text("model %s, %s", std::string(name_of(scene_.model_type)).c_str(),
-                std::string(engine_->integrator().name()).c_str());
-    if (engine_->cutter() != nullptr) {
-      ImGui::Text("active tetrahedra %zu", engine_->cutter()->active_tets().size());
-    }
+                integrator_name_.c_str());
+    ImGui::Text("active tetrahedra %zu", snapshot_->active.size());
   }
 
   if (ImGui::CollapsingHeader("Timing (ms per frame)", ImGuiTreeNodeFlags_DefaultOpen)) {

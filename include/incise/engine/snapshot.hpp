@@ -27,6 +27,13 @@ struct SurfaceTopology {
   std::vector<Vec3> rest_positions;
 };
 
+/// A tetrahedron the blade is in (the seed's active tetrahedra), with which corners lie on
+/// the cut (bit k: corner k).
+struct ActiveTet {
+  Tet vertices;
+  std::uint8_t on_cut = 0;
+};
+
 struct Snapshot {
   int frame = 0;
   double time = 0.0;            ///< s
@@ -36,6 +43,8 @@ struct Snapshot {
   double cd = 0.0;                 ///< the frame's stage times (s)
   double gc = 0.0;
   double rx = 0.0;
+  std::size_t tets = 0;  ///< tetrahedra in the mesh
+  std::vector<ActiveTet> active;
 };
 
 /// One published snapshot at a time, swapped atomically.

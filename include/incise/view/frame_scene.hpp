@@ -29,8 +29,9 @@ struct FrameScene {
 /// tetrahedra (the ones the blade is in), and apart those of them on the cut (both ends on
 /// it: the edges the blade has cut through). Only on the engine's thread, between steps.
 [[nodiscard]] FrameScene frame_scene(const Engine& engine, bool highlight_active = false);
-/// A published snapshot: safe on any thread.
-[[nodiscard]] FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot);
+/// A published snapshot: safe on any thread; `highlight_active` as for an engine.
+[[nodiscard]] FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot,
+                                     bool highlight_active = false);
 
 /// The scene's camera (its `camera` key), else one fitted to `body` for the given aspect.
 [[nodiscard]] Camera scene_camera(const SceneDescription& scene, const Bounds& body, double aspect);

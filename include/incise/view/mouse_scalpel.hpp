@@ -4,6 +4,7 @@
 // camera, reaching `depth` into the body; scrolling changes the depth. Pure geometry, and a
 // tool-pose source that hands the blade from the scene's own path to the mouse.
 
+#include <atomic>
 #include <memory>
 #include <optional>
 #include <span>
@@ -41,16 +42,16 @@ struct SurfaceHit {
                                      double depth, double handle);
 
 /// The scene's own tool path until the user takes the blade; from then on the live pose
-/// (lifted until the first press). Thread rule as LiveToolPose's for live().
+/// (lifted until the first press). take() and live() may be called from any thread.
 class HandOverTool final : public ToolPoseSource {
  public:
   explicit HandOverTool(std::unique_ptr<ToolPoseSource> scripted)
       : scripted_(std::move(scripted)) {}
-  void take() { taken_ = true; }
-  [[nodiscard]] bool taken() const { return taken_; }
+  void take() { taken_.store(true); }
+  [[nodiscard]] bool taken() const { return taken_.load(); }
   [[nodiscard]] LiveToolPose& live() { return live_; }
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override {
-    if (taken_) {
+    if (taken_.load()) {
       return live_.pose(frame, time);
     }
     return scripted_ ? scripted_->pose(frame, time) : std::nullopt;
@@ -59,7 +60,7 @@ class HandOverTool final : public ToolPoseSource {
  private:
   std::unique_ptr<ToolPoseSource> scripted_;
   LiveToolPose live_;
-  bool taken_ = false;
+  std::atomic<bool> taken_{false};  ///< set by the viewer, read by the engine's thread
 };
 
 }  // namespace incise
