@@ -28,8 +28,8 @@ namespace {
 /// How far (a fraction of its longest edge) a face's centroid may lie off a curved swept
 /// surface when its corners lie on it.
 constexpr double kSweptSurfaceBulge = 0.05;
-/// The most blade moves one face is checked across for a continuous sheet.
-constexpr std::int64_t kMostMovesAcrossAFace = 4096;
+/// The most sweeps (moves in which the blade moved) one face is checked across for one sheet.
+constexpr std::int64_t kMostSweepsAcrossAFace = 4096;
 
 }  // namespace
 
@@ -119,7 +119,7 @@ bool SubdivisionCutter::parts_across_surface(TetId tet, int local_face, TetId ne
     // A blade that turns as it moves (any hand, the mouse) sweeps a curved surface, flat only
     // move by move: a face with its corners on it bulges off it in between by a small fraction
     // of its size. That is allowed where the corners lie on one continuous sheet, swept by
-    // consecutive moves that all pass near the face; a face bridging two sheets (a path that
+    // consecutive sweeps that all pass near the face; a face bridging two sheets (a path that
     // comes back near itself) is not taken.
     const double bulge = sheet_bulge(p, corners);
     if (bulge <= 0.0) {
@@ -158,14 +158,14 @@ double SubdivisionCutter::sheet_bulge(const std::array<Vec3, 3>& face,
     if (nearest < 0) {
       return 0.0;
     }
-    const std::int64_t move = swept_->tag(static_cast<std::size_t>(nearest));
-    first = std::min(first, move);
-    last = std::max(last, move);
+    const std::int64_t sweep = swept_->tag(static_cast<std::size_t>(nearest));
+    first = std::min(first, sweep);
+    last = std::max(last, sweep);
   }
-  if (last - first > kMostMovesAcrossAFace) {
+  if (last - first > kMostSweepsAcrossAFace) {
     return 0.0;
   }
-  // Every move from the first corner's to the last one's passes within the face's size.
+  // Every sweep from the first corner's to the last one's passes within the face's size.
   const std::vector<std::int64_t> near = swept_->tags_within(centroid(face), size);
   const auto begin = std::lower_bound(near.begin(), near.end(), first);
   const auto end = std::upper_bound(near.begin(), near.end(), last);

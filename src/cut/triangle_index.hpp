@@ -23,7 +23,7 @@ class TriangleIndex {
   void set_finest_cell(double finest) { finest_ = finest; }
 
   /// Adds a triangle, visible to queries only inside the box [low, high] (m), with a tag the
-  /// caller chooses (the cutter's move number).
+  /// caller chooses (the cutter's sweep number).
   void add(const std::array<Vec3, 3>& triangle,
            const Vec3& low = Vec3::Constant(-std::numeric_limits<double>::max()),
            const Vec3& high = Vec3::Constant(std::numeric_limits<double>::max()),

@@ -20,7 +20,7 @@ namespace incise {
 namespace {
 
 constexpr std::string_view kMagic = "INCISE-CHECKPOINT\n";
-constexpr std::uint32_t kVersion = 2;  // 2: swept triangles carry their move number
+constexpr std::uint32_t kVersion = 2;  // 2: swept triangles carry their sweep number
 
 std::uint32_t checksum(std::string_view bytes) {
   uLong crc = crc32(0L, Z_NULL, 0);

@@ -56,6 +56,15 @@ void main() {
 }
 )";
 
+/// The driver's log of a shader or program (glGetShaderInfoLog / glGetProgramInfoLog).
+std::string info_log(GLuint object, void (*get_log)(GLuint, GLsizei, GLsizei*, GLchar*)) {
+  std::string log(4096, '\0');
+  GLsizei length = 0;
+  get_log(object, static_cast<GLsizei>(log.size()), &length, log.data());
+  log.resize(static_cast<std::size_t>(length));
+  return log;
+}
+
 GLuint compile(GLenum kind, const char* source) {
   const GLuint shader = glCreateShader(kind);
   glShaderSource(shader, 1, &source, nullptr);
@@ -63,10 +72,7 @@ GLuint compile(GLenum kind, const char* source) {
   GLint ok = GL_FALSE;
   glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
   if (ok != GL_TRUE) {
-    std::string log(4096, '\0');
-    GLsizei length = 0;
-    glGetShaderInfoLog(shader, static_cast<GLsizei>(log.size()), &length, log.data());
-    log.resize(static_cast<std::size_t>(length));
+    const std::string log = info_log(shader, glGetShaderInfoLog);
     glDeleteShader(shader);
     throw Error("OpenGL could not compile incise's shader: " + log);
   }
@@ -85,10 +91,7 @@ GLuint link_program() {
   GLint ok = GL_FALSE;
   glGetProgramiv(program, GL_LINK_STATUS, &ok);
   if (ok != GL_TRUE) {
-    std::string log(4096, '\0');
-    GLsizei length = 0;
-    glGetProgramInfoLog(program, static_cast<GLsizei>(log.size()), &length, log.data());
-    log.resize(static_cast<std::size_t>(length));
+    const std::string log = info_log(program, glGetProgramInfoLog);
     glDeleteProgram(program);
     throw Error("OpenGL could not link incise's shaders: " + log);
   }

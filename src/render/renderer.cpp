@@ -128,16 +128,19 @@ void Renderer::render(const RenderInput& input, const RenderOptions& options) {
     uploaded_ = true;
     uploaded_period_ = options.texture_period;
   }
-  gather_positions(buffers_, input.positions, positions_);
-  for (float p : positions_) {
-    if (!std::isfinite(p)) {
-      throw InputError("a surface vertex has no finite position: nothing to draw");
+  // The surface's box from its own vertices, each once.
+  Bounds scene;
+  for (VertexId v : buffers_.vertices) {
+    const Vec3& p = input.positions[static_cast<std::size_t>(v)];
+    if (!p.allFinite()) {
+      throw InputError("surface vertex " + std::to_string(v) +
+                       " has no finite position: nothing to draw");
     }
+    scene.add(p);
   }
+  gather_positions(buffers_, input.positions, positions_);
   backend_->upload_positions(positions_);
 
-  bounds_ = surface_bounds(input.triangles, input.positions);
-  Bounds scene = bounds_;
   if (input.blade) {
     scene.add((*input.blade)[0]);
     scene.add((*input.blade)[1]);

@@ -78,7 +78,6 @@ void VideoWriter::add(const Image& frame) {
   if (std::fwrite(frame.pixels().data(), 1, bytes, pipe_) != bytes) {
     throw Error("ffmpeg stopped taking frames for " + path_.string());
   }
-  ++frames_;
 }
 
 void VideoWriter::close() {

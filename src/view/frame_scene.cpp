@@ -25,6 +25,10 @@ RenderInput FrameScene::input() const {
   return input;
 }
 
+Bounds FrameScene::bounds() const {
+  return surface_bounds(surface->triangles, positions);
+}
+
 FrameScene frame_scene(const Engine& engine, bool highlight_active) {
   FrameScene scene;
   scene.surface = engine.surface();

@@ -29,10 +29,8 @@ RenderSink::RenderSink(ImageRenderer& renderer, PictureOptions options)
 }
 
 void RenderSink::begin(const Engine& engine) {
-  const FrameScene scene = frame_scene(engine);
-  const Bounds body = surface_bounds(scene.surface->triangles, scene.positions);
   const double aspect = static_cast<double>(options_.render.width) / options_.render.height;
-  options_.render.camera = scene_camera(engine.scene(), body, aspect);
+  options_.render.camera = scene_camera(engine.scene(), frame_scene(engine).bounds(), aspect);
   draw(engine);
 }
 

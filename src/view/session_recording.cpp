@@ -2,6 +2,7 @@
 
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "incise/core/error.hpp"
 
@@ -16,6 +17,10 @@ Json pose_json(const BladePose& pose) {
                       pose.base.y(), pose.base.z()});
 }
 
+Json action_json(const SessionAction& action) {
+  return Json{{"frame", action.frame}, {"action", action.name}, {"value", action.value}};
+}
+
 }  // namespace
 
 SceneDescription SessionSegment::scene() const {
@@ -23,48 +28,32 @@ SceneDescription SessionSegment::scene() const {
 }
 
 void write_session(const std::filesystem::path& path, const SessionRecording& recording) {
-  const std::filesystem::path temporary = path.string() + ".part";
-  {
-    std::ofstream out(temporary);
-    if (!out) {
-      throw InputError(path.string(), 0, "cannot write the session recording");
-    }
-    out << Json{{"incise_session", 1}}.dump() << "\n";
-    for (const SessionSegment& segment : recording.segments) {
-      out << Json{{"frame", 0},
-                  {"start",
-                   {{"scene_file", segment.scene_file.string()}, {"scene", segment.scene_text}}}}
+  std::ostringstream out;
+  out << Json{{"incise_session", 1}}.dump() << "\n";
+  for (const SessionSegment& segment : recording.segments) {
+    out << Json{{"frame", 0},
+                {"start",
+                 {{"scene_file", segment.scene_file.string()}, {"scene", segment.scene_text}}}}
+               .dump()
+        << "\n";
+    // Poses and actions in frame order (actions of a frame after its pose).
+    std::size_t next_action = 0;
+    for (std::size_t frame = 0; frame < segment.poses.size(); ++frame) {
+      const auto& pose = segment.poses[frame];
+      out << (pose ? Json{{"frame", frame}, {"pose", pose_json(*pose)}}
+                   : Json{{"frame", frame}, {"lift", true}})
                  .dump()
           << "\n";
-      // Poses and actions in frame order (actions of a frame after its pose).
-      std::size_t next_action = 0;
-      for (std::size_t frame = 0; frame < segment.poses.size(); ++frame) {
-        const auto& pose = segment.poses[frame];
-        out << (pose ? Json{{"frame", frame}, {"pose", pose_json(*pose)}}
-                     : Json{{"frame", frame}, {"lift", true}})
-                   .dump()
-            << "\n";
-        while (next_action < segment.actions.size() &&
-               segment.actions[next_action].frame <= static_cast<int>(frame)) {
-          const SessionAction& action = segment.actions[next_action++];
-          out << Json{{"frame", action.frame}, {"action", action.name}, {"value", action.value}}
-                     .dump()
-              << "\n";
-        }
-      }
-      for (; next_action < segment.actions.size(); ++next_action) {
-        const SessionAction& action = segment.actions[next_action];
-        out << Json{{"frame", action.frame}, {"action", action.name}, {"value", action.value}}
-                   .dump()
-            << "\n";
+      while (next_action < segment.actions.size() &&
+             segment.actions[next_action].frame <= static_cast<int>(frame)) {
+        out << action_json(segment.actions[next_action++]).dump() << "\n";
       }
     }
-    out.flush();
-    if (!out) {
-      throw InputError(path.string(), 0, "cannot write the session recording (disk full?)");
+    for (; next_action < segment.actions.size(); ++next_action) {
+      out << action_json(segment.actions[next_action]).dump() << "\n";
     }
   }
-  std::filesystem::rename(temporary, path);
+  write_file_atomically(path, out.str());
 }
 
 SessionRecording read_session(const std::filesystem::path& path) {
@@ -181,12 +170,15 @@ std::optional<BladePose> RecordedToolPoses::pose(int frame, double /*time*/) {
   return poses_[static_cast<std::size_t>(frame)];
 }
 
-std::unique_ptr<Engine> replay_engine(const SessionSegment& segment) {
-  SceneDescription scene = segment.scene();
+SceneDescription viewer_scene(SceneDescription scene) {
   if (scene.tool.cutter == CutterKind::kNone) {
     scene.tool.cutter = CutterKind::kSubdivision;  // the viewer's scalpel cuts any scene
   }
-  auto engine = std::make_unique<Engine>(scene);
+  return scene;
+}
+
+std::unique_ptr<Engine> replay_engine(const SessionSegment& segment) {
+  auto engine = std::make_unique<Engine>(viewer_scene(segment.scene()));
   engine->set_tool_source(std::make_unique<RecordedToolPoses>(segment.poses));
   return engine;
 }

@@ -12,17 +12,13 @@
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
 #include "incise/solve/integrators.hpp"
+#include "scene_support.hpp"
 #include "test_support.hpp"
 
 namespace incise {
 namespace {
 
-/// The default scene (the seed's Fig. 10 block cut by a scalpel), shortened.
-SceneDescription short_default(int frames) {
-  SceneDescription scene = default_scene();
-  scene.frames = frames;
-  return scene;
-}
+using test::short_default;
 
 TEST(Engine, StepsFrameByFrameAndCutsAlongTheScenePath) {
   Engine engine(short_default(60));

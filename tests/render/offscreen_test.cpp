@@ -135,7 +135,7 @@ TEST(Offscreen, TheSameFrameGivesTheSamePictureAtAnySizeAsked) {
   options.width = 200;
   options.height = 150;
   options.mode = RenderMode::kWire;
-  options.camera = fit_camera(surface_bounds(scene.surface->triangles, scene.positions), 4.0 / 3);
+  options.camera = fit_camera(scene.bounds(), 4.0 / 3);
   const Image a = renderer->render(scene.input(), options);
   options.width = 64;
   options.height = 48;

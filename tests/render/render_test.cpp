@@ -13,6 +13,7 @@
 #include "incise/render/solid_texture.hpp"
 #include "incise/view/frame_scene.hpp"
 #include "incise/view/render_sink.hpp"
+#include "scene_support.hpp"
 #include "test_support.hpp"
 
 namespace incise {
@@ -116,12 +117,7 @@ TEST(Png, RoundTripsAndNamesABadFile) {
   EXPECT_THROW(Image(0, 10), InputError);
 }
 
-/// The default scene (the seed's block, cut by a scalpel) stepped `frames` frames.
-SceneDescription short_default(int frames) {
-  SceneDescription scene = default_scene();
-  scene.frames = frames;
-  return scene;
-}
+using test::short_default;
 
 TEST(Renderer, BuffersFollowEveryCutAndEveryFaceHasTextureCoordinates) {
   Engine engine(short_default(150));
@@ -138,7 +134,7 @@ TEST(Renderer, BuffersFollowEveryCutAndEveryFaceHasTextureCoordinates) {
     const FrameScene scene = frame_scene(engine);
     surface_changes += scene.surface->version != revision ? 1 : 0;
     revision = scene.surface->version;
-    options.camera = fit_camera(surface_bounds(scene.surface->triangles, scene.positions), 1.0);
+    options.camera = fit_camera(scene.bounds(), 1.0);
     renderer.render(scene.input(), options);
     // Uploads: the surface once per change, positions every frame.
     ASSERT_EQ(backend.surface_uploads, surface_changes);
@@ -185,7 +181,7 @@ TEST(Renderer, HighlightsTheActiveTetrahedraAndTheEdgesTheBladeHasCut) {
   NullBackend backend;
   Renderer renderer(backend);
   RenderOptions options;
-  options.camera = fit_camera(surface_bounds(scene.surface->triangles, scene.positions), 1.0);
+  options.camera = fit_camera(scene.bounds(), 1.0);
   renderer.render(scene.input(), options);
   EXPECT_EQ(backend.last_call.lines.size(), 6 * scene.highlights.size());
   EXPECT_EQ(backend.last_call.cut_lines.size(), 6 * scene.cut_edges.size());

@@ -99,7 +99,7 @@ HandCut cut_by_hand() {
   recorder.action(engine.frame(), "take");
   result.tets_when_taken = engine.mesh().tet_count();
   const FrameScene view = frame_scene(engine);
-  const Bounds body = surface_bounds(view.surface->triangles, view.positions);
+  const Bounds body = view.bounds();
   const Camera camera = fit_camera(body, 1.0, Vec3(0.1, -0.4, 1.0));  // from above
   for (int stroke = 0; stroke < 2; ++stroke) {
     const double y = stroke == 0 ? -0.1 : 0.12;

@@ -116,10 +116,7 @@ void Viewer::start_engine() {
   if (replay_) {
     engine_ = replay_engine(replay_->segments.back());
   } else {
-    SceneDescription scene = scene_;
-    if (scene.tool.cutter == CutterKind::kNone) {
-      scene.tool.cutter = CutterKind::kSubdivision;  // the scalpel cuts any scene
-    }
+    const SceneDescription scene = viewer_scene(scene_);
     engine_ = std::make_unique<Engine>(scene);
     auto tool = std::make_unique<HandOverTool>(
         scene.tool.poses.empty() ? nullptr : std::make_unique<ScriptedToolPath>(scene.tool.poses));
@@ -138,13 +135,13 @@ void Viewer::start_engine() {
   engine_->publish_snapshots(true);
   snapshot_ = engine_->snapshots().latest();
   seen_frame_ = snapshot_->frame;
+  const Bounds body = frame_scene(snapshot_).bounds();
+  body_radius_ = body.radius();
   if (!camera_fitted_) {
-    const FrameScene scene = frame_scene(snapshot_);
-    render_.camera = scene_camera(
-        engine_->scene(), surface_bounds(scene.surface->triangles, scene.positions), aspect());
+    render_.camera = scene_camera(engine_->scene(), body, aspect());
     camera_fitted_ = true;
   }
-  depth_ = 0.3 * body_radius();
+  depth_ = 0.3 * body_radius_;
   anchor_.reset();
   for (auto* series : {&timing_.cd, &timing_.gc, &timing_.rx, &timing_.rd}) {
     series->clear();
@@ -152,11 +149,6 @@ void Viewer::start_engine() {
   // Interactive: paced to the scene's frame time; scripted (--exit-after): as fast as it goes.
   thread_ = std::make_unique<EngineThread>(*engine_, playing_, options_.exit_after,
                                            options_.exit_after < 0);
-}
-
-double Viewer::body_radius() const {
-  const FrameScene scene = frame_scene(snapshot_);
-  return surface_bounds(scene.surface->triangles, scene.positions).radius();
 }
 
 double Viewer::aspect() const {
@@ -250,7 +242,7 @@ void Viewer::handle_mouse() {
   }
   if (anchor_ && hand_ != nullptr) {
     if (left) {
-      hand_->live().set(scalpel_pose(render_.camera, ray, *anchor_, depth_, 0.6 * body_radius()));
+      hand_->live().set(scalpel_pose(render_.camera, ray, *anchor_, depth_, 0.6 * body_radius_));
     } else {
       hand_->live().lift();
       anchor_.reset();

@@ -60,7 +60,6 @@ class Viewer {
   void save_screenshot(const std::filesystem::path& path);
   void action(const std::string& name, const std::string& value = {});
   void apply_settings();
-  [[nodiscard]] double body_radius() const;
   [[nodiscard]] double aspect() const;
 
   ViewerOptions options_;
@@ -89,7 +88,8 @@ class Viewer {
 
   // Mouse: the scalpel while the left button is held on the body, else the camera.
   std::optional<Vec3> anchor_;
-  double depth_ = 0.0;  ///< m
+  double depth_ = 0.0;        ///< m
+  double body_radius_ = 0.0;  ///< m, at the start: sizes the blade and its depth range
   bool dragging_camera_ = false;
   double last_x_ = 0.0;
   double last_y_ = 0.0;

@@ -73,7 +73,7 @@ void Viewer::draw_panels() {
   }
   float depth_mm = static_cast<float>(1e3 * depth_);
   if (ImGui::SliderFloat("blade depth (mm)", &depth_mm, 0.5F,
-                         static_cast<float>(2e3 * body_radius()), "%.1f")) {
+                         static_cast<float>(2e3 * body_radius_), "%.1f")) {
     depth_ = 1e-3 * depth_mm;
   }
 

@@ -220,8 +220,8 @@ class SubdivisionCutter {
   /// the tetrahedra on its two sides (decided at rest).
   [[nodiscard]] bool parts_across_surface(TetId tet, int local_face, TetId neighbor) const;
   /// How far (m) the face may bulge off the swept surface: 0 unless its corners lie on one
-  /// continuous sheet (their nearest swept triangles come from moves that all pass near the
-  /// face), else a small fraction of the face's size.
+  /// continuous sheet (their nearest swept triangles come from consecutive sweeps that all pass
+  /// near the face), else a small fraction of the face's size.
   [[nodiscard]] double sheet_bulge(const std::array<Vec3, 3>& face,
                                    const std::array<VertexId, 3>& corners) const;
   /// Thin regions that this move's cut faces would cut out (volume over cut area below the snap

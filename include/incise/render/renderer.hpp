@@ -124,9 +124,6 @@ class Renderer {
   explicit Renderer(RenderBackend& backend) : backend_(&backend) {}
   /// Draws one frame through the backend.
   void render(const RenderInput& input, const RenderOptions& options);
-  /// The current positions' box of the surface last drawn (empty before the first frame).
-  [[nodiscard]] const Bounds& bounds() const { return bounds_; }
-  [[nodiscard]] const SurfaceBuffers& buffers() const { return buffers_; }
 
  private:
   RenderBackend* backend_;
@@ -134,7 +131,6 @@ class Renderer {
   double uploaded_period_ = 0.0;
   SurfaceBuffers buffers_;
   std::vector<float> positions_;
-  Bounds bounds_;
 };
 
 /// Anything that turns a frame into a picture (the offscreen OpenGL renderer; fakes in tests).

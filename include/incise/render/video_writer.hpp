@@ -21,7 +21,6 @@ class VideoWriter {
   void add(const Image& frame);
   /// Ends the file and waits for ffmpeg; throws Error naming the file if ffmpeg failed.
   void close();
-  [[nodiscard]] int frames() const { return frames_; }
 
   /// Whether an `ffmpeg` executable is on PATH.
   [[nodiscard]] static bool available();
@@ -30,7 +29,6 @@ class VideoWriter {
   std::filesystem::path path_;
   int width_;
   int height_;
-  int frames_ = 0;
   std::FILE* pipe_ = nullptr;
 };
 

@@ -23,6 +23,8 @@ struct FrameScene {
   std::vector<std::array<Vec3, 2>> highlights;
   std::vector<std::array<Vec3, 2>> cut_edges;
   [[nodiscard]] RenderInput input() const;
+  /// The box around the surface's current positions (m).
+  [[nodiscard]] Bounds bounds() const;
 };
 
 /// The engine's current frame; `highlight_active` adds the edges of the cutter's active

@@ -31,7 +31,6 @@ class RenderSink final : public FrameSink {
   bool frame(const Engine& engine, const FrameRecord& record) override;
   void end(const Engine& engine) override;
   [[nodiscard]] const std::vector<std::filesystem::path>& pictures() const { return pictures_; }
-  [[nodiscard]] const RenderOptions& options() const { return options_.render; }
 
  private:
   void draw(const Engine& engine);

@@ -69,6 +69,10 @@ class RecordedToolPoses final : public ToolPoseSource {
   std::vector<std::optional<BladePose>> poses_;
 };
 
+/// The scene as the viewer runs it: with a cutter even where the scene has none (the mouse
+/// cuts any scene).
+[[nodiscard]] SceneDescription viewer_scene(SceneDescription scene);
+
 /// An engine that replays `segment`: its scene, fed its poses (run segment.frames() frames).
 [[nodiscard]] std::unique_ptr<Engine> replay_engine(const SessionSegment& segment);
 
