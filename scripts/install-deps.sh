@@ -25,6 +25,8 @@ packages=(
   libpng-dev libegl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
   # the interactive viewer: a GLFW window with Dear ImGui panels; Xvfb runs it in CI
   libglfw3-dev libimgui-dev xvfb xauth
+  # the device protocol (incise serve / incise device): OpenIGTLink, as 3D Slicer speaks it
+  libopenigtlink-dev
 )
 # Video (incise run --video) uses the ffmpeg program when it is on PATH; it is not installed
 # here (about 90 packages): apt-get install ffmpeg.

@@ -22,5 +22,7 @@ Runner add_mesh_command(CLI::App& app);
 Runner add_run_command(CLI::App& app);
 Runner add_cut_command(CLI::App& app);
 Runner add_view_command(CLI::App& app);
+Runner add_serve_command(CLI::App& app);
+Runner add_device_command(CLI::App& app);
 
 }  // namespace incise::app

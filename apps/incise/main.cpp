@@ -26,6 +26,10 @@ int main(int argc, char** argv) {
   add(incise::app::add_run_command);
   add(incise::app::add_cut_command);
   add(incise::app::add_view_command);
+#ifdef INCISE_HAVE_OPENIGTLINK
+  add(incise::app::add_serve_command);
+  add(incise::app::add_device_command);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

@@ -26,6 +26,25 @@ std::vector<std::array<Vec3, 3>> swept_triangles(const BladePose& from, const Bl
   return triangles;
 }
 
+BladePose blade_in_frame(const ToolFrame& frame, const BladeGeometry& blade) {
+  BladePose pose;
+  pose.tip = frame.translation;
+  pose.base = frame.translation + frame.rotation * (blade.length * blade.axis.normalized());
+  return pose;
+}
+
+ToolFrame frame_of_blade(const BladePose& pose, const BladeGeometry& blade) {
+  ToolFrame frame;
+  frame.translation = pose.tip;
+  const Vec3 direction = pose.base - pose.tip;
+  if (direction.norm() > 0.0 && blade.axis.norm() > 0.0) {
+    frame.rotation =
+        Eigen::Quaterniond::FromTwoVectors(blade.axis.normalized(), direction.normalized())
+            .toRotationMatrix();
+  }
+  return frame;
+}
+
 std::vector<BladePose> read_blade_path(const std::filesystem::path& path) {
   std::ifstream stream(path);
   if (!stream) {

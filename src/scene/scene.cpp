@@ -351,6 +351,52 @@ void parse_list(const Context& context, const ObjectReader& top, const std::stri
   }
 }
 
+std::vector<BladePose> parse_tool_poses(const Context& context, const Json& poses) {
+  if (!poses.is_array() || poses.empty()) {
+    context.fail("tool.poses",
+                 "must be a non-empty list of [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+  }
+  std::vector<BladePose> result;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const Json& row = poses[i];
+    const std::string where = "tool.poses[" + std::to_string(i) + "]";
+    if (!row.is_array() || row.size() != 7 ||
+        !std::all_of(row.begin(), row.end(), [](const Json& v) { return v.is_number(); })) {
+      context.fail(where, "must be 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+    }
+    const BladePose pose{row[0].get<double>(),
+                         Vec3(row[1].get<double>(), row[2].get<double>(), row[3].get<double>()),
+                         Vec3(row[4].get<double>(), row[5].get<double>(), row[6].get<double>())};
+    if (!result.empty() && pose.time < result.back().time) {
+      context.fail(where, "time goes backwards");
+    }
+    if (pose.tip == pose.base) {
+      context.fail(where, "the blade has zero length");
+    }
+    result.push_back(pose);
+  }
+  return result;
+}
+
+HapticSpec parse_haptics(const Context& context, const Json& json) {
+  const ObjectReader haptics(context, json, "tool.haptics",
+                             {"rate", "force_limit", "max_force_step", "contact_stiffness",
+                              "contact_stiffness_limit", "cutting_toughness", "advance_speed"});
+  HapticSpec spec;
+  spec.rate = haptics.positive("rate", spec.rate);
+  if (spec.rate > 20000.0) {
+    context.fail("tool.haptics.rate", "must be at most 20000 Hz");
+  }
+  spec.force_limit = haptics.positive("force_limit", spec.force_limit);
+  spec.max_force_step = haptics.positive("max_force_step", spec.max_force_step);
+  spec.contact_stiffness = haptics.non_negative("contact_stiffness", spec.contact_stiffness);
+  spec.contact_stiffness_limit =
+      haptics.positive("contact_stiffness_limit", spec.contact_stiffness_limit);
+  spec.cutting_toughness = haptics.non_negative("cutting_toughness", spec.cutting_toughness);
+  spec.advance_speed = haptics.positive("advance_speed", spec.advance_speed);
+  return spec;
+}
+
 }  // namespace
 
 SceneDescription parse_scene(const std::string& json_text, const std::filesystem::path& file) {
@@ -597,40 +643,37 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   }
 
   if (top.has("tool")) {
-    const ObjectReader tool(context, top.at("tool"), "tool", {"blade_path", "poses"});
-    if (tool.has("blade_path") == tool.has("poses")) {
+    const ObjectReader tool(context, top.at("tool"), "tool",
+                            {"blade_path", "poses", "blade", "device", "haptics"});
+    if (tool.has("blade_path") && tool.has("poses")) {
       context.fail("tool",
-                   "give exactly one of \"blade_path\": CSV and \"poses\": [[t, tip_x, tip_y, "
+                   "give at most one of \"blade_path\": CSV and \"poses\": [[t, tip_x, tip_y, "
                    "tip_z, base_x, base_y, base_z], ...]");
     }
     if (tool.has("blade_path")) {
       scene.tool.poses = read_blade_path(resolve(context, tool.string("blade_path", "")));
-    } else {
-      const Json& poses = tool.at("poses");
-      if (!poses.is_array() || poses.empty()) {
-        context.fail(
-            "tool.poses",
-            "must be a non-empty list of [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+    } else if (tool.has("poses")) {
+      scene.tool.poses = parse_tool_poses(context, tool.at("poses"));
+    }
+    if (!scene.tool.poses.empty()) {
+      scene.tool.blade.length =
+          (scene.tool.poses.front().base - scene.tool.poses.front().tip).norm();
+    }
+    if (tool.has("blade")) {
+      const ObjectReader blade(context, tool.at("blade"), "tool.blade", {"length", "axis"});
+      scene.tool.blade.length = blade.positive("length", scene.tool.blade.length);
+      const Vec3 axis = blade.vec3("axis", Vec3::UnitZ());
+      if (axis.norm() < 1e-12) {
+        context.fail("tool.blade.axis", "must not be zero");
       }
-      for (std::size_t i = 0; i < poses.size(); ++i) {
-        const Json& row = poses[i];
-        const std::string where = "tool.poses[" + std::to_string(i) + "]";
-        if (!row.is_array() || row.size() != 7 ||
-            !std::all_of(row.begin(), row.end(), [](const Json& v) { return v.is_number(); })) {
-          context.fail(where, "must be 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
-        }
-        const BladePose pose{
-            row[0].get<double>(),
-            Vec3(row[1].get<double>(), row[2].get<double>(), row[3].get<double>()),
-            Vec3(row[4].get<double>(), row[5].get<double>(), row[6].get<double>())};
-        if (!scene.tool.poses.empty() && pose.time < scene.tool.poses.back().time) {
-          context.fail(where, "time goes backwards");
-        }
-        if (pose.tip == pose.base) {
-          context.fail(where, "the blade has zero length");
-        }
-        scene.tool.poses.push_back(pose);
-      }
+      scene.tool.blade.axis = axis.normalized();
+    }
+    scene.tool.device = tool.string("device", scene.tool.device);
+    if (scene.tool.device.empty() || scene.tool.device.size() > 20) {
+      context.fail("tool.device", "must be an OpenIGTLink device name of 1 to 20 characters");
+    }
+    if (tool.has("haptics")) {
+      scene.tool.haptics = parse_haptics(context, tool.at("haptics"));
     }
     scene.tool.cutter = CutterKind::kSubdivision;
   }

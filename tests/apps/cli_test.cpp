@@ -3,10 +3,13 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <thread>
 
 #include "incise/render/image.hpp"
 #include "test_support.hpp"
@@ -483,6 +486,79 @@ TEST(Cli, RunWritesAVideoThroughFfmpegOrSaysItIsMissing) {
   const std::string video = slurp(dir / "cut.mp4");
   ASSERT_GT(video.size(), 1000u);
   EXPECT_EQ(video.substr(4, 4), "ftyp");  // an MP4 container
+}
+
+TEST(Cli, ServeAndDeviceCutTheDefaultBlockOverLoopback) {
+  if (incise("serve --help").code != 0) {
+    GTEST_SKIP() << "built without OpenIGTLink";
+  }
+  const auto dir = test::scratch_dir("serve");
+  // The default scene's stroke, played by the device process in real time (1 s).
+  {
+    std::ofstream path(dir / "path.csv");
+    path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
+         << "0.0,0.0213,-0.012,0.012,0.0213,-0.012,0.06\n"
+         << "1.0,0.0213,0.072,0.012,0.0213,0.072,0.06\n";
+  }
+  const std::string serve = std::string(INCISE_EXECUTABLE) + " serve --port 0 --port-file " +
+                            (dir / "port").string() + " --exit-when-idle --max-seconds 60 --out " +
+                            (dir / "out").string() + " >" + (dir / "serve.log").string() +
+                            " 2>&1 &";
+  ASSERT_EQ(std::system(serve.c_str()), 0);
+  std::string port;
+  for (int i = 0; i < 200 && port.empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    port = slurp(dir / "port");
+  }
+  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  const CommandResult device =
+      incise("device " + (dir / "path.csv").string() + " --port " +
+             port.substr(0, port.find('\n')) + " --log " + (dir / "forces.csv").string());
+  ASSERT_EQ(device.code, 0) << device.err;
+  EXPECT_NE(device.out.find("forces received"), std::string::npos) << device.out;
+  // The server notices the device left, writes its results and exits.
+  for (int i = 0; i < 600 && !std::filesystem::exists(dir / "out" / "report.json"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_TRUE(std::filesystem::exists(dir / "out" / "report.json")) << slurp(dir / "serve.log");
+  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  EXPECT_EQ(report["ended"], "idle (the last device left)");
+  EXPECT_TRUE(report["valid"].get<bool>());
+  EXPECT_TRUE(report["watertight"].get<bool>());
+  EXPECT_NEAR(report["rest_volume_m3"].get<double>(), report["rest_volume_start_m3"].get<double>(),
+              1e-12 * report["rest_volume_start_m3"].get<double>());
+  EXPECT_GT(report["tets"].get<int>(), report["tets_start"].get<int>());  // it was cut
+  EXPECT_GT(report["messages"]["poses"].get<int>(), 500);
+  EXPECT_EQ(report["messages"]["dropped_total"].get<int>(), 0);
+  EXPECT_GT(report["haptic"]["ticks"].get<int>(), 500);
+  EXPECT_LE(report["haptic"]["largest_force_n"].get<double>(), 3.0 + 1e-9);
+  // The final mesh is on disk (deformed: mass-spring tissue may invert slivers, so incise info
+  // may call it invalid) and closed as incise info sees it; report.json judged its topology.
+  const CommandResult info = incise("info --json " + (dir / "out" / "final.vtu").string());
+  ASSERT_LE(info.code, 1) << info.err;
+  const auto mesh = nlohmann::json::parse(info.out);
+  EXPECT_TRUE(mesh["watertight"].get<bool>());
+  EXPECT_EQ(mesh["nonmanifold_faces"], 0);
+  // Forces were logged: a header, one row per force, some in contact, none above the limit.
+  std::ifstream forces(dir / "forces.csv");
+  std::string line;
+  std::getline(forces, line);
+  EXPECT_EQ(line, "t,fx,fy,fz");
+  int rows = 0;
+  int in_contact = 0;
+  while (std::getline(forces, line)) {
+    double t = 0;
+    double fx = 0;
+    double fy = 0;
+    double fz = 0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf", &t, &fx, &fy, &fz), 4) << line;
+    const double magnitude = std::sqrt(fx * fx + fy * fy + fz * fz);
+    EXPECT_LE(magnitude, 3.0 + 1e-6);
+    in_contact += magnitude > 0.1 ? 1 : 0;
+    ++rows;
+  }
+  EXPECT_GT(rows, 500);
+  EXPECT_GT(in_contact, 100);
 }
 
 }  // namespace

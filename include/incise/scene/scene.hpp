@@ -77,9 +77,26 @@ struct IntegratorSpec {
   StaticOptions static_solve;
 };
 
+/// How the tool feels in a device's hand (`tool.haptics`; incise serve's haptic loop).
+struct HapticSpec {
+  double rate = 1000.0;          ///< Hz, the haptic loop
+  double force_limit = 3.0;      ///< N, the largest force sent to the device
+  double max_force_step = 0.05;  ///< N, the largest change between consecutive samples
+  /// N/m; 0: from the touched material (a rigid punch of the region's radius on a half-space)
+  double contact_stiffness = 0.0;
+  double contact_stiffness_limit = 1000.0;  ///< N/m, what a desktop device renders stably
+  double cutting_toughness = 150.0;         ///< J/m^2: work to open one square metre of cut
+  /// m/s: below this speed the cutting resistance grows in proportion to the blade's advance
+  double advance_speed = 0.01;
+};
+
 /// The scalpel: a path of poses, followed frame by frame (interpolated at frame times).
 struct ToolSpec {
-  std::vector<BladePose> poses;  ///< empty: no tool
+  std::vector<BladePose> poses;  ///< empty: no scripted path (a live tool may still cut)
+  /// The blade in the tool's frame (`tool.blade`; else as long as the path's first pose).
+  BladeGeometry blade;
+  std::string device = "Scalpel";  ///< the OpenIGTLink device name of the tool's pose
+  HapticSpec haptics;
   CutterKind cutter = CutterKind::kNone;
   double snap_fraction = 0.1;
   SplitMode split = SplitMode::kMinimal;  ///< kGeneric: the seed's 1:17 style, for comparison

@@ -1,0 +1,242 @@
+// incise serve [SCENE] [--port 18944] [--bind 127.0.0.1] [--out DIR] [--exit-when-idle]
+// [--port-file FILE]: the engine as an OpenIGTLink server. A device (incise device, a
+// bridged haptic device, 3D Slicer) sends the scalpel's pose as TRANSFORM; the physics runs
+// in real time on this thread, the 1 kHz haptic loop answers each pose with a force
+// (SENSOR), and the deformed surface goes out as POLYDATA every frame.
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "commands.hpp"
+#include "incise/core/error.hpp"
+#include "incise/engine/engine.hpp"
+#include "incise/haptics/haptic_loop.hpp"
+#include "incise/igtl/server.hpp"
+#include "incise/io/mesh_io.hpp"
+#include "incise/mesh/boundary.hpp"
+#include "incise/mesh/validate.hpp"
+
+namespace incise::app {
+namespace {
+
+std::atomic<bool> stop_requested{false};
+
+void request_stop(int /*signal*/) {
+  stop_requested = true;
+}
+
+struct ServeOptions {
+  std::string scene;
+  int port = 18944;
+  std::string bind = "127.0.0.1";
+  std::string out = "out/serve";
+  bool exit_when_idle = false;
+  std::string port_file;
+  double max_seconds = 0.0;
+};
+
+nlohmann::json histogram_json(double p50, double p99, double max) {
+  return {{"p50", p50}, {"p99", p99}, {"max", max}};
+}
+
+int serve(const ServeOptions& options) {
+  const SceneDescription scene =
+      options.scene.empty() ? default_scene() : load_scene(options.scene);
+  if (scene.tool.cutter == CutterKind::kNone) {
+    throw InputError(scene.file.string(), 0,
+                     "incise serve needs a cutter: add \"cutter\": {\"type\": \"subdivision\"}");
+  }
+  Engine engine(scene);
+  auto live = std::make_unique<LiveToolPose>();
+  LiveToolPose& live_pose = *live;
+  engine.set_tool_source(std::move(live));
+  const TetMesh& start_mesh = engine.mesh();
+  const double rest_volume_start = total_volume(start_mesh);
+  const std::size_t tets_start = start_mesh.tet_count();
+
+  std::unique_ptr<igtl::Server> server;
+  HapticLoop haptics(scene.tool.haptics, [&server](const Vec3& force, const DevicePose& pose) {
+    server->send_force(force, pose.device_stamp);
+  });
+  std::atomic<int> clients_seen{0};
+  igtl::ServerOptions server_options;
+  server_options.bind = options.bind;
+  server_options.port = options.port;
+  server_options.device = scene.tool.device;
+  server_options.blade = scene.tool.blade;
+  server = std::make_unique<igtl::Server>(
+      server_options,
+      [&](const DevicePose& pose) {
+        haptics.post_pose(pose);
+        live_pose.set(pose.blade);
+      },
+      [&](bool connected) {
+        if (connected) {
+          ++clients_seen;
+          std::cerr << "incise serve: a device connected\n";
+        } else {
+          haptics.release();
+          live_pose.lift();
+          std::cerr << "incise serve: the device left\n";
+        }
+      });
+  std::cout << fmt::format("incise serve: listening on {}:{} for TRANSFORM '{}'\n", options.bind,
+                           server->port(), scene.tool.device)
+            << std::flush;
+  if (!options.port_file.empty()) {
+    write_file_atomically(options.port_file, std::to_string(server->port()) + "\n");
+  }
+
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  haptics.start();
+  server->start();
+
+  // Physics in real time: frame k ends at k frame_dt of wall time (or as soon as it can).
+  const auto start = std::chrono::steady_clock::now();
+  const auto frame_period = std::chrono::duration<double>(scene.frame_dt);
+  std::string ended = "stopped (SIGINT/SIGTERM)";
+  bool diverged = false;
+  int frames = 0;
+  double physics_seconds = 0.0;
+  while (!stop_requested.load()) {
+    if (options.exit_when_idle && clients_seen.load() > 0 && !server->has_client()) {
+      ended = "idle (the last device left)";
+      break;
+    }
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (options.max_seconds > 0.0 && elapsed > options.max_seconds) {
+      ended = "--max-seconds reached";
+      break;
+    }
+    std::this_thread::sleep_until(
+        start + std::chrono::duration_cast<std::chrono::nanoseconds>(frame_period * (frames + 1)));
+    const auto frame_start = std::chrono::steady_clock::now();
+    if (!engine.step()) {
+      ended = "diverged: " + engine.divergence();
+      diverged = true;
+      break;
+    }
+    ++frames;
+    // Refresh the haptic loop's model around this frame's state.
+    std::optional<BladePose> blade = engine.blade();
+    if (!blade) {
+      if (const auto pose = haptics.latest_pose()) {
+        blade = pose->blade;
+      }
+    }
+    const auto surface = engine.surface();
+    if (blade) {
+      haptics.set_model(std::make_shared<const ContactModel>(
+          build_contact_model(surface->triangles, surface->on_cut, engine.positions(), *blade,
+                              scene.material, scene.tool.haptics, engine.frame())));
+    }
+    if (server->has_client()) {
+      server->send_surface(igtl::encode_surface(surface->triangles, surface->on_cut,
+                                                engine.positions(), server_options.surface_device,
+                                                igtl::timestamp_of(engine.time())));
+    }
+    physics_seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - frame_start).count();
+  }
+  server->stop();
+  haptics.stop();
+
+  // Nothing but finite positions goes to disk: a diverged run keeps its report only.
+  std::filesystem::create_directories(options.out);
+  const TetMesh& mesh = engine.mesh();
+  const ValidationReport validation = validate(mesh);
+  const SurfaceEdgeCheck boundary = check_boundary(mesh);
+  if (!diverged) {
+    // The deformed body, with its displacement from rest (ParaView: Warp By Vector, -1).
+    const auto positions = engine.positions();
+    std::vector<double> displacement;
+    displacement.reserve(3 * positions.size());
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      const Vec3 d = positions[i] - mesh.rest_positions()[i];
+      displacement.insert(displacement.end(), {d.x(), d.y(), d.z()});
+    }
+    VtuFields fields;
+    fields.point_data.push_back({"displacement", 3, std::move(displacement)});
+    write_vtu(std::filesystem::path(options.out) / "final.vtu", mesh, positions, fields);
+  }
+  const HapticStatistics haptic = haptics.statistics();
+  const igtl::ServerCounters counters = server->counters();
+  nlohmann::json dropped = nlohmann::json::object();
+  for (std::size_t i = 0; i < igtl::kDropReasons; ++i) {
+    dropped[std::string(igtl::name_of(static_cast<igtl::DropReason>(i)))] = counters.dropped[i];
+  }
+  const nlohmann::json report = {
+      {"scene", scene.file.empty() ? "(default)" : scene.file.string()},
+      {"ended", ended},
+      {"frames", frames},
+      {"simulated_time_s", engine.time()},
+      {"physics_ms_per_frame", frames > 0 ? 1e3 * physics_seconds / frames : 0.0},
+      {"tets_start", tets_start},
+      {"tets", mesh.tet_count()},
+      {"rest_volume_start_m3", rest_volume_start},
+      {"rest_volume_m3", total_volume(mesh)},
+      {"valid", validation.ok()},
+      {"watertight", boundary.watertight()},
+      {"clients", counters.clients},
+      {"clients_refused", counters.refused},
+      {"clients_disconnected_for_garbage", counters.disconnected_for_garbage},
+      {"haptic",
+       {{"rate_hz", scene.tool.haptics.rate},
+        {"ticks", haptic.ticks},
+        {"overruns", haptic.overruns},
+        {"period_s", histogram_json(haptic.period_p50, haptic.period_p99, haptic.period_max)},
+        {"pose_to_force_latency_s",
+         histogram_json(haptic.latency_p50, haptic.latency_p99, haptic.latency_max)},
+        {"largest_force_n", haptic.largest_force},
+        {"largest_force_step_n", haptic.largest_step}}},
+      {"messages",
+       {{"received", counters.received},
+        {"poses", counters.poses},
+        {"sent", counters.sent},
+        {"send_dropped", counters.send_dropped},
+        {"dropped", dropped},
+        {"dropped_total", counters.dropped_total()}}},
+      {"units", "SI (m, s, N); OpenIGTLink messages carry millimetres"}};
+  write_file_atomically(std::filesystem::path(options.out) / "report.json", report.dump(2) + "\n");
+  std::cerr << fmt::format(
+      "incise serve: {} after {} frames; {} -> {} tets; haptic period p50 {:.3f} / p99 {:.3f} / "
+      "max {:.3f} ms; {} poses, {} dropped; wrote {}\n",
+      ended, frames, tets_start, mesh.tet_count(), 1e3 * haptic.period_p50, 1e3 * haptic.period_p99,
+      1e3 * haptic.period_max, counters.poses, counters.dropped_total(), options.out);
+  return diverged ? kExitDiverged : 0;
+}
+
+}  // namespace
+
+Runner add_serve_command(CLI::App& app) {
+  auto options = std::make_shared<ServeOptions>();
+  CLI::App* command = app.add_subcommand(
+      "serve",
+      "Run a scene as an OpenIGTLink server: a device sends the scalpel's pose, gets "
+      "forces at 1 kHz and the deformed surface every frame");
+  command->add_option("scene", options->scene, "Scene file (default: the built-in scene)");
+  command->add_option("--port", options->port, "TCP port (0: any free port)")
+      ->check(CLI::Range(0, 65535));
+  command->add_option("--bind", options->bind,
+                      "Address to listen on (loopback unless asked; \"*\" for every interface)");
+  command->add_option("--out", options->out, "Folder for final.vtu and report.json");
+  command->add_flag("--exit-when-idle", options->exit_when_idle,
+                    "Stop once a device has come and the last one has left");
+  command->add_option("--port-file", options->port_file,
+                      "Write the port listened on to this file (for --port 0)");
+  command->add_option("--max-seconds", options->max_seconds, "Stop after this long (s)")
+      ->check(CLI::NonNegativeNumber);
+  return [options] { return serve(*options); };
+}
+
+}  // namespace incise::app

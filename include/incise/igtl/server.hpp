@@ -1,0 +1,97 @@
+#pragma once
+// incise's OpenIGTLink server: one device client at a time on a TCP port (loopback unless
+// asked), its TRANSFORMs checked and turned into blade poses, forces (SENSOR) and surfaces
+// (POLYDATA) sent back. Whatever a client sends, the server keeps serving: bad messages are
+// dropped and counted, a client that sends only garbage is disconnected, a second client is
+// told it is busy (STATUS) and closed, a client that leaves never ends the session.
+//
+// Thread rule: the server's own network thread reads, accepts and calls the callbacks;
+// send_force() and send_surface() may be called from any thread (the haptic loop, the
+// physics); counters() from any thread.
+
+#include <array>
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "incise/haptics/haptic_loop.hpp"
+#include "incise/igtl/tcp.hpp"
+#include "incise/igtl/wire.hpp"
+
+namespace incise::igtl {
+
+struct ServerOptions {
+  std::string bind = "127.0.0.1";  ///< loopback unless asked
+  int port = 18944;                ///< OpenIGTLink's registered port; 0: any free port
+  std::string device = "Scalpel";  ///< the tool's TRANSFORM device name
+  std::string force_device = "ScalpelForce";
+  std::string surface_device = "Tissue";
+  BladeGeometry blade;             ///< the blade in the tool's frame
+  int garbage_limit = 8;           ///< consecutive bad messages before a client is dropped
+  double stall_timeout = 2.0;      ///< s an incomplete message may wait before it is dropped
+  std::size_t backlog = 8u << 20;  ///< bytes queued for a slow client before surfaces drop
+};
+
+struct ServerCounters {
+  std::uint64_t received = 0;      ///< complete messages (and drops) read
+  std::uint64_t poses = 0;         ///< TRANSFORMs taken
+  std::uint64_t sent = 0;          ///< messages handed to clients
+  std::uint64_t send_dropped = 0;  ///< surfaces not sent to a slow client
+  std::array<std::uint64_t, kDropReasons> dropped{};
+  std::uint64_t clients = 0;  ///< clients served
+  std::uint64_t refused = 0;  ///< clients turned away (busy)
+  std::uint64_t disconnected_for_garbage = 0;
+  [[nodiscard]] std::uint64_t dropped_total() const;
+};
+
+class Server {
+ public:
+  using PoseCallback = std::function<void(const DevicePose&)>;
+  using ClientCallback = std::function<void(bool connected)>;
+
+  /// Listens at once (throws Error when the address or port cannot be had).
+  Server(ServerOptions options, PoseCallback on_pose, ClientCallback on_client);
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  [[nodiscard]] int port() const { return port_; }
+  void start();
+  void stop();
+  /// The haptic force (N) for the pose stamped `stamp` (echoed so the device can time the
+  /// round trip); dropped when no client is connected.
+  void send_force(const Vec3& force, std::uint64_t stamp);
+  /// A surface message (encode_surface) for the connected client, if any.
+  void send_surface(std::vector<std::uint8_t> message);
+  [[nodiscard]] bool has_client() const { return has_client_.load(); }
+  [[nodiscard]] ServerCounters counters() const;
+
+ private:
+  struct Client;
+  void run();
+  void accept_client();
+  void read_client();
+  void handle(const MessageReader::Event& event);
+  void drop(DropReason reason, bool counts_as_garbage);
+  void close_client();
+  void send_to_client(std::span<const std::uint8_t> message, bool droppable);
+
+  ServerOptions options_;
+  PoseCallback on_pose_;
+  ClientCallback on_client_;
+  Socket listener_;
+  int port_ = 0;
+  Socket wake_;  ///< eventfd: a sender left bytes waiting, or stop()
+  std::atomic<bool> running_{false};
+  std::atomic<bool> has_client_{false};
+  std::thread thread_;
+  mutable std::mutex client_mutex_;  ///< guards client_ (the pointer) for senders
+  std::shared_ptr<Client> client_;
+  mutable std::mutex counters_mutex_;
+  ServerCounters counters_;
+};
+
+}  // namespace incise::igtl

@@ -1,0 +1,146 @@
+#pragma once
+// OpenIGTLink on the wire: the messages incise serve and incise device exchange, encoded and
+// decoded through the OpenIGTLink library (Debian's libopenigtlink, protocol version 2 with
+// version-1 headers), and checked before anything is trusted: header version, size limits,
+// CRC, the body size for the type, finite numbers, a pose that is a rigid transform.
+//
+// Units on the wire are millimetres, as 3D Slicer and the PLUS toolkit use; incise's own
+// types stay in metres and the conversion happens here only.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "incise/cut/blade.hpp"
+
+namespace incise::igtl {
+
+inline constexpr std::size_t kHeaderSize = 58;
+inline constexpr double kWireUnitsPerMetre = 1000.0;  ///< mm per m
+/// Largest body a peer may send us: a TRANSFORM is 48 bytes; anything larger than this is a
+/// broken or hostile stream (the connection cannot be resynchronised and is closed).
+inline constexpr std::uint64_t kMaxBodySize = 16u << 20;
+
+/// Why a message was dropped (the report counts each).
+enum class DropReason : std::uint8_t {
+  kTruncated,    ///< the stream ended inside a message
+  kVersion,      ///< header version other than 1
+  kOversized,    ///< body larger than kMaxBodySize (the connection is closed)
+  kBodySize,     ///< wrong body size for its type
+  kCrc,          ///< the body's CRC-64 does not match the header's
+  kUnknownType,  ///< not an OpenIGTLink message type
+  kBadName,      ///< empty device name, or a name with control characters
+  kUnsupported,  ///< a valid type incise does not take (skipped)
+  kOtherDevice,  ///< a TRANSFORM for another device
+  kNotFinite,    ///< NaN or infinity in the numbers
+  kNotRigid,     ///< a pose whose rotation is not orthonormal with determinant +1
+  kStale,        ///< older than the newest pose already taken
+  kCount
+};
+inline constexpr std::size_t kDropReasons = static_cast<std::size_t>(DropReason::kCount);
+[[nodiscard]] std::string_view name_of(DropReason reason);
+
+struct Header {
+  std::uint16_t version = 0;
+  std::string type;             ///< e.g. "TRANSFORM"
+  std::string device;           ///< e.g. "Scalpel"
+  std::uint64_t timestamp = 0;  ///< seconds << 32 | fraction of a second (0: none)
+  std::uint64_t body_size = 0;
+  std::uint64_t crc = 0;
+  /// The time stamp in seconds (0 when none).
+  [[nodiscard]] double seconds() const;
+};
+
+struct Message {
+  Header header;
+  std::array<std::uint8_t, kHeaderSize> raw_header{};
+  std::vector<std::uint8_t> body;
+};
+
+/// Parses the 58 header bytes (big-endian on the wire). Never fails: checks come after.
+[[nodiscard]] Header parse_header(std::span<const std::uint8_t, kHeaderSize> bytes);
+/// Whether `type` is a message type of the OpenIGTLink protocol (including GET_, STT_, STP_
+/// and RTS_ queries).
+[[nodiscard]] bool is_known_type(std::string_view type);
+/// The time stamp of `seconds` since the epoch of the caller's clock.
+[[nodiscard]] std::uint64_t timestamp_of(double seconds);
+
+/// The CRC-64 (ECMA-182) OpenIGTLink puts in a header for `body`.
+[[nodiscard]] std::uint64_t body_crc(std::span<const std::uint8_t> body);
+
+/// A complete message's header-level checks: name, known type, CRC.
+[[nodiscard]] std::optional<DropReason> check_message(const Message& message);
+
+/// A TRANSFORM's tool frame (m): a complete, checked message of that type.
+[[nodiscard]] std::variant<ToolFrame, DropReason> decode_transform(const Message& message);
+/// A SENSOR's values, checked finite.
+[[nodiscard]] std::variant<std::vector<double>, DropReason> decode_sensor(const Message& message);
+/// A STATUS's code and text.
+struct Status {
+  int code = 0;
+  std::string error_name;
+  std::string text;
+};
+[[nodiscard]] std::variant<Status, DropReason> decode_status(const Message& message);
+
+[[nodiscard]] std::vector<std::uint8_t> encode_transform(const ToolFrame& frame,
+                                                         const std::string& device,
+                                                         std::uint64_t timestamp);
+/// A force (N) as a SENSOR of three values with the unit newton.
+[[nodiscard]] std::vector<std::uint8_t> encode_force(const Vec3& force, const std::string& device,
+                                                     std::uint64_t timestamp);
+inline constexpr int kStatusOk = 1;
+inline constexpr int kStatusBusy = 6;
+inline constexpr int kStatusChecksum = 9;
+inline constexpr int kStatusUnknownInstruction = 12;
+inline constexpr int kStatusShutDown = 19;
+[[nodiscard]] std::vector<std::uint8_t> encode_status(int code, const std::string& error_name,
+                                                      const std::string& text,
+                                                      const std::string& device);
+/// A triangle surface (vertex ids into `positions`, m) as POLYDATA: only the vertices the
+/// triangles use, in mm, with the cell scalar "CutFace" (1 on faces a cut opened).
+[[nodiscard]] std::vector<std::uint8_t> encode_surface(std::span<const Triangle> triangles,
+                                                       std::span<const std::uint8_t> on_cut,
+                                                       std::span<const Vec3> positions,
+                                                       const std::string& device,
+                                                       std::uint64_t timestamp);
+/// A decoded POLYDATA (for tests and clients): points (m), triangles, the CutFace scalar.
+struct Surface {
+  std::vector<Vec3> points;
+  std::vector<Triangle> triangles;
+  std::vector<std::uint8_t> on_cut;
+};
+[[nodiscard]] std::variant<Surface, DropReason> decode_surface(const Message& message);
+
+/// Splits a byte stream into messages. Incomplete messages wait for more bytes; a header
+/// with a bad version or an unknown type drops its message (its body is skipped); a body
+/// size beyond kMaxBodySize is fatal (the stream cannot be trusted to resynchronise).
+class MessageReader {
+ public:
+  struct Drop {
+    DropReason reason;
+    Header header;
+  };
+  using Event = std::variant<Message, Drop>;
+
+  void feed(std::span<const std::uint8_t> bytes);
+  /// The next complete message or drop, or nothing until more bytes come.
+  [[nodiscard]] std::optional<Event> next();
+  /// The stream broke beyond repair (an oversized body): close the connection.
+  [[nodiscard]] bool fatal() const { return fatal_; }
+  /// Bytes of an incomplete message are waiting (at the end of a stream: truncated).
+  [[nodiscard]] bool partial() const { return buffer_.size() > start_ || skip_ > 0; }
+
+ private:
+  std::vector<std::uint8_t> buffer_;
+  std::size_t start_ = 0;   ///< consumed bytes at the front of buffer_
+  std::uint64_t skip_ = 0;  ///< body bytes of a dropped message still to discard
+  bool fatal_ = false;
+};
+
+}  // namespace incise::igtl
