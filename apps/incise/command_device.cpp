@@ -76,6 +76,7 @@ int run_device(const DeviceOptions& options) {
   };
   const double start = clock_seconds();
   const double end = path.back().time - path.front().time + options.hold;
+  const bool realtime = request_realtime_priority();
   PeriodicClock clock(options.rate);
   std::optional<SteadyTime> previous_tick;
   bool open = true;
@@ -142,10 +143,11 @@ int run_device(const DeviceOptions& options) {
   std::cout << fmt::format(
       "incise device: {} poses sent, {} forces received (largest {:.3f} N); loop period p50 "
       "{:.3f} / p99 {:.3f} / max {:.3f} ms, {} overruns; pose-to-force round trip p50 {:.3f} / "
-      "p99 {:.3f} / max {:.3f} ms\n",
+      "p99 {:.3f} / max {:.3f} ms{}\n",
       sent, forces, largest_force, 1e3 * periods.quantile(0.5), 1e3 * periods.quantile(0.99),
       1e3 * periods.max(), overruns, 1e3 * round_trips.quantile(0.5),
-      1e3 * round_trips.quantile(0.99), 1e3 * round_trips.max());
+      1e3 * round_trips.quantile(0.99), 1e3 * round_trips.max(),
+      realtime ? " (real-time priority)" : "");
   if (!refused.empty()) {
     std::cerr << "incise device: the server refused this device: " << refused << "\n";
     return kExitError;

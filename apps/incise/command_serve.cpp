@@ -192,6 +192,7 @@ int serve(const ServeOptions& options) {
       {"clients_disconnected_for_garbage", counters.disconnected_for_garbage},
       {"haptic",
        {{"rate_hz", scene.tool.haptics.rate},
+        {"realtime_priority", haptic.realtime},
         {"ticks", haptic.ticks},
         {"overruns", haptic.overruns},
         {"period_s", histogram_json(haptic.period_p50, haptic.period_p99, haptic.period_max)},

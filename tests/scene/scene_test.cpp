@@ -47,6 +47,45 @@ TEST(SceneParsing, EveryExampleSceneParses) {
   }
 }
 
+TEST(SceneParsing, LiveToolBladeDeviceAndHaptics) {
+  // The default scene's blade: as long as its path's first pose, along +z of the tool frame.
+  EXPECT_NEAR(default_scene().tool.blade.length, 0.048, 1e-12);
+  EXPECT_EQ(default_scene().tool.device, "Scalpel");
+  const SceneDescription scene = parse_scene(
+      R"({"mesh": {"box": {"cells": [2, 2, 2]}},
+          "tool": {"blade": {"length": 0.03, "axis": [0, 0, -2]}, "device": "Needle",
+                   "haptics": {"force_limit": 2.5, "max_force_step": 0.02, "rate": 500,
+                               "cutting_toughness": 80}}})",
+      "scene.json");
+  EXPECT_TRUE(scene.tool.poses.empty());  // a tool with no path: live only
+  EXPECT_EQ(scene.tool.cutter, CutterKind::kSubdivision);
+  EXPECT_DOUBLE_EQ(scene.tool.blade.length, 0.03);
+  EXPECT_EQ(scene.tool.blade.axis, Vec3(0, 0, -1));
+  EXPECT_EQ(scene.tool.device, "Needle");
+  EXPECT_DOUBLE_EQ(scene.tool.haptics.force_limit, 2.5);
+  EXPECT_DOUBLE_EQ(scene.tool.haptics.max_force_step, 0.02);
+  EXPECT_DOUBLE_EQ(scene.tool.haptics.rate, 500.0);
+  EXPECT_DOUBLE_EQ(scene.tool.haptics.cutting_toughness, 80.0);
+  EXPECT_DOUBLE_EQ(scene.tool.haptics.contact_stiffness, 0.0);  // from the material
+
+  for (
+      const auto& [json, names] : std::vector<std::pair<std::string, std::string>>{
+          {R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "tool": {"blade": {"length": -1}}})",
+           "tool.blade.length"},
+          {R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "tool": {"blade": {"axis": [0, 0, 0]}}})",
+           "tool.blade.axis"},
+          {R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "tool": {"device": ""}})", "tool.device"},
+          {R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "tool": {"haptics": {"force_limt": 3}}})",
+           "did you mean 'force_limit'"},
+          {R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "tool": {"haptics": {"rate": 1e6}}})",
+           "tool.haptics.rate"},
+          {R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "tool": {"haptics": {"max_force_step": 0}}})",
+           "tool.haptics.max_force_step"}}) {
+    const std::string message = error_of(json);
+    EXPECT_NE(message.find(names), std::string::npos) << json << " -> " << message;
+  }
+}
+
 TEST(SceneParsing, UnknownKeyNamesFileLineAndClosestKey) {
   const std::string message = error_of(
       "{\n  \"mesh\": {\"box\": {\"cells\": [2, 2, 2]}},\n  \"integrator\": {\"type\": \"rk4\", "

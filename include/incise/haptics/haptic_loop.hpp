@@ -69,7 +69,11 @@ class PeriodicClock {
   bool overran_ = false;
 };
 
+/// Asks for real-time (FIFO) scheduling of the calling thread; false when not permitted.
+bool request_realtime_priority();
+
 struct HapticStatistics {
+  bool realtime = false;  ///< the loop ran with real-time priority
   std::uint64_t ticks = 0;
   std::uint64_t overruns = 0;  ///< ticks that started a whole period late (skipped ahead)
   double period_p50 = 0.0;     ///< s
