@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <sys/socket.h>
 
+#include <random>
 #include <thread>
 
 #include "incise/igtl/server.hpp"
@@ -133,6 +134,61 @@ TEST(Wire, ReaderWaitsForWholeMessagesAndSkipsBadHeaders) {
   ASSERT_EQ(events.size(), 2u);
   EXPECT_EQ(std::get<MessageReader::Drop>(events[0]).reason, DropReason::kVersion);
   EXPECT_TRUE(std::holds_alternative<Message>(events[1]));
+}
+
+TEST(Wire, ArbitraryBytesNeverCrashTheReaderOrTheDecoders) {
+  // Random garbage, good messages and their mutations, fed in random chunks: every event is a
+  // drop or a message, decoders answer every message with a value or a reason, and a body
+  // size beyond the limit stops the stream for good.
+  std::mt19937_64 random(20261123);
+  const auto transform = encode_transform(tilted_frame(), "Scalpel", 3);
+  const auto force = encode_force(Vec3(1, 2, 3), "ScalpelForce", 4);
+  const TetMesh mesh = make_box_grid({{2, 2, 2}, Vec3(0.02, 0.02, 0.02), Vec3::Zero(), 6});
+  std::vector<Triangle> triangles;
+  for (const BoundaryFace& face : boundary_faces(mesh)) {
+    triangles.push_back(face.vertices);
+  }
+  const auto surface = encode_surface(triangles, std::vector<std::uint8_t>(triangles.size(), 1),
+                                      mesh.rest_positions(), "Tissue", 5);
+  const std::vector<std::vector<std::uint8_t>> seeds = {transform, force, surface};
+  int messages = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    std::vector<std::uint8_t> stream;
+    for (int part = 0; part < 6; ++part) {
+      std::vector<std::uint8_t> piece = seeds[random() % seeds.size()];
+      const int flips = static_cast<int>(random() % 4);
+      for (int f = 0; f < flips; ++f) {
+        piece[random() % piece.size()] ^= static_cast<std::uint8_t>(1u << (random() % 8));
+      }
+      if (random() % 5 == 0) {
+        piece.resize(random() % piece.size());
+      }
+      stream.insert(stream.end(), piece.begin(), piece.end());
+    }
+    MessageReader reader;
+    std::size_t at = 0;
+    while (at < stream.size()) {
+      const std::size_t chunk = std::min<std::size_t>(1 + random() % 97, stream.size() - at);
+      reader.feed(std::span(stream).subspan(at, chunk));
+      at += chunk;
+      while (const auto event = reader.next()) {
+        if (const auto* message = std::get_if<Message>(&*event)) {
+          ++messages;
+          EXPECT_EQ(message->body.size(), message->header.body_size);
+          (void)check_message(*message);
+          (void)decode_transform(*message);
+          (void)decode_sensor(*message);
+          (void)decode_status(*message);
+          (void)decode_surface(*message);
+        }
+      }
+      if (reader.fatal()) {
+        EXPECT_FALSE(reader.next().has_value());
+        break;
+      }
+    }
+  }
+  EXPECT_GT(messages, 100);
 }
 
 // ---- the server under attack ----
