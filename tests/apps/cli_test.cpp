@@ -561,5 +561,56 @@ TEST(Cli, ServeAndDeviceCutTheDefaultBlockOverLoopback) {
   EXPECT_GT(in_contact, 100);
 }
 
+TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
+  if (incise("serve --help").code != 0) {
+    GTEST_SKIP() << "built without OpenIGTLink";
+  }
+  const auto dir = test::scratch_dir("serve-sigterm");
+  {
+    std::ofstream path(dir / "path.csv");
+    path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
+         << "0.0,0.0213,-0.012,0.012,0.0213,-0.012,0.06\n"
+         << "0.3,0.0213,0.02,0.012,0.0213,0.02,0.06\n";
+  }
+  const std::string serve =
+      "bash -c '" + std::string(INCISE_EXECUTABLE) + " serve --port 0 --port-file " +
+      (dir / "port").string() + " --max-seconds 60 --out " + (dir / "out").string() + " >" +
+      (dir / "serve.log").string() + " 2>&1 & echo $! >" + (dir / "pid").string() + "'";
+  ASSERT_EQ(std::system(serve.c_str()), 0);
+  std::string port;
+  for (int i = 0; i < 200 && port.empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    port = slurp(dir / "port");
+  }
+  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  port = port.substr(0, port.find('\n'));
+  // A client that sends only garbage, then leaves.
+  const std::string garbage =
+      "bash -c 'head -c 4096 /dev/urandom >/dev/tcp/127.0.0.1/" + port + "' 2>/dev/null";
+  EXPECT_EQ(std::system(garbage.c_str()), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  // Two devices, one after the other: the session goes on.
+  for (int i = 0; i < 2; ++i) {
+    const CommandResult device =
+        incise("device " + (dir / "path.csv").string() + " --port " + port + " --hold 0.1");
+    ASSERT_EQ(device.code, 0) << device.err;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "out" / "report.json"));
+  const std::string pid = slurp(dir / "pid");
+  ASSERT_EQ(std::system(("kill -TERM " + pid.substr(0, pid.find('\n'))).c_str()), 0);
+  for (int i = 0; i < 200 && !std::filesystem::exists(dir / "out" / "report.json"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_TRUE(std::filesystem::exists(dir / "out" / "report.json")) << slurp(dir / "serve.log");
+  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  EXPECT_EQ(report["ended"], "stopped (SIGINT/SIGTERM)");
+  EXPECT_EQ(report["clients"].get<int>(), 3);
+  EXPECT_GT(report["messages"]["dropped_total"].get<int>(), 0);  // the garbage, counted
+  EXPECT_GT(report["messages"]["poses"].get<int>(), 400);        // both devices' poses
+  EXPECT_TRUE(report["valid"].get<bool>());
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "final.vtu"));
+}
+
 }  // namespace
 }  // namespace incise
