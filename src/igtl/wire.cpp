@@ -288,8 +288,10 @@ std::vector<std::uint8_t> encode_surface(std::span<const Triangle> triangles,
   message->SetPolygons(polygons);
   auto attribute = ::igtl::PolyDataAttribute::New();
   // libopenigtlink 1.11 packs a cell attribute as if it were a tensor (9 values per cell,
-  // read past its buffer: valgrind shows it, large surfaces crash). It is packed as a point
-  // scalar of the same size and its type byte set to cell scalar afterwards.
+  // read past its buffer: valgrind shows it, large surfaces crash; openigtlink/OpenIGTLink
+  // issue 36, fixed after 1.11). It is packed as a point scalar of the same size and its type
+  // byte set to cell scalar afterwards: the protocol's layout (type 0x10, 1 component, one
+  // float per cell), as current OpenIGTLink (3D Slicer's) reads it.
   attribute->SetType(::igtl::PolyDataAttribute::POINT_SCALAR);
   attribute->SetName("CutFace");
   attribute->SetSize(static_cast<igtlUint32>(cut_scalar.size()));
