@@ -1,0 +1,152 @@
+#include "incise/xfem/virtual_mesh.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <numeric>
+#include <unordered_set>
+
+#include "incise/core/error.hpp"
+
+namespace incise {
+namespace {
+
+std::array<Vec3, 4> corners_of(const TetMesh& mesh, const Tet& tet) {
+  return {mesh.rest_position(tet[0]), mesh.rest_position(tet[1]), mesh.rest_position(tet[2]),
+          mesh.rest_position(tet[3])};
+}
+
+double rest_volume(const TetMesh& mesh, TetId tet) {
+  const auto x = corners_of(mesh, mesh.tet(tet));
+  return (x[1] - x[0]).dot((x[2] - x[0]).cross(x[3] - x[0])) / 6.0;
+}
+
+}  // namespace
+
+VirtualMesh build_virtual_mesh(const TetMesh& mesh, std::span<const std::optional<ElementCut>> cuts,
+                               std::span<const TetId> front) {
+  INCISE_ASSERT(cuts.size() == mesh.tet_count(), "one cut entry per tetrahedron");
+  const std::size_t vertices = mesh.vertex_count();
+  VirtualMesh body;
+  body.rest_positions.assign(mesh.rest_positions().begin(), mesh.rest_positions().end());
+  body.original_of.resize(vertices);
+  std::iota(body.original_of.begin(), body.original_of.end(), VertexId{0});
+  body.first_copy = vertices;
+
+  // Tie the ends of every crossed edge that a front tetrahedron holds: the cut is open only
+  // where it has crossed every element around.
+  const auto edge_key = [](VertexId a, VertexId b) {
+    return (static_cast<std::uint64_t>(std::min(a, b)) << 32) |
+           static_cast<std::uint32_t>(std::max(a, b));
+  };
+  std::unordered_set<std::uint64_t> front_edges;
+  for (TetId t : front) {
+    const Tet& tet = mesh.tet(t);
+    for (const auto& edge : tet_local::kEdges) {
+      front_edges.insert(
+          edge_key(tet[static_cast<std::size_t>(edge[0])], tet[static_cast<std::size_t>(edge[1])]));
+    }
+  }
+  std::vector<bool> tied(vertices, false);
+  for (std::size_t t = 0; t < cuts.size() && !front_edges.empty(); ++t) {
+    if (!cuts[t] || !cuts[t]->splits()) {
+      continue;
+    }
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    for (const auto& edge : tet_local::kEdges) {
+      const auto i = static_cast<std::size_t>(edge[0]);
+      const auto j = static_cast<std::size_t>(edge[1]);
+      if (cuts[t]->on_b[i] != cuts[t]->on_b[j] && front_edges.contains(edge_key(tet[i], tet[j]))) {
+        tied[static_cast<std::size_t>(tet[i])] = true;
+        tied[static_cast<std::size_t>(tet[j])] = true;
+      }
+    }
+  }
+
+  std::vector<VertexId> copy(vertices, kInvalidId);
+  const auto copy_of = [&](VertexId v) {
+    const auto index = static_cast<std::size_t>(v);
+    if (tied[index]) {
+      return v;
+    }
+    if (copy[index] == kInvalidId) {
+      copy[index] = static_cast<VertexId>(body.rest_positions.size());
+      body.rest_positions.push_back(mesh.rest_position(v));
+      body.original_of.push_back(v);
+    }
+    return copy[index];
+  };
+
+  for (std::size_t t = 0; t < cuts.size(); ++t) {
+    const auto id = static_cast<TetId>(t);
+    const Tet& tet = mesh.tet(id);
+    if (!cuts[t] || !cuts[t]->splits()) {
+      body.elements.push_back(tet);
+      body.rest_tet.push_back(id);
+      body.fraction.push_back(1.0);
+      continue;
+    }
+    const SideVolumes volumes = side_volumes(corners_of(mesh, tet), *cuts[t]);
+    const Tet copies = {copy_of(tet[0]), copy_of(tet[1]), copy_of(tet[2]), copy_of(tet[3])};
+    const VirtualElements split = virtual_elements(tet, *cuts[t], copies);
+    body.elements.push_back(split.a);
+    body.rest_tet.push_back(id);
+    body.fraction.push_back(volumes.fraction_a());
+    body.elements.push_back(split.b);
+    body.rest_tet.push_back(id);
+    body.fraction.push_back(volumes.fraction_b());
+    ++body.split;
+  }
+  for (std::size_t v = 0; v < vertices; ++v) {
+    body.tied += tied[v] ? 1 : 0;
+  }
+  return body;
+}
+
+std::vector<int> virtual_pieces(const VirtualMesh& body, int* count) {
+  std::vector<VertexId> parent(body.rest_positions.size());
+  std::iota(parent.begin(), parent.end(), VertexId{0});
+  const auto find = [&](VertexId v) {
+    while (parent[static_cast<std::size_t>(v)] != v) {
+      parent[static_cast<std::size_t>(v)] =
+          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
+      v = parent[static_cast<std::size_t>(v)];
+    }
+    return v;
+  };
+  for (std::size_t e = 0; e < body.elements.size(); ++e) {
+    if (!(body.fraction[e] > 0.0)) {
+      continue;
+    }
+    const Tet& element = body.elements[e];
+    for (VertexId v : element) {
+      parent[static_cast<std::size_t>(find(v))] = find(element[0]);
+    }
+  }
+  std::vector<int> piece_of_root(parent.size(), -1);
+  int pieces = 0;
+  std::vector<int> pieces_of_elements(body.elements.size(), -1);
+  for (std::size_t e = 0; e < body.elements.size(); ++e) {
+    if (!(body.fraction[e] > 0.0)) {
+      continue;
+    }
+    int& piece = piece_of_root[static_cast<std::size_t>(find(body.elements[e][0]))];
+    if (piece < 0) {
+      piece = pieces++;
+    }
+    pieces_of_elements[e] = piece;
+  }
+  if (count != nullptr) {
+    *count = pieces;
+  }
+  return pieces_of_elements;
+}
+
+double material_volume(const VirtualMesh& body, const TetMesh& mesh) {
+  double volume = 0.0;
+  for (std::size_t e = 0; e < body.elements.size(); ++e) {
+    volume += body.fraction[e] * rest_volume(mesh, body.rest_tet[e]);
+  }
+  return volume;
+}
+
+}  // namespace incise

@@ -1,0 +1,141 @@
+// The XFEM body: a full cut separates it into pieces whose material volumes are the exactly
+// clipped ones, a partial cut keeps it whole with its front tied, and no rest element is ever
+// created.
+
+#include "incise/xfem/virtual_mesh.hpp"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <set>
+
+#include "incise/mesh/generators.hpp"
+
+namespace incise {
+namespace {
+
+/// A bar 8 x 2 x 2 cm of 8 x 2 x 2 cells.
+TetMesh bar() {
+  return make_box_grid({{8, 2, 2}, Vec3(0.08, 0.02, 0.02), Vec3::Zero(), 6});
+}
+
+std::array<Vec3, 4> corners(const TetMesh& mesh, TetId t) {
+  const Tet& tet = mesh.tet(t);
+  return {mesh.rest_position(tet[0]), mesh.rest_position(tet[1]), mesh.rest_position(tet[2]),
+          mesh.rest_position(tet[3])};
+}
+
+/// The cut of every tetrahedron by the plane x = `at`; those `keep` rejects become the front.
+struct PlaneCut {
+  std::vector<std::optional<ElementCut>> cuts;
+  std::vector<TetId> front;
+};
+template <typename Keep>
+PlaneCut cut_at(const TetMesh& mesh, double at, Keep keep) {
+  PlaneCut result;
+  result.cuts.resize(mesh.tet_count());
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto cut =
+        cut_by_plane(corners(mesh, static_cast<TetId>(t)), Vec3(at, 0, 0), Vec3::UnitX());
+    if (!cut) {
+      continue;
+    }
+    if (keep(corners(mesh, static_cast<TetId>(t)))) {
+      result.cuts[t] = cut;
+    } else {
+      result.front.push_back(static_cast<TetId>(t));
+    }
+  }
+  return result;
+}
+
+TEST(VirtualMesh, AFullCutSeparatesTheBarIntoTheClippedPieces) {
+  const TetMesh mesh = bar();
+  const PlaneCut plane = cut_at(mesh, 0.0437, [](const auto&) { return true; });
+  const VirtualMesh body = build_virtual_mesh(mesh, plane.cuts);
+  EXPECT_GT(body.split, 0u);
+  EXPECT_EQ(body.tied, 0u);
+  EXPECT_EQ(body.elements.size(), mesh.tet_count() + body.split);
+  // No new rest element: every element integrates over one of the mesh's tetrahedra, a split
+  // one exactly twice with fractions summing to one.
+  std::map<TetId, double> fractions;
+  for (std::size_t e = 0; e < body.elements.size(); ++e) {
+    ASSERT_LT(static_cast<std::size_t>(body.rest_tet[e]), mesh.tet_count());
+    fractions[body.rest_tet[e]] += body.fraction[e];
+  }
+  EXPECT_EQ(fractions.size(), mesh.tet_count());
+  for (const auto& [tet, sum] : fractions) {
+    EXPECT_NEAR(sum, 1.0, 1e-14) << tet;
+  }
+  const double total = 0.08 * 0.02 * 0.02;
+  EXPECT_NEAR(material_volume(body, mesh), total, 1e-15);
+  // Two pieces, of the volumes the plane clips.
+  int count = 0;
+  const std::vector<int> pieces = virtual_pieces(body, &count);
+  ASSERT_EQ(count, 2);
+  std::array<double, 2> volume{};
+  std::array<double, 2> centre_x{};
+  for (std::size_t e = 0; e < body.elements.size(); ++e) {
+    const auto x = corners(mesh, body.rest_tet[e]);
+    const double v = body.fraction[e] * (x[1] - x[0]).dot((x[2] - x[0]).cross(x[3] - x[0])) / 6.0;
+    volume[static_cast<std::size_t>(pieces[e])] += v;
+    centre_x[static_cast<std::size_t>(pieces[e])] += v * (x[0] + x[1] + x[2] + x[3]).x() / 4.0;
+  }
+  const std::size_t left = centre_x[0] / volume[0] < centre_x[1] / volume[1] ? 0 : 1;
+  EXPECT_NEAR(volume[left], 0.0437 * 0.02 * 0.02, 1e-15);
+  EXPECT_NEAR(volume[1 - left], (0.08 - 0.0437) * 0.02 * 0.02, 1e-15);
+  // Copies stand where their originals are, and only vertices of split tetrahedra have one.
+  for (std::size_t v = body.first_copy; v < body.rest_positions.size(); ++v) {
+    EXPECT_EQ(body.rest_positions[v], mesh.rest_position(body.original_of[v]));
+  }
+  EXPECT_EQ(body.dofs_added(), 3 * body.copies());
+}
+
+TEST(VirtualMesh, APartialCutStaysWholeWithItsFrontTied) {
+  const TetMesh mesh = bar();
+  // The blade went down to mid-height: tetrahedra in the lower cell layer are crossed
+  // completely; those above it are reached but not crossed (the front).
+  const PlaneCut plane = cut_at(mesh, 0.0437, [](const std::array<Vec3, 4>& x) {
+    return std::max({x[0].z(), x[1].z(), x[2].z(), x[3].z()}) < 0.0101;
+  });
+  ASSERT_FALSE(plane.front.empty());
+  const VirtualMesh body = build_virtual_mesh(mesh, plane.cuts, plane.front);
+  EXPECT_GT(body.split, 0u);
+  EXPECT_GT(body.tied, 0u);
+  EXPECT_GT(body.copies(), 0u);  // below the front the cut is open
+  // At the front it is closed: no copy of an end of a crossed edge a front tetrahedron holds.
+  std::set<VertexId> front_ends;
+  for (TetId t : plane.front) {
+    const Tet& tet = mesh.tet(t);
+    for (const auto& edge : tet_local::kEdges) {
+      const VertexId i = tet[static_cast<std::size_t>(edge[0])];
+      const VertexId j = tet[static_cast<std::size_t>(edge[1])];
+      if ((mesh.rest_position(i).x() < 0.0437) != (mesh.rest_position(j).x() < 0.0437)) {
+        front_ends.insert(i);
+        front_ends.insert(j);
+      }
+    }
+  }
+  ASSERT_FALSE(front_ends.empty());
+  for (std::size_t v = body.first_copy; v < body.rest_positions.size(); ++v) {
+    EXPECT_FALSE(front_ends.contains(body.original_of[v])) << body.original_of[v];
+  }
+  int count = 0;
+  (void)virtual_pieces(body, &count);
+  EXPECT_EQ(count, 1);
+  EXPECT_NEAR(material_volume(body, mesh), 0.08 * 0.02 * 0.02, 1e-15);
+}
+
+TEST(VirtualMesh, NoCutNoChange) {
+  const TetMesh mesh = bar();
+  const std::vector<std::optional<ElementCut>> none(mesh.tet_count());
+  const VirtualMesh body = build_virtual_mesh(mesh, none);
+  EXPECT_EQ(body.elements.size(), mesh.tet_count());
+  EXPECT_EQ(body.copies(), 0u);
+  int count = 0;
+  (void)virtual_pieces(body, &count);
+  EXPECT_EQ(count, 1);
+}
+
+}  // namespace
+}  // namespace incise
