@@ -587,7 +587,7 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
   // A client that sends only garbage, then leaves.
   const std::string garbage =
       "bash -c 'head -c 4096 /dev/urandom >/dev/tcp/127.0.0.1/" + port + "' 2>/dev/null";
-  EXPECT_EQ(std::system(garbage.c_str()), 0);
+  (void)std::system(garbage.c_str());  // the server may close on it mid-stream: that is fine
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   // Two devices, one after the other: the session goes on.
   for (int i = 0; i < 2; ++i) {
