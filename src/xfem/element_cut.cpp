@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/predicates.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
 namespace incise {
@@ -142,6 +143,68 @@ std::optional<ElementCut> cut_by_plane(const std::array<Vec3, 4>& corners, const
     }
   }
   return cut;
+}
+
+std::optional<ElementCut> cut_by_surface(const std::array<Vec3, 4>& corners,
+                                         std::span<const std::array<Vec3, 3>> triangles,
+                                         std::uint8_t* crossed) {
+  std::uint8_t mask = 0;
+  ElementCut cut;
+  std::array<int, 4> votes_b{};  // per corner: crossed edges that put it on side b, minus a
+  for (std::size_t k = 0; k < 6; ++k) {
+    const auto i = static_cast<std::size_t>(tet_local::kEdges[k][0]);
+    const auto j = static_cast<std::size_t>(tet_local::kEdges[k][1]);
+    for (const auto& triangle : triangles) {
+      if (!segment_intersects_triangle(corners[i], corners[j], triangle[0], triangle[1],
+                                       triangle[2])) {
+        continue;
+      }
+      const Vec3 normal = (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]);
+      const double hi = normal.dot(corners[i] - triangle[0]);
+      const double hj = normal.dot(corners[j] - triangle[0]);
+      if (hi == hj) {
+        continue;  // the edge lies in the surface's plane: it crosses nothing
+      }
+      mask = static_cast<std::uint8_t>(mask | (1u << k));
+      cut.crossing[k] = std::clamp(hi / (hi - hj), 1e-9, 1.0 - 1e-9);
+      const int towards_j = hj > hi ? 1 : -1;  // the normal points from i to j
+      votes_b[j] += towards_j;
+      votes_b[i] -= towards_j;
+      break;
+    }
+  }
+  if (crossed != nullptr) {
+    *crossed = mask;
+  }
+  // The seven ways to part four corners; the crossed edges must be exactly those between parts.
+  constexpr std::array<std::array<bool, 4>, 7> kPartitions = {{{true, false, false, false},
+                                                               {false, true, false, false},
+                                                               {false, false, true, false},
+                                                               {false, false, false, true},
+                                                               {true, true, false, false},
+                                                               {true, false, true, false},
+                                                               {true, false, false, true}}};
+  for (const auto& part : kPartitions) {
+    std::uint8_t between = 0;
+    for (std::size_t k = 0; k < 6; ++k) {
+      if (part[static_cast<std::size_t>(tet_local::kEdges[k][0])] !=
+          part[static_cast<std::size_t>(tet_local::kEdges[k][1])]) {
+        between = static_cast<std::uint8_t>(between | (1u << k));
+      }
+    }
+    if (between != mask) {
+      continue;
+    }
+    int vote = 0;
+    for (std::size_t c = 0; c < 4; ++c) {
+      vote += part[c] ? votes_b[c] : -votes_b[c];
+    }
+    for (std::size_t c = 0; c < 4; ++c) {
+      cut.on_b[c] = vote >= 0 ? part[c] : !part[c];
+    }
+    return cut;
+  }
+  return std::nullopt;
 }
 
 VirtualElements virtual_elements(const Tet& real, const ElementCut& cut, const Tet& copies) {

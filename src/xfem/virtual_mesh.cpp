@@ -102,6 +102,46 @@ VirtualMesh build_virtual_mesh(const TetMesh& mesh, std::span<const std::optiona
   return body;
 }
 
+SurfaceCuts cuts_by_surface(const TetMesh& mesh, std::span<const std::array<Vec3, 3>> triangles) {
+  SurfaceCuts result;
+  result.cuts.resize(mesh.tet_count());
+  if (triangles.empty()) {
+    return result;
+  }
+  Vec3 low = triangles[0][0];
+  Vec3 high = triangles[0][0];
+  for (const auto& triangle : triangles) {
+    for (const Vec3& p : triangle) {
+      low = low.cwiseMin(p);
+      high = high.cwiseMax(p);
+    }
+  }
+  std::vector<std::array<Vec3, 3>> near;
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const auto x = corners_of(mesh, mesh.tet(static_cast<TetId>(t)));
+    const Vec3 tet_low = x[0].cwiseMin(x[1]).cwiseMin(x[2]).cwiseMin(x[3]);
+    const Vec3 tet_high = x[0].cwiseMax(x[1]).cwiseMax(x[2]).cwiseMax(x[3]);
+    if ((tet_high.array() < low.array()).any() || (tet_low.array() > high.array()).any()) {
+      continue;
+    }
+    near.clear();
+    for (const auto& triangle : triangles) {
+      const Vec3 triangle_low = triangle[0].cwiseMin(triangle[1]).cwiseMin(triangle[2]);
+      const Vec3 triangle_high = triangle[0].cwiseMax(triangle[1]).cwiseMax(triangle[2]);
+      if (!((tet_high.array() < triangle_low.array()).any() ||
+            (tet_low.array() > triangle_high.array()).any())) {
+        near.push_back(triangle);
+      }
+    }
+    std::uint8_t crossed = 0;
+    result.cuts[t] = cut_by_surface(x, near, &crossed);
+    if (!result.cuts[t] && crossed != 0) {
+      result.front.push_back(static_cast<TetId>(t));
+    }
+  }
+  return result;
+}
+
 std::vector<int> virtual_pieces(const VirtualMesh& body, int* count) {
   std::vector<VertexId> parent(body.rest_positions.size());
   std::iota(parent.begin(), parent.end(), VertexId{0});

@@ -11,6 +11,7 @@
 #include <CGAL/convex_hull_3.h>
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <random>
 
 #include "incise/mesh/generators.hpp"
@@ -152,6 +153,87 @@ TEST(ElementCut, FractionsOverAMeshAddUpToTheExactlyClippedBody) {
   const double exact = 0.9 - 0.25 - 0.125;
   EXPECT_GT(split, 50);
   EXPECT_NEAR(below, exact, 1e-12);
+}
+
+/// Two triangles spanning the square of half-size `half` around `centre` in the plane with
+/// unit normal `normal` (their normal), limited to the side of `centre` along `keep` if given.
+std::vector<std::array<Vec3, 3>> square(const Vec3& centre, const Vec3& normal, double half,
+                                        const std::optional<Vec3>& keep = std::nullopt) {
+  const Vec3 u = normal.unitOrthogonal();
+  const Vec3 w = normal.cross(u);
+  Vec3 low_u = centre - half * u;
+  Vec3 high_u = centre + half * u;
+  if (keep) {  // half of the square: only the part along `keep` (projected onto the plane)
+    const Vec3 along = (*keep - keep->dot(normal) * normal).normalized();
+    const Vec3 across = normal.cross(along);
+    const Vec3 a = centre - half * across;
+    const Vec3 b = centre + half * across;
+    const Vec3 c = b + half * along;
+    const Vec3 d = a + half * along;
+    return {{a, b, c}, {a, c, d}};
+  }
+  const Vec3 a = low_u - half * w;
+  const Vec3 b = high_u - half * w;
+  const Vec3 c = high_u + half * w;
+  const Vec3 d = low_u + half * w;
+  return {{a, b, c}, {a, c, d}};
+}
+
+TEST(ElementCut, ASweptSurfaceThatCrossesCompletelyCutsAsItsPlane) {
+  std::mt19937_64 random(13);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  int compared = 0;
+  for (int trial = 0; trial < 1000; ++trial) {
+    const std::array<Vec3, 4> x = random_positive_tet(random);
+    const Vec3 normal = Vec3(unit(random), unit(random), unit(random)).normalized();
+    const Vec3 centre =
+        (x[0] + x[1] + x[2] + x[3]) / 4.0 + 0.2 * Vec3(unit(random), unit(random), unit(random));
+    const auto by_plane = cut_by_plane(x, centre, normal);
+    const auto triangles = square(centre, normal, 10.0);
+    ASSERT_NEAR(((triangles[0][1] - triangles[0][0]).cross(triangles[0][2] - triangles[0][0]))
+                    .normalized()
+                    .dot(normal),
+                1.0, 1e-12);
+    std::uint8_t crossed = 0;
+    const auto by_surface = cut_by_surface(x, triangles, &crossed);
+    ASSERT_EQ(by_plane.has_value(), by_surface.has_value()) << trial;
+    if (!by_plane) {
+      EXPECT_EQ(crossed, 0);
+      continue;
+    }
+    ++compared;
+    EXPECT_EQ(by_plane->on_b, by_surface->on_b) << trial;
+    for (std::size_t k = 0; k < 6; ++k) {
+      if ((crossed >> k) & 1u) {
+        EXPECT_NEAR(by_plane->crossing[k], by_surface->crossing[k], 1e-9) << trial;
+      }
+    }
+  }
+  EXPECT_GT(compared, 300);
+}
+
+TEST(ElementCut, APartlyCrossedTetrahedronWaitsForTheBlade) {
+  // A surface that ends at the tetrahedron's centroid reaches it without crossing it.
+  std::mt19937_64 random(17);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  int reached = 0;
+  for (int trial = 0; trial < 500; ++trial) {
+    const std::array<Vec3, 4> x = random_positive_tet(random);
+    const Vec3 normal = Vec3(unit(random), unit(random), unit(random)).normalized();
+    const Vec3 centre = (x[0] + x[1] + x[2] + x[3]) / 4.0;
+    const Vec3 keep(unit(random), unit(random), unit(random));
+    std::uint8_t crossed = 0;
+    const auto cut = cut_by_surface(x, square(centre, normal, 10.0, keep), &crossed);
+    if (cut) {
+      // Possible only if every edge the whole plane crosses lies on the kept side.
+      const auto by_plane = cut_by_plane(x, centre, normal);
+      ASSERT_TRUE(by_plane.has_value());
+      EXPECT_EQ(cut->on_b, by_plane->on_b);
+    } else if (crossed != 0) {
+      ++reached;
+    }
+  }
+  EXPECT_GT(reached, 100);
 }
 
 TEST(ElementCut, VirtualElementsTakeRealCornersOnTheirSide) {

@@ -9,6 +9,7 @@
 #include <map>
 #include <set>
 
+#include "incise/cut/blade.hpp"
 #include "incise/mesh/generators.hpp"
 
 namespace incise {
@@ -124,6 +125,48 @@ TEST(VirtualMesh, APartialCutStaysWholeWithItsFrontTied) {
   (void)virtual_pieces(body, &count);
   EXPECT_EQ(count, 1);
   EXPECT_NEAR(material_volume(body, mesh), 0.08 * 0.02 * 0.02, 1e-15);
+}
+
+/// A vertical blade (from below the bar to above it) at x = 0.0437 swept along y from
+/// outside the bar to `to_y`, in 12 poses.
+std::vector<std::array<Vec3, 3>> blade_sweep(double to_y) {
+  std::vector<BladePose> poses;
+  for (int i = 0; i <= 12; ++i) {
+    const double y = -0.01 + (to_y + 0.01) * i / 12.0;
+    poses.push_back({0.1 * i, Vec3(0.0437, y, -0.01), Vec3(0.0437, y + 0.001 * (i % 2), 0.03)});
+  }
+  std::vector<std::array<Vec3, 3>> triangles;
+  for (std::size_t i = 1; i < poses.size(); ++i) {
+    for (const auto& triangle : swept_triangles(poses[i - 1], poses[i])) {
+      triangles.push_back(triangle);
+    }
+  }
+  return triangles;
+}
+
+TEST(VirtualMesh, ABladeSweptThroughSeparatesAndOneSweptHalfWayDoesNot) {
+  const TetMesh mesh = bar();
+  const double total = 0.08 * 0.02 * 0.02;
+  {
+    const SurfaceCuts through = cuts_by_surface(mesh, blade_sweep(0.03));
+    const VirtualMesh body = build_virtual_mesh(mesh, through.cuts, through.front);
+    int count = 0;
+    (void)virtual_pieces(body, &count);
+    EXPECT_EQ(count, 2);
+    EXPECT_TRUE(through.front.empty());
+    EXPECT_NEAR(material_volume(body, mesh), total, 1e-15);
+  }
+  {
+    const SurfaceCuts half = cuts_by_surface(mesh, blade_sweep(0.011));
+    EXPECT_FALSE(half.front.empty());
+    const VirtualMesh body = build_virtual_mesh(mesh, half.cuts, half.front);
+    EXPECT_GT(body.split, 0u);
+    EXPECT_GT(body.tied, 0u);
+    int count = 0;
+    (void)virtual_pieces(body, &count);
+    EXPECT_EQ(count, 1);
+    EXPECT_NEAR(material_volume(body, mesh), total, 1e-15);
+  }
 }
 
 TEST(VirtualMesh, NoCutNoChange) {

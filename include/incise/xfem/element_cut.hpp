@@ -11,7 +11,9 @@
 // the two fractions sum to one to rounding, whatever the crossings.
 
 #include <array>
+#include <cstdint>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "incise/core/types.hpp"
@@ -48,6 +50,17 @@ struct SideVolumes {
 /// side (corners on the plane count as side a).
 [[nodiscard]] std::optional<ElementCut> cut_by_plane(const std::array<Vec3, 4>& corners,
                                                      const Vec3& point, const Vec3& normal);
+
+/// The cut a swept surface (triangles, m: the blade's sweep) makes in a tetrahedron, once it
+/// crosses it completely: every edge the surface crosses (exact predicate) and the crossed
+/// edges exactly those between one corner and three, or two and two. Side b is the one the
+/// surface's normal points to (the vote of the crossed edges). Nothing while the surface has
+/// crossed only part of the tetrahedron (semi-progressive: the physics waits) or none of it;
+/// `crossed` (if given) gets the bit mask of crossed edges either way, in tet_local::kEdges
+/// order, so a caller can tell a tetrahedron the cut has reached (the front).
+[[nodiscard]] std::optional<ElementCut> cut_by_surface(
+    const std::array<Vec3, 4>& corners, std::span<const std::array<Vec3, 3>> triangles,
+    std::uint8_t* crossed = nullptr);
 
 /// The two virtual elements of a split tetrahedron (virtual-node form of the shifted Heaviside
 /// enrichment): element a keeps the real corners on side a and uses the copies of the others,

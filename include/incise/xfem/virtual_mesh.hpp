@@ -42,6 +42,16 @@ struct VirtualMesh {
                                              std::span<const std::optional<ElementCut>> cuts,
                                              std::span<const TetId> front = {});
 
+/// What a swept surface (triangles, m, in the rest frame) does to each tetrahedron of `mesh`:
+/// the cut of those it crosses completely, and the front (those it reaches without crossing).
+/// Brute force over the tetrahedra with a bounding-box filter (no spatial index yet).
+struct SurfaceCuts {
+  std::vector<std::optional<ElementCut>> cuts;
+  std::vector<TetId> front;
+};
+[[nodiscard]] SurfaceCuts cuts_by_surface(const TetMesh& mesh,
+                                          std::span<const std::array<Vec3, 3>> triangles);
+
 /// Pieces of material: elements joined through shared nodes (elements of zero fraction do not
 /// join anything). Returns the piece of every element (-1 for empty ones); `count` gets the
 /// number of pieces.
