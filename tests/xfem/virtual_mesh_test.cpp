@@ -6,11 +6,15 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <filesystem>
 #include <map>
 #include <set>
 
 #include "incise/cut/blade.hpp"
+#include "incise/io/mesh_io.hpp"
 #include "incise/mesh/generators.hpp"
+#include "test_support.hpp"
 
 namespace incise {
 namespace {
@@ -166,6 +170,85 @@ TEST(VirtualMesh, ABladeSweptThroughSeparatesAndOneSweptHalfWayDoesNot) {
     (void)virtual_pieces(body, &count);
     EXPECT_EQ(count, 1);
     EXPECT_NEAR(material_volume(body, mesh), total, 1e-15);
+  }
+}
+
+TEST(VirtualMesh, AFullCutSeparatesRealMeshes) {
+  // The full cut of issue "Cut real anatomy right": a vertical blade from below to above the
+  // body, swept along x across it at 0.513 of its y-extent, in 25 poses.
+  int meshes = 0;
+  for (const char* name : {"sofa/liver.msh", "sofa-mor/liverCoarse.vtu", "pbd/armadillo_4k.node",
+                           "sofa/cylinder.msh", "libigl/octopus-low.mesh"}) {
+    const auto path = test::data_file(name);
+    if (!std::filesystem::exists(path)) {
+      continue;
+    }
+    ++meshes;
+    const TetMesh mesh = read_tet_mesh(path).mesh;
+    Vec3 low = mesh.rest_position(0);
+    Vec3 high = low;
+    for (const Vec3& p : mesh.rest_positions()) {
+      low = low.cwiseMin(p);
+      high = high.cwiseMax(p);
+    }
+    const Vec3 margin = 0.05 * (high - low);
+    const double y = low.y() + 0.513 * (high.y() - low.y());
+    std::vector<BladePose> poses;
+    for (int i = 0; i <= 24; ++i) {
+      const double x = low.x() - margin.x() + (high.x() - low.x() + 2 * margin.x()) * i / 24.0;
+      poses.push_back(
+          {0.04 * i, Vec3(x, y, low.z() - margin.z()), Vec3(x, y, high.z() + margin.z())});
+    }
+    std::vector<std::array<Vec3, 3>> triangles;
+    for (std::size_t i = 1; i < poses.size(); ++i) {
+      for (const auto& triangle : swept_triangles(poses[i - 1], poses[i])) {
+        triangles.push_back(triangle);
+      }
+    }
+    const SurfaceCuts cuts = cuts_by_surface(mesh, triangles);
+    const VirtualMesh body = build_virtual_mesh(mesh, cuts.cuts, cuts.front);
+    EXPECT_GT(body.split, 0u) << name;
+    EXPECT_TRUE(cuts.front.empty()) << name;  // the surface crosses the whole body
+    double rest = 0.0;
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const Tet& tet = mesh.tet(static_cast<TetId>(t));
+      const Vec3 a = mesh.rest_position(tet[0]);
+      rest += (mesh.rest_position(tet[1]) - a)
+                  .dot((mesh.rest_position(tet[2]) - a).cross(mesh.rest_position(tet[3]) - a)) /
+              6.0;
+    }
+    EXPECT_NEAR(material_volume(body, mesh), rest, 1e-12 * rest) << name;
+    for (double fraction : body.fraction) {
+      EXPECT_GE(fraction, 0.0);
+      EXPECT_LE(fraction, 1.0);
+    }
+    int count = 0;
+    const std::vector<int> pieces = virtual_pieces(body, &count);
+    EXPECT_GE(count, 2) << name;
+    // No piece straddles the cut plane: every element lies (by its material's side) on one.
+    std::map<int, std::pair<double, double>> extent;  // piece -> min, max of element centroids' y
+    for (std::size_t e = 0; e < body.elements.size(); ++e) {
+      if (pieces[e] < 0 || body.fraction[e] < 1e-6) {
+        continue;
+      }
+      Vec3 centre = Vec3::Zero();
+      for (VertexId v : mesh.tet(body.rest_tet[e])) {
+        centre += mesh.rest_position(v) / 4.0;
+      }
+      if (body.fraction[e] == 1.0) {
+        auto [it, added] = extent.try_emplace(pieces[e], centre.y(), centre.y());
+        it->second.first = std::min(it->second.first, centre.y());
+        it->second.second = std::max(it->second.second, centre.y());
+      }
+    }
+    for (const auto& [piece, range] : extent) {
+      EXPECT_FALSE(range.first < y && range.second > y) << name << " piece " << piece;
+    }
+    std::printf("%s: %zu tets, %zu split, %zu copies, %d pieces\n", name, mesh.tet_count(),
+                body.split, body.copies(), count);
+  }
+  if (meshes == 0) {
+    GTEST_SKIP() << "no data meshes";
   }
 }
 
