@@ -1,4 +1,4 @@
-// incise cut MESH --blade PATH.csv [--method subdivision] -o OUT [--report R.json]
+// incise cut MESH --blade PATH.csv [--method subdivision|xfem] -o OUT [--report R.json]
 
 #include <fmt/format.h>
 
@@ -6,6 +6,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "command_cut_xfem.hpp"
 #include "commands.hpp"
 #include "incise/core/error.hpp"
 #include "incise/cut/subdivision_cutter.hpp"
@@ -32,7 +33,7 @@ Runner add_cut_command(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingFile);
   command->add_option("--method", *method, "Cutting method")
-      ->check(CLI::IsMember({"subdivision"}))
+      ->check(CLI::IsMember({"subdivision", "xfem"}))
       ->capture_default_str();
   command
       ->add_option("--split", *split,
@@ -51,6 +52,9 @@ Runner add_cut_command(CLI::App& app) {
       ->check(CLI::Range(0.001, 0.49))
       ->capture_default_str();
   return [=]() {
+    if (*method == "xfem") {
+      return cut_xfem(*mesh_path, *blade_path, *output, *report_path);
+    }
     TetMesh mesh = read_tet_mesh(*mesh_path).mesh;
     const ValidationReport input_report = validate(mesh);
     if (!input_report.ok()) {

@@ -612,5 +612,49 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "final.vtu"));
 }
 
+TEST(Cli, CutWithXfemSeparatesTheLiverWithFewerDofs) {
+  if (!have_data()) {
+    GTEST_SKIP();
+  }
+  const auto dir = test::scratch_dir("cut-xfem");
+  // Issue 11's full cut: vertical blade across the liver at 0.513 of its y-extent.
+  {
+    std::ofstream path(dir / "path.csv");
+    path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n";
+    const double y = 0.217888 + 0.513 * (5.15717 - 0.217888);
+    for (int i = 0; i <= 24; ++i) {
+      const double x = -5.17928 + (1.80331 + 4.67928 + 1.0) * i / 24.0;
+      path << 0.04 * i << "," << x << "," << y << ",-2.2," << x << "," << y << ",3.3\n";
+    }
+  }
+  const std::string common =
+      "cut " + data("sofa/liver.msh") + " --blade " + (dir / "path.csv").string() + " ";
+  const CommandResult xfem = incise(common + "--method xfem -o " + (dir / "xfem.vtu").string() +
+                                    " --report " + (dir / "xfem.json").string());
+  ASSERT_EQ(xfem.code, 0) << xfem.err;
+  const CommandResult subdivision = incise(common + "-o " + (dir / "sub.vtu").string() +
+                                           " --report " + (dir / "sub.json").string());
+  ASSERT_EQ(subdivision.code, 0) << subdivision.err;
+  const auto x = nlohmann::json::parse(slurp(dir / "xfem.json"));
+  const auto s = nlohmann::json::parse(slurp(dir / "sub.json"));
+  EXPECT_EQ(x["components"], 2);
+  EXPECT_EQ(s["components"], 2);
+  EXPECT_NEAR(x["volume_out"].get<double>(), x["volume_in"].get<double>(),
+              1e-12 * x["volume_in"].get<double>());
+  EXPECT_EQ(x["tets_out"].get<int>(), x["tets_in"].get<int>() + x["elements_split"].get<int>());
+  // XFEM adds at most a third of the subdivision cutter's degrees of freedom on this cut.
+  const int subdivision_dofs = 3 * (s["vertices_out"].get<int>() - s["vertices_in"].get<int>());
+  EXPECT_GT(x["dofs_added"].get<int>(), 0);
+  EXPECT_LE(3 * x["dofs_added"].get<int>(), subdivision_dofs);
+  // The virtual elements are readable, fractions and all.
+  const CommandResult info = incise("info --json " + (dir / "xfem.vtu").string());
+  ASSERT_LE(info.code, 1) << info.err;  // virtual elements overlap in rest space by design
+  EXPECT_EQ(nlohmann::json::parse(info.out)["tets"], x["tets_out"]);
+  // Anything but .vtu is refused with a clear message.
+  const CommandResult obj = incise(common + "--method xfem -o " + (dir / "x.obj").string());
+  EXPECT_EQ(obj.code, 2);
+  EXPECT_NE(obj.err.find(".vtu"), std::string::npos) << obj.err;
+}
+
 }  // namespace
 }  // namespace incise
