@@ -44,7 +44,9 @@ int cut_xfem(const std::string& mesh_path, const std::string& blade_path, const 
   const auto start = std::chrono::steady_clock::now();
   const SurfaceCuts cuts = cuts_by_surface(mesh, triangles);
   const auto found = std::chrono::steady_clock::now();
-  const VirtualMesh body = build_virtual_mesh(mesh, cuts.cuts, cuts.front);
+  // A stated minimum fraction keeps nearly empty elements from making the system singular.
+  constexpr double kMinFraction = 1e-3;
+  const VirtualMesh body = build_virtual_mesh(mesh, cuts.cuts, cuts.front, kMinFraction);
   const auto built = std::chrono::steady_clock::now();
   int pieces = 0;
   (void)virtual_pieces(body, &pieces);
@@ -92,7 +94,8 @@ int cut_xfem(const std::string& mesh_path, const std::string& blade_path, const 
         {"dofs_added", body.dofs_added()},
         {"blade_travel_m", travel},
         {"dofs_added_per_cm", travel > 0.0 ? body.dofs_added() / (100.0 * travel) : 0.0},
-        {"min_fraction", min_fraction}};
+        {"min_fraction", min_fraction},
+        {"fractions_raised", body.raised}};
     write_file_atomically(report_path, json.dump(2) + "\n");
   }
   return 0;

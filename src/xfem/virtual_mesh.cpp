@@ -23,7 +23,8 @@ double rest_volume(const TetMesh& mesh, TetId tet) {
 }  // namespace
 
 VirtualMesh build_virtual_mesh(const TetMesh& mesh, std::span<const std::optional<ElementCut>> cuts,
-                               std::span<const TetId> front) {
+                               std::span<const TetId> front, double min_fraction) {
+  INCISE_ASSERT(min_fraction >= 0.0 && min_fraction < 0.5, "a minimum fraction in [0, 0.5)");
   INCISE_ASSERT(cuts.size() == mesh.tet_count(), "one cut entry per tetrahedron");
   const std::size_t vertices = mesh.vertex_count();
   VirtualMesh body;
@@ -88,12 +89,17 @@ VirtualMesh build_virtual_mesh(const TetMesh& mesh, std::span<const std::optiona
     const SideVolumes volumes = side_volumes(corners_of(mesh, tet), *cuts[t]);
     const Tet copies = {copy_of(tet[0]), copy_of(tet[1]), copy_of(tet[2]), copy_of(tet[3])};
     const VirtualElements split = virtual_elements(tet, *cuts[t], copies);
+    double fraction_a = volumes.fraction_a();
+    if (fraction_a < min_fraction || 1.0 - fraction_a < min_fraction) {
+      fraction_a = std::clamp(fraction_a, min_fraction, 1.0 - min_fraction);
+      ++body.raised;
+    }
     body.elements.push_back(split.a);
     body.rest_tet.push_back(id);
-    body.fraction.push_back(volumes.fraction_a());
+    body.fraction.push_back(fraction_a);
     body.elements.push_back(split.b);
     body.rest_tet.push_back(id);
-    body.fraction.push_back(volumes.fraction_b());
+    body.fraction.push_back(1.0 - fraction_a);
     ++body.split;
   }
   for (std::size_t v = 0; v < vertices; ++v) {

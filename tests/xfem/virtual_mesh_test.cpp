@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -250,6 +251,25 @@ TEST(VirtualMesh, AFullCutSeparatesRealMeshes) {
   if (meshes == 0) {
     GTEST_SKIP() << "no data meshes";
   }
+}
+
+TEST(VirtualMesh, AMinimumFractionKeepsElementsFromEmptyingAndConservesMaterial) {
+  // A plane 1e-6 m past a grid plane of the bar: slivers of fraction about 1e-4 and below.
+  const TetMesh mesh = bar();
+  const PlaneCut plane = cut_at(mesh, 0.04 + 1e-6, [](const auto&) { return true; });
+  const VirtualMesh exact = build_virtual_mesh(mesh, plane.cuts);
+  const VirtualMesh conditioned = build_virtual_mesh(mesh, plane.cuts, {}, 1e-3);
+  EXPECT_LT(*std::min_element(exact.fraction.begin(), exact.fraction.end()), 1e-3);
+  EXPECT_GE(*std::min_element(conditioned.fraction.begin(), conditioned.fraction.end()),
+            1e-3 - 1e-15);
+  EXPECT_GT(conditioned.raised, 0u);
+  EXPECT_EQ(exact.raised, 0u);
+  const double total = 0.08 * 0.02 * 0.02;
+  EXPECT_NEAR(material_volume(exact, mesh), total, 1e-15);
+  EXPECT_NEAR(material_volume(conditioned, mesh), total, 1e-15);
+  int count = 0;
+  (void)virtual_pieces(conditioned, &count);
+  EXPECT_EQ(count, 2);
 }
 
 TEST(VirtualMesh, NoCutNoChange) {

@@ -28,6 +28,7 @@ struct VirtualMesh {
   std::vector<double> fraction;       ///< per element: its share of that tetrahedron's volume
   std::size_t split = 0;              ///< tetrahedra split into two virtual elements
   std::size_t tied = 0;               ///< vertices of split tetrahedra tied at the cut's front
+  std::size_t raised = 0;             ///< fractions raised to the minimum fraction
 
   [[nodiscard]] std::size_t copies() const { return rest_positions.size() - first_copy; }
   /// Degrees of freedom the cut added (3 per copy).
@@ -38,9 +39,13 @@ struct VirtualMesh {
 /// The virtual mesh of `mesh` cut as `cuts` says (one entry per tetrahedron: the cut of those
 /// the cut crosses completely, nothing for the others). `front` lists tetrahedra the cut
 /// reaches without crossing them completely (they stay whole; their crossed edges tie).
+/// Conditioning: a virtual element whose exact fraction is below `min_fraction` is given
+/// `min_fraction`, taken from its partner (the tetrahedron's material is conserved exactly);
+/// a nearly empty element would otherwise make the system nearly singular. 0: exact fractions.
 [[nodiscard]] VirtualMesh build_virtual_mesh(const TetMesh& mesh,
                                              std::span<const std::optional<ElementCut>> cuts,
-                                             std::span<const TetId> front = {});
+                                             std::span<const TetId> front = {},
+                                             double min_fraction = 0.0);
 
 /// What a swept surface (triangles, m, in the rest frame) does to each tetrahedron of `mesh`:
 /// the cut of those it crosses completely, and the front (those it reaches without crossing).
