@@ -17,6 +17,21 @@ MESHES = ["sofa/liver.msh", "sofa-mor/liverTinyMesh.vtu", "sofa-mor/liverVeryCOA
           "sofa/cylinder.msh", "sofa/cube_low_res.msh", "libigl/octopus-low.mesh"]
 
 
+def write_full_cut(blade, info, n):
+    """Writes the full cut of a body (its `incise info --json`) in n poses to `blade`; returns
+    the plane's y."""
+    low, high = info["bounding_box"]["min"], info["bounding_box"]["max"]
+    size = [h - l for l, h in zip(low, high)]
+    y = low[1] + 0.513 * size[1]
+    with open(blade, "w") as f:
+        f.write("t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n")
+        for i in range(n + 1):
+            x = low[0] - 0.1 * size[0] + 1.2 * size[0] * i / n
+            f.write(f"{i * 0.01},{x},{y},{low[2] - 0.1 * size[2]},{x},{y},"
+                    f"{high[2] + 0.1 * size[2]}\n")
+    return y
+
+
 def main():
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     parser = argparse.ArgumentParser()
@@ -32,18 +47,10 @@ def main():
         for mesh in MESHES:
             path = os.path.join(args.data, mesh)
             info = json.loads(subprocess.check_output([args.incise, "info", path, "--json"]))
-            low, high = info["bounding_box"]["min"], info["bounding_box"]["max"]
-            size = [h - l for l, h in zip(low, high)]
-            y = low[1] + 0.513 * size[1]
             cells = []
             for n in counts:
                 blade = os.path.join(scratch, "blade.csv")
-                with open(blade, "w") as f:
-                    f.write("t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n")
-                    for i in range(n + 1):
-                        x = low[0] - 0.1 * size[0] + 1.2 * size[0] * i / n
-                        f.write(f"{i * 0.01},{x},{y},{low[2] - 0.1 * size[2]},{x},{y},"
-                                f"{high[2] + 0.1 * size[2]}\n")
+                write_full_cut(blade, info, n)
                 report = os.path.join(scratch, "report.json")
                 subprocess.run([args.incise, "cut", path, "--blade", blade, "-o",
                                 os.path.join(scratch, "out.vtu"), "--report", report]

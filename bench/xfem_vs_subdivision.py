@@ -11,6 +11,8 @@ import os
 import subprocess
 import tempfile
 
+from cut_real_meshes import write_full_cut  # the same blade path
+
 MESHES = ["sofa/liver.msh", "sofa-mor/liverCoarse.vtu", "sofa-mor/liverSemiFine.vtu",
           "pbd/armadillo_4k.ele", "sofa/cylinder.msh", "libigl/octopus-low.mesh"]
 
@@ -29,17 +31,8 @@ def main():
         for mesh in MESHES:
             path = os.path.join(args.data, mesh)
             info = json.loads(subprocess.check_output([args.incise, "info", path, "--json"]))
-            low, high = info["bounding_box"]["min"], info["bounding_box"]["max"]
-            size = [h - l for l, h in zip(low, high)]
-            y = low[1] + 0.513 * size[1]
-            n = args.poses
             blade = os.path.join(scratch, "blade.csv")
-            with open(blade, "w") as f:
-                f.write("t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n")
-                for i in range(n + 1):
-                    x = low[0] - 0.1 * size[0] + 1.2 * size[0] * i / n
-                    f.write(f"{i * 0.01},{x},{y},{low[2] - 0.1 * size[2]},{x},{y},"
-                            f"{high[2] + 0.1 * size[2]}\n")
+            write_full_cut(blade, info, args.poses)
             reports = {}
             for method in ("subdivision", "xfem"):
                 report = os.path.join(scratch, method + ".json")

@@ -38,6 +38,11 @@ Server::Server(ServerOptions options, PoseCallback on_pose, ClientCallback on_cl
   }
 }
 
+std::shared_ptr<Server::Client> Server::current_client() const {
+  const std::lock_guard lock(client_mutex_);
+  return client_;
+}
+
 Server::~Server() {
   stop();
 }
@@ -60,11 +65,7 @@ void Server::stop() {
 }
 
 void Server::send_to_client(std::span<const std::uint8_t> message, bool droppable) {
-  std::shared_ptr<Client> client;
-  {
-    const std::lock_guard lock(client_mutex_);
-    client = client_;
-  }
+  const std::shared_ptr<Client> client = current_client();
   if (!client) {
     return;
   }
@@ -90,11 +91,7 @@ ServerCounters Server::counters() const {
 
 void Server::run() {
   while (running_.load()) {
-    std::shared_ptr<Client> client;
-    {
-      const std::lock_guard lock(client_mutex_);
-      client = client_;
-    }
+    const std::shared_ptr<Client> client = current_client();
     pollfd fds[3] = {{listener_.fd(), POLLIN, 0}, {wake_.fd(), POLLIN, 0}, {-1, 0, 0}};
     nfds_t count = 2;
     if (client) {
@@ -122,11 +119,8 @@ void Server::run() {
     if ((fds[2].revents & (POLLIN | POLLHUP | POLLERR)) != 0) {
       read_client();
     }
-    {
-      const std::lock_guard lock(client_mutex_);
-      if (client_ != client) {
-        continue;  // it left, or was sent away
-      }
+    if (current_client() != client) {
+      continue;  // it left, or was sent away
     }
     // A message begun and never finished (a body shorter than its header says) is dropped.
     if (client->reader.partial()) {
@@ -180,11 +174,7 @@ void Server::accept_client() {
 }
 
 void Server::read_client() {
-  std::shared_ptr<Client> client;
-  {
-    const std::lock_guard lock(client_mutex_);
-    client = client_;
-  }
+  const std::shared_ptr<Client> client = current_client();
   if (!client) {
     return;
   }
@@ -193,8 +183,7 @@ void Server::read_client() {
   client->reader.feed(bytes);
   while (const auto event = client->reader.next()) {
     handle(*event);
-    const std::lock_guard lock(client_mutex_);
-    if (client_ != client) {
+    if (current_client() != client) {
       return;  // disconnected for garbage
     }
   }
@@ -246,11 +235,7 @@ void Server::handle(const MessageReader::Event& event) {
     drop(*reason, true);
     return;
   }
-  std::shared_ptr<Client> client;
-  {
-    const std::lock_guard lock(client_mutex_);
-    client = client_;
-  }
+  const std::shared_ptr<Client> client = current_client();
   if (!client) {
     return;
   }
@@ -282,11 +267,7 @@ void Server::drop(DropReason reason, bool counts_as_garbage) {
   if (!counts_as_garbage) {
     return;
   }
-  std::shared_ptr<Client> client;
-  {
-    const std::lock_guard lock(client_mutex_);
-    client = client_;
-  }
+  const std::shared_ptr<Client> client = current_client();
   if (!client) {
     return;
   }

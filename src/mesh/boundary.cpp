@@ -4,6 +4,8 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "incise/mesh/disjoint_sets.hpp"
+
 namespace incise {
 
 std::vector<BoundaryFace> boundary_faces(const TetMesh& mesh) {
@@ -97,29 +99,18 @@ std::vector<int> tet_components(const TetMesh& mesh, int* count) {
 }
 
 int pieces_by_vertices(const TetMesh& mesh) {
-  // Union-find over vertices: the corners of every tetrahedron are joined.
-  std::vector<VertexId> parent(mesh.vertex_count());
-  for (std::size_t v = 0; v < parent.size(); ++v) {
-    parent[v] = static_cast<VertexId>(v);
-  }
-  const auto find = [&](VertexId v) {
-    while (parent[static_cast<std::size_t>(v)] != v) {
-      parent[static_cast<std::size_t>(v)] =
-          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
-      v = parent[static_cast<std::size_t>(v)];
-    }
-    return v;
-  };
+  // The corners of every tetrahedron are joined.
+  DisjointSets sets(mesh.vertex_count());
   std::vector<char> used(mesh.vertex_count(), 0);
   for (const Tet& tet : mesh.tets()) {
     for (int k = 0; k < 4; ++k) {
       used[static_cast<std::size_t>(tet[k])] = 1;
-      parent[static_cast<std::size_t>(find(tet[k]))] = find(tet[0]);
+      sets.join(tet[k], tet[0]);
     }
   }
   int pieces = 0;
-  for (std::size_t v = 0; v < parent.size(); ++v) {
-    if (used[v] != 0 && find(static_cast<VertexId>(v)) == static_cast<VertexId>(v)) {
+  for (std::size_t v = 0; v < used.size(); ++v) {
+    if (used[v] != 0 && sets.find(static_cast<VertexId>(v)) == static_cast<VertexId>(v)) {
       ++pieces;
     }
   }

@@ -94,7 +94,7 @@ std::vector<Vec3> cut_polygon(const std::array<Vec3, 4>& corners, const ElementC
 
 SideVolumes side_volumes(const std::array<Vec3, 4>& corners, const ElementCut& cut) {
   const Vec3& origin = corners[0];
-  const double whole = triple(origin, corners[1], corners[2], corners[3]) / 6.0;
+  const double whole = signed_volume(corners[0], corners[1], corners[2], corners[3]);
   INCISE_ASSERT(whole > 0.0, "side volumes of a positive tetrahedron");
   if (!cut.splits()) {
     return cut.on_b[0] ? SideVolumes{0.0, whole} : SideVolumes{whole, 0.0};

@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/disjoint_sets.hpp"
 
 namespace incise {
 namespace {
@@ -13,11 +14,6 @@ namespace {
 std::array<Vec3, 4> corners_of(const TetMesh& mesh, const Tet& tet) {
   return {mesh.rest_position(tet[0]), mesh.rest_position(tet[1]), mesh.rest_position(tet[2]),
           mesh.rest_position(tet[3])};
-}
-
-double rest_volume(const TetMesh& mesh, TetId tet) {
-  const auto x = corners_of(mesh, mesh.tet(tet));
-  return (x[1] - x[0]).dot((x[2] - x[0]).cross(x[3] - x[0])) / 6.0;
 }
 
 }  // namespace
@@ -149,33 +145,23 @@ SurfaceCuts cuts_by_surface(const TetMesh& mesh, std::span<const std::array<Vec3
 }
 
 std::vector<int> virtual_pieces(const VirtualMesh& body, int* count) {
-  std::vector<VertexId> parent(body.rest_positions.size());
-  std::iota(parent.begin(), parent.end(), VertexId{0});
-  const auto find = [&](VertexId v) {
-    while (parent[static_cast<std::size_t>(v)] != v) {
-      parent[static_cast<std::size_t>(v)] =
-          parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(v)])];
-      v = parent[static_cast<std::size_t>(v)];
-    }
-    return v;
-  };
+  DisjointSets sets(body.rest_positions.size());
   for (std::size_t e = 0; e < body.elements.size(); ++e) {
     if (!(body.fraction[e] > 0.0)) {
       continue;
     }
-    const Tet& element = body.elements[e];
-    for (VertexId v : element) {
-      parent[static_cast<std::size_t>(find(v))] = find(element[0]);
+    for (VertexId v : body.elements[e]) {
+      sets.join(v, body.elements[e][0]);
     }
   }
-  std::vector<int> piece_of_root(parent.size(), -1);
+  std::vector<int> piece_of_root(body.rest_positions.size(), -1);
   int pieces = 0;
   std::vector<int> pieces_of_elements(body.elements.size(), -1);
   for (std::size_t e = 0; e < body.elements.size(); ++e) {
     if (!(body.fraction[e] > 0.0)) {
       continue;
     }
-    int& piece = piece_of_root[static_cast<std::size_t>(find(body.elements[e][0]))];
+    int& piece = piece_of_root[static_cast<std::size_t>(sets.find(body.elements[e][0]))];
     if (piece < 0) {
       piece = pieces++;
     }
@@ -190,7 +176,7 @@ std::vector<int> virtual_pieces(const VirtualMesh& body, int* count) {
 double material_volume(const VirtualMesh& body, const TetMesh& mesh) {
   double volume = 0.0;
   for (std::size_t e = 0; e < body.elements.size(); ++e) {
-    volume += body.fraction[e] * rest_volume(mesh, body.rest_tet[e]);
+    volume += body.fraction[e] * signed_volume(mesh, body.rest_tet[e]);
   }
   return volume;
 }

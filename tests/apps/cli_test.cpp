@@ -488,39 +488,57 @@ TEST(Cli, RunWritesAVideoThroughFfmpegOrSaysItIsMissing) {
   EXPECT_EQ(video.substr(4, 4), "ftyp");  // an MP4 container
 }
 
+/// The default scene's stroke (a vertical blade along y at x = 0.0213), from y = -0.012 at
+/// t = 0 to `end_y` at `end_time` (s).
+void write_stroke(const std::filesystem::path& path, double end_time, double end_y) {
+  std::ofstream stroke(path);
+  stroke << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
+         << "0.0,0.0213,-0.012,0.012,0.0213,-0.012,0.06\n"
+         << end_time << ",0.0213," << end_y << ",0.012,0.0213," << end_y << ",0.06\n";
+}
+
+/// Starts `incise serve --port 0 FLAGS` in the background (its pid in DIR/pid, its output in
+/// DIR/serve.log) and returns the port it listens on, or "" when it did not say in 10 s.
+std::string start_server(const std::filesystem::path& dir, const std::string& flags) {
+  const std::string serve = "bash -c '" + std::string(INCISE_EXECUTABLE) +
+                            " serve --port 0 --port-file " + (dir / "port").string() + " " + flags +
+                            " >" + (dir / "serve.log").string() + " 2>&1 & echo $! >" +
+                            (dir / "pid").string() + "'";
+  if (std::system(serve.c_str()) != 0) {
+    return "";
+  }
+  std::string port;
+  for (int i = 0; i < 200 && port.empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    port = slurp(dir / "port");
+  }
+  return port.substr(0, port.find('\n'));
+}
+
+/// Waits up to 30 s for `path` to appear.
+bool appears(const std::filesystem::path& path) {
+  for (int i = 0; i < 600 && !std::filesystem::exists(path); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return std::filesystem::exists(path);
+}
+
 TEST(Cli, ServeAndDeviceCutTheDefaultBlockOverLoopback) {
   if (incise("serve --help").code != 0) {
     GTEST_SKIP() << "built without OpenIGTLink";
   }
   const auto dir = test::scratch_dir("serve");
   // The default scene's stroke, played by the device process in real time (1 s).
-  {
-    std::ofstream path(dir / "path.csv");
-    path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
-         << "0.0,0.0213,-0.012,0.012,0.0213,-0.012,0.06\n"
-         << "1.0,0.0213,0.072,0.012,0.0213,0.072,0.06\n";
-  }
-  const std::string serve = std::string(INCISE_EXECUTABLE) + " serve --port 0 --port-file " +
-                            (dir / "port").string() + " --exit-when-idle --max-seconds 60 --out " +
-                            (dir / "out").string() + " >" + (dir / "serve.log").string() +
-                            " 2>&1 &";
-  ASSERT_EQ(std::system(serve.c_str()), 0);
-  std::string port;
-  for (int i = 0; i < 200 && port.empty(); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    port = slurp(dir / "port");
-  }
+  write_stroke(dir / "path.csv", 1.0, 0.072);
+  const std::string port =
+      start_server(dir, "--exit-when-idle --max-seconds 60 --out " + (dir / "out").string());
   ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
-  const CommandResult device =
-      incise("device " + (dir / "path.csv").string() + " --port " +
-             port.substr(0, port.find('\n')) + " --log " + (dir / "forces.csv").string());
+  const CommandResult device = incise("device " + (dir / "path.csv").string() + " --port " + port +
+                                      " --log " + (dir / "forces.csv").string());
   ASSERT_EQ(device.code, 0) << device.err;
   EXPECT_NE(device.out.find("forces received"), std::string::npos) << device.out;
   // The server notices the device left, writes its results and exits.
-  for (int i = 0; i < 600 && !std::filesystem::exists(dir / "out" / "report.json"); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  ASSERT_TRUE(std::filesystem::exists(dir / "out" / "report.json")) << slurp(dir / "serve.log");
+  ASSERT_TRUE(appears(dir / "out" / "report.json")) << slurp(dir / "serve.log");
   const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
   EXPECT_EQ(report["ended"], "idle (the last device left)");
   EXPECT_TRUE(report["valid"].get<bool>());
@@ -566,24 +584,9 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
     GTEST_SKIP() << "built without OpenIGTLink";
   }
   const auto dir = test::scratch_dir("serve-sigterm");
-  {
-    std::ofstream path(dir / "path.csv");
-    path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
-         << "0.0,0.0213,-0.012,0.012,0.0213,-0.012,0.06\n"
-         << "0.3,0.0213,0.02,0.012,0.0213,0.02,0.06\n";
-  }
-  const std::string serve =
-      "bash -c '" + std::string(INCISE_EXECUTABLE) + " serve --port 0 --port-file " +
-      (dir / "port").string() + " --max-seconds 60 --out " + (dir / "out").string() + " >" +
-      (dir / "serve.log").string() + " 2>&1 & echo $! >" + (dir / "pid").string() + "'";
-  ASSERT_EQ(std::system(serve.c_str()), 0);
-  std::string port;
-  for (int i = 0; i < 200 && port.empty(); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    port = slurp(dir / "port");
-  }
+  write_stroke(dir / "path.csv", 0.3, 0.02);
+  const std::string port = start_server(dir, "--max-seconds 60 --out " + (dir / "out").string());
   ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
-  port = port.substr(0, port.find('\n'));
   // A client that sends only garbage, then leaves.
   const std::string garbage =
       "bash -c 'head -c 4096 /dev/urandom >/dev/tcp/127.0.0.1/" + port + "' 2>/dev/null";
@@ -599,10 +602,7 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
   EXPECT_FALSE(std::filesystem::exists(dir / "out" / "report.json"));
   const std::string pid = slurp(dir / "pid");
   ASSERT_EQ(std::system(("kill -TERM " + pid.substr(0, pid.find('\n'))).c_str()), 0);
-  for (int i = 0; i < 200 && !std::filesystem::exists(dir / "out" / "report.json"); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  ASSERT_TRUE(std::filesystem::exists(dir / "out" / "report.json")) << slurp(dir / "serve.log");
+  ASSERT_TRUE(appears(dir / "out" / "report.json")) << slurp(dir / "serve.log");
   const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
   EXPECT_EQ(report["ended"], "stopped (SIGINT/SIGTERM)");
   EXPECT_EQ(report["clients"].get<int>(), 3);

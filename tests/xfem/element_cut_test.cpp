@@ -23,7 +23,7 @@ namespace {
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 
 double tet_volume(const std::array<Vec3, 4>& x) {
-  return (x[1] - x[0]).dot((x[2] - x[0]).cross(x[3] - x[0])) / 6.0;
+  return signed_volume(x[0], x[1], x[2], x[3]);
 }
 
 /// The volume of the convex hull of `points` (CGAL), independent of the code under test.

@@ -83,7 +83,7 @@ TEST(VirtualMesh, AFullCutSeparatesTheBarIntoTheClippedPieces) {
   std::array<double, 2> centre_x{};
   for (std::size_t e = 0; e < body.elements.size(); ++e) {
     const auto x = corners(mesh, body.rest_tet[e]);
-    const double v = body.fraction[e] * (x[1] - x[0]).dot((x[2] - x[0]).cross(x[3] - x[0])) / 6.0;
+    const double v = body.fraction[e] * signed_volume(mesh, body.rest_tet[e]);
     volume[static_cast<std::size_t>(pieces[e])] += v;
     centre_x[static_cast<std::size_t>(pieces[e])] += v * (x[0] + x[1] + x[2] + x[3]).x() / 4.0;
   }
@@ -210,14 +210,7 @@ TEST(VirtualMesh, AFullCutSeparatesRealMeshes) {
     const VirtualMesh body = build_virtual_mesh(mesh, cuts.cuts, cuts.front);
     EXPECT_GT(body.split, 0u) << name;
     EXPECT_TRUE(cuts.front.empty()) << name;  // the surface crosses the whole body
-    double rest = 0.0;
-    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-      const Tet& tet = mesh.tet(static_cast<TetId>(t));
-      const Vec3 a = mesh.rest_position(tet[0]);
-      rest += (mesh.rest_position(tet[1]) - a)
-                  .dot((mesh.rest_position(tet[2]) - a).cross(mesh.rest_position(tet[3]) - a)) /
-              6.0;
-    }
+    const double rest = total_volume(mesh);
     EXPECT_NEAR(material_volume(body, mesh), rest, 1e-12 * rest) << name;
     for (double fraction : body.fraction) {
       EXPECT_GE(fraction, 0.0);

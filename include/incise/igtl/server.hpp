@@ -71,6 +71,8 @@ class Server {
 
  private:
   struct Client;
+  /// The connected client (a shared reference: it stays valid after a disconnect).
+  [[nodiscard]] std::shared_ptr<Client> current_client() const;
   void run();
   void accept_client();
   void read_client();
