@@ -311,8 +311,12 @@ TEST(Server, DropsAndCountsEveryMalformedMessageThenServesAGoodClient) {
   // Garbage again and again: the client is sent away.
   {
     Socket client = connect_to("127.0.0.1", running.server.port(), 2.0);
+    // The server may close the connection after its eighth bad message, so later sends
+    // are allowed to fail (EPIPE / ECONNRESET) and end the loop.
     for (int i = 0; i < 12; ++i) {
-      send_bytes(client, crc);
+      if (::send(client.fd(), crc.data(), crc.size(), MSG_NOSIGNAL) < 0) {
+        break;
+      }
     }
     ASSERT_TRUE(
         eventually([&] { return running.server.counters().disconnected_for_garbage == 1; }));
