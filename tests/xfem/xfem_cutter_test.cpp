@@ -1,0 +1,236 @@
+// The progressive XFEM cutter edits a mesh pose by pose: after every pose the mesh is valid
+// and the fraction-weighted volume is the rest volume; a blade swept through separates the
+// body (a bar, real meshes), one swept half way keeps it whole with its front closed, tremor
+// splits nothing, cuts exactly through vertex planes separate, and no rest element is created.
+
+#include "incise/xfem/xfem_cutter.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+
+#include "incise/io/mesh_io.hpp"
+#include "incise/mesh/boundary.hpp"
+#include "incise/mesh/generators.hpp"
+#include "incise/mesh/validate.hpp"
+#include "test_support.hpp"
+
+namespace incise {
+namespace {
+
+/// A bar 8 x 2 x 2 cm of 8 x 2 x 2 cells.
+TetMesh bar() {
+  return make_box_grid({{8, 2, 2}, Vec3(0.08, 0.02, 0.02), Vec3::Zero(), 6});
+}
+
+/// m^3: every element's fraction of its rest volume.
+double material_volume(const TetMesh& mesh) {
+  double volume = 0.0;
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    volume +=
+        mesh.material_fraction(static_cast<TetId>(t)) * signed_volume(mesh, static_cast<TetId>(t));
+  }
+  return volume;
+}
+
+/// Checks what must hold after every pose; returns false (with failures) when it does not.
+void expect_sound(const TetMesh& mesh, const XfemCutter& cutter, double rest_volume,
+                  const std::string& where) {
+  const ValidationReport report = validate(mesh);
+  EXPECT_TRUE(report.ok()) << where << ":\n" << report.describe();
+  EXPECT_NEAR(material_volume(mesh), rest_volume, 1e-9 * rest_volume) << where;
+  // No rest element is created: every element integrates over one of the original ones, with
+  // the same rest corners.
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const TetId rest = cutter.rest_tet_of(static_cast<TetId>(t));
+    ASSERT_LT(static_cast<std::size_t>(rest), cutter.rest_tet_count()) << where;
+    EXPECT_NEAR(signed_volume(mesh, static_cast<TetId>(t)), signed_volume(mesh, rest),
+                1e-15 + 1e-12 * std::abs(signed_volume(mesh, rest)))
+        << where;
+  }
+}
+
+/// Sweeps a vertical blade (z from below to above) at x = `x` along y, from below the bar to
+/// `to_y`, in `poses` poses, checking after each.
+void sweep_bar(TetMesh& mesh, XfemCutter& cutter, double x, double to_y, int poses) {
+  const double rest = total_volume(mesh);
+  cutter.start({0.0, Vec3(x, -0.01, -0.01), Vec3(x, -0.01, 0.03)});
+  for (int i = 1; i <= poses; ++i) {
+    const double y = -0.01 + (to_y + 0.01) * i / poses;
+    cutter.move_to({0.1 * i, Vec3(x, y, -0.01), Vec3(x, y, 0.03)});
+    expect_sound(mesh, cutter, rest, "pose " + std::to_string(i));
+  }
+}
+
+TEST(XfemCutter, ABladeSweptThroughSeparatesTheBarPoseByPose) {
+  TetMesh mesh = bar();
+  const std::size_t rest_vertices = mesh.vertex_count();
+  XfemCutter cutter(mesh);
+  sweep_bar(mesh, cutter, 0.0437, 0.03, 13);
+  EXPECT_EQ(pieces_by_vertices(mesh), 2);
+  EXPECT_GT(cutter.stats().elements_split, 0u);
+  EXPECT_EQ(cutter.stats().front_tets, 0u);
+  EXPECT_EQ(cutter.stats().tied_vertices, 0u);
+  EXPECT_EQ(mesh.vertex_count(), rest_vertices + cutter.stats().copies);
+  // Every split tetrahedron became two elements, nothing more.
+  EXPECT_EQ(mesh.tet_count(), cutter.rest_tet_count() + cutter.stats().elements_split);
+  // The pieces hold the material on each side of x = 0.0437: 0.0437 / 0.08 of it on one.
+  double left = 0.0;
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const TetId rest = cutter.rest_tet_of(static_cast<TetId>(t));
+    const auto& cut = cutter.cut_of(rest);
+    Vec3 centre = Vec3::Zero();
+    for (VertexId v : mesh.tet(rest)) {
+      centre += mesh.rest_position(v) / 4.0;
+    }
+    if (!cut) {
+      left += centre.x() < 0.0437 ? signed_volume(mesh, static_cast<TetId>(t)) : 0.0;
+      continue;
+    }
+    // The element holding the real corners with x < 0.0437 is the left one.
+    const Tet& element = mesh.tet(static_cast<TetId>(t));
+    bool holds_left_corner = false;
+    for (VertexId v : element) {
+      holds_left_corner = holds_left_corner || (static_cast<std::size_t>(v) < rest_vertices &&
+                                                mesh.rest_position(v).x() < 0.0437);
+    }
+    if (holds_left_corner) {
+      left += mesh.material_fraction(static_cast<TetId>(t)) *
+              signed_volume(mesh, static_cast<TetId>(t));
+    }
+  }
+  EXPECT_NEAR(left, 0.0437 * 0.02 * 0.02, 1e-12);
+}
+
+TEST(XfemCutter, AHalfCutKeepsOnePieceWithItsFrontClosed) {
+  TetMesh mesh = bar();
+  XfemCutter cutter(mesh);
+  sweep_bar(mesh, cutter, 0.0437, 0.011, 8);
+  EXPECT_GT(cutter.stats().elements_split, 0u);
+  EXPECT_GT(cutter.stats().front_tets, 0u);
+  EXPECT_GT(cutter.stats().tied_vertices, 0u);
+  EXPECT_EQ(pieces_by_vertices(mesh), 1);
+  // Going on through releases the ties and separates.
+  const double rest = total_volume(bar());
+  for (int i = 1; i <= 5; ++i) {
+    const double y = 0.011 + 0.019 * i / 5;
+    cutter.move_to({1.0 + i, Vec3(0.0437, y, -0.01), Vec3(0.0437, y, 0.03)});
+    expect_sound(mesh, cutter, rest, "on " + std::to_string(i));
+  }
+  EXPECT_EQ(pieces_by_vertices(mesh), 2);
+  EXPECT_EQ(cutter.stats().tied_vertices, 0u);
+}
+
+TEST(XfemCutter, TremorSplitsNothing) {
+  // The blade goes 2 mm into the bar, not through any tetrahedron (every one in a 1 cm cell
+  // has a corner at y = 1 cm, so its crossings reach y >= 3.7 mm), and back, three times.
+  // Out, every edge it crossed is crossed an even number of times: no front is left.
+  TetMesh mesh = bar();
+  const std::size_t tets = mesh.tet_count();
+  XfemCutter cutter(mesh);
+  const Vec3 out(0.0437, -0.01, -0.01);
+  const Vec3 in(0.0437, 0.002, -0.01);
+  cutter.start({0.0, out, out + Vec3(0, 0, 0.04)});
+  double t = 0.0;
+  for (int round = 0; round < 3; ++round) {
+    cutter.move_to({t += 0.1, in, in + Vec3(0, 0, 0.04)});
+    EXPECT_GT(cutter.stats().front_tets, 0u);
+    cutter.move_to({t += 0.1, out, out + Vec3(0, 0, 0.04)});
+    EXPECT_EQ(cutter.stats().front_tets, 0u);
+    EXPECT_GT(cutter.stats().tremor_edges, 0u);
+  }
+  EXPECT_EQ(cutter.stats().elements_split, 0u);
+  EXPECT_EQ(mesh.tet_count(), tets);
+}
+
+TEST(XfemCutter, ACutInAGridPlaneSeparatesWithoutEmptyElements) {
+  // x = 0.04 holds a plane of grid vertices and faces: the swept surface passes exactly
+  // through vertices, along edges and in face planes.
+  TetMesh mesh = bar();
+  const std::size_t tets = mesh.tet_count();
+  XfemCutter cutter(mesh);
+  sweep_bar(mesh, cutter, 0.04, 0.03, 7);
+  EXPECT_EQ(pieces_by_vertices(mesh), 2);
+  // Tetrahedra with a face on the plane change corners but are never split in two.
+  EXPECT_EQ(mesh.tet_count(), tets);
+  EXPECT_GT(cutter.stats().copies, 0u);
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    EXPECT_EQ(mesh.material_fraction(static_cast<TetId>(t)), 1.0);
+  }
+}
+
+TEST(XfemCutter, AFullCutSeparatesRealMeshesPoseByPose) {
+  // Issue "Cut real anatomy right"'s full cut: a vertical blade swept across the whole body
+  // at 0.513 of its y-extent, in 25 poses, checked after every pose.
+  int meshes = 0;
+  for (const char* name : {"sofa/liver.msh", "sofa-mor/liverCoarse.vtu", "pbd/armadillo_4k.node",
+                           "sofa/cylinder.msh", "libigl/octopus-low.mesh"}) {
+    const auto path = test::data_file(name);
+    if (!std::filesystem::exists(path)) {
+      continue;
+    }
+    ++meshes;
+    TetMesh mesh = read_tet_mesh(path).mesh;
+    const double rest = total_volume(mesh);
+    const int pieces_before = pieces_by_vertices(mesh);
+    const auto [low, high] = bounding_box(mesh);
+    const Vec3 margin = 0.05 * (high - low);
+    const double y = low.y() + 0.513 * (high.y() - low.y());
+    XfemCutter cutter(mesh);
+    for (int i = 0; i <= 24; ++i) {
+      const double x = low.x() - margin.x() + (high.x() - low.x() + 2 * margin.x()) * i / 24.0;
+      const BladePose pose{0.04 * i, Vec3(x, y, low.z() - margin.z()),
+                           Vec3(x, y, high.z() + margin.z())};
+      if (i == 0) {
+        cutter.start(pose);
+        continue;
+      }
+      cutter.move_to(pose);
+      expect_sound(mesh, cutter, rest, std::string(name) + " pose " + std::to_string(i));
+    }
+    EXPECT_EQ(cutter.stats().front_tets, 0u) << name;
+    EXPECT_EQ(cutter.stats().waiting_tets, 0u) << name;
+    EXPECT_GT(pieces_by_vertices(mesh), pieces_before) << name;
+    EXPECT_GE(cutter.stats().min_fraction, 1e-3) << name;
+    std::printf("%s: %zu rest tets, %zu split, %zu copies, %d pieces\n", name,
+                cutter.rest_tet_count(), cutter.stats().elements_split, cutter.stats().copies,
+                pieces_by_vertices(mesh));
+  }
+  if (meshes == 0) {
+    GTEST_SKIP() << "no data meshes";
+  }
+}
+
+TEST(XfemCutter, ACheckpointedCutterGoesOnAsIfNeverStopped) {
+  TetMesh first = bar();
+  XfemCutter cutter(first);
+  sweep_bar(first, cutter, 0.0437, 0.011, 6);
+  StateWriter out;
+  first.save_state(out);
+  cutter.save_state(out);
+
+  TetMesh second = bar();
+  XfemCutter resumed(second);
+  StateReader in(out.bytes(), "memory");
+  second.load_state(in);
+  resumed.load_state(in);
+  EXPECT_TRUE(in.at_end());
+  for (int i = 1; i <= 4; ++i) {
+    const double y = 0.011 + 0.019 * i / 4;
+    const BladePose pose{1.0 + i, Vec3(0.0437, y, -0.01), Vec3(0.0437, y, 0.03)};
+    cutter.move_to(pose);
+    resumed.move_to(pose);
+  }
+  ASSERT_EQ(first.tet_count(), second.tet_count());
+  ASSERT_EQ(first.vertex_count(), second.vertex_count());
+  for (std::size_t t = 0; t < first.tet_count(); ++t) {
+    EXPECT_EQ(first.tet(static_cast<TetId>(t)), second.tet(static_cast<TetId>(t)));
+    EXPECT_EQ(first.material_fraction(static_cast<TetId>(t)),
+              second.material_fraction(static_cast<TetId>(t)));
+  }
+  EXPECT_EQ(pieces_by_vertices(second), 2);
+}
+
+}  // namespace
+}  // namespace incise
