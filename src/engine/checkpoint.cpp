@@ -20,7 +20,7 @@ namespace incise {
 namespace {
 
 constexpr std::string_view kMagic = "INCISE-CHECKPOINT\n";
-constexpr std::uint32_t kVersion = 2;  // 2: swept triangles carry their sweep number
+constexpr std::uint32_t kVersion = 3;  // 2: swept triangles carry their sweep number; 3: xfem
 
 std::uint32_t checksum(std::string_view bytes) {
   uLong crc = crc32(0L, Z_NULL, 0);
@@ -58,6 +58,10 @@ void Engine::save_checkpoint(const std::filesystem::path& path) const {
   out.value(p.cutter != nullptr);
   if (p.cutter) {
     p.cutter->save_state(out);
+  }
+  out.value(p.xfem != nullptr);
+  if (p.xfem) {
+    p.xfem->save_state(out);
   }
   out.tag("end");
 
@@ -130,6 +134,12 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
   }
   if (p.cutter) {
     p.cutter->load_state(in);
+  }
+  if (in.value<bool>("xfem cutter present") != (p.xfem != nullptr)) {
+    in.fail("xfem cutter present", "the checkpoint and its scene disagree on the cutter");
+  }
+  if (p.xfem) {
+    p.xfem->load_state(in);
   }
   in.tag("end");
   if (!in.at_end()) {

@@ -234,6 +234,11 @@ Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(s
     // positions (SubdivisionCutter's deformed configuration) does not yet carry the swept
     // surface with a wound that opens non-affinely behind the blade.
     p.cutter = std::make_unique<SubdivisionCutter>(p.mesh, options);
+  } else if (scene.tool.cutter == CutterKind::kXfem) {
+    XfemCutterOptions options;
+    options.quad_length = scene.tool.quad_length;
+    options.min_fraction = scene.tool.min_fraction;
+    p.xfem = std::make_unique<XfemCutter>(p.mesh, options);
   }
   if (!scene.tool.poses.empty()) {
     p.tool = std::make_unique<ScriptedToolPath>(scene.tool.poses);
@@ -291,7 +296,7 @@ std::string Engine::Parts::measure(FrameRecord& record) const {
 
 const std::shared_ptr<const SurfaceTopology>& Engine::Parts::current_surface() {
   // A move can mark faces on the cut without editing the mesh: the cutter's moves count too.
-  const std::size_t moves = cutter ? cutter->stats().moves : 0;
+  const std::size_t moves = cutter ? cutter->stats().moves : (xfem ? xfem->stats().moves : 0);
   if (!surface || surface->mesh_revision != mesh.revision() || surface_moves != moves) {
     surface_moves = moves;
     auto topology = std::make_shared<SurfaceTopology>();
@@ -299,8 +304,9 @@ const std::shared_ptr<const SurfaceTopology>& Engine::Parts::current_surface() {
     topology->version = surface ? surface->version + 1 : 1;
     for (const BoundaryFace& face : boundary_faces(mesh)) {
       topology->triangles.push_back(face.vertices);
-      topology->on_cut.push_back(
-          cutter && cutter->cut_faces().is_cut(face.tet, face.local_face) ? 1 : 0);
+      const bool on_cut = cutter ? cutter->cut_faces().is_cut(face.tet, face.local_face)
+                                 : xfem && xfem->opened(face.vertices);
+      topology->on_cut.push_back(on_cut ? 1 : 0);
     }
     topology->rest_positions.resize(mesh.vertex_count());
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
@@ -374,6 +380,19 @@ bool Engine::step() {
       p.integrator->focus_on(nearest);
     }
   }
+  if (p.xfem && pose) {
+    if (!p.xfem->started() || !p.blade) {
+      p.xfem->start(p.blade ? *p.blade : *pose);
+    }
+    if (p.blade) {
+      const std::uint64_t revision = p.mesh.revision();
+      p.xfem->move_to(*pose);
+      record.edited = p.mesh.revision() != revision;
+      record.cd = p.xfem->stats().cd_seconds;
+      record.gc = p.xfem->stats().gc_seconds;
+      record.cut = true;
+    }
+  }
   p.blade = pose;
 
   // ---- relaxation: rx -------------------------------------------------------------------------
@@ -444,6 +463,10 @@ const SimulationState& Engine::state() const {
 std::span<const Vec3> Engine::positions() const {
   return parts_->state.x.values();
 }
+const XfemCutter* Engine::xfem_cutter() const {
+  return parts_->xfem.get();
+}
+
 const SubdivisionCutter* Engine::cutter() const {
   return parts_->cutter.get();
 }

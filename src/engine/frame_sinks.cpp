@@ -1,5 +1,7 @@
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/engine/engine.hpp"
@@ -53,6 +55,14 @@ void VtuSeriesSink::write(const Engine& engine) {
       ids[t] = materials->id(static_cast<TetId>(t));
     }
     fields.cell_data.push_back({"material", 1, std::move(ids)});
+  }
+  // Virtual elements (XFEM) hold part of their rest tetrahedron: ParaView can threshold the
+  // material fraction, or weigh by it.
+  if (std::any_of(mesh.material_fractions().begin(), mesh.material_fractions().end(),
+                  [](double fraction) { return fraction < 1.0; })) {
+    fields.cell_data.push_back(
+        {"fraction", 1,
+         std::vector<double>(mesh.material_fractions().begin(), mesh.material_fractions().end())});
   }
   // Global frame numbers: a resumed run continues the same series.
   const std::string file = fmt::format("{}_{:06d}.vtu", name_, engine.frame());

@@ -28,8 +28,9 @@ constexpr std::array<std::pair<std::string_view, IntegratorKind>, 6> kIntegrator
     {"backward-euler", IntegratorKind::kBackwardEuler},
     {"static", IntegratorKind::kStatic},
 }};
-constexpr std::array<std::pair<std::string_view, CutterKind>, 2> kCutters{{
+constexpr std::array<std::pair<std::string_view, CutterKind>, 3> kCutters{{
     {"subdivision", CutterKind::kSubdivision},
+    {"xfem", CutterKind::kXfem},
     {"none", CutterKind::kNone},
 }};
 constexpr std::array<std::pair<std::string_view, SplitMode>, 2> kSplits{{
@@ -679,7 +680,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   }
   if (top.has("cutter")) {
     const ObjectReader cutter(context, top.at("cutter"), "cutter",
-                              {"type", "snap_fraction", "split"});
+                              {"type", "snap_fraction", "split", "quad_length", "min_fraction"});
     scene.tool.cutter =
         cutter.choice<CutterKind>("type", CutterKind::kSubdivision, kCutters, "cutter");
     scene.tool.snap_fraction = cutter.positive("snap_fraction", 0.1);
@@ -687,6 +688,30 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
       context.fail("cutter.snap_fraction", "must be below 0.5");
     }
     scene.tool.split = cutter.choice<SplitMode>("split", SplitMode::kMinimal, kSplits, "split");
+    const bool xfem = scene.tool.cutter == CutterKind::kXfem;
+    for (const char* key : {"quad_length", "min_fraction"}) {
+      if (!xfem && cutter.has(key)) {
+        context.fail(std::string("cutter.") + key, "applies to the xfem cutter only");
+      }
+    }
+    for (const char* key : {"snap_fraction", "split"}) {
+      if (xfem && cutter.has(key)) {
+        context.fail(std::string("cutter.") + key, "applies to the subdivision cutter only");
+      }
+    }
+    scene.tool.quad_length = cutter.has("quad_length") ? cutter.positive("quad_length", 1.0) : 0.0;
+    scene.tool.min_fraction = cutter.number("min_fraction", 1e-3);
+    if (!(scene.tool.min_fraction >= 0.0 && scene.tool.min_fraction < 0.5)) {
+      context.fail("cutter.min_fraction", "must lie in [0, 0.5)");
+    }
+    // XFEM's virtual elements are weighted integrals of one rest tetrahedron each: a model
+    // that integrates over elements (the corotational FEM) takes them; springs do not.
+    if (xfem && scene.model_type != ModelKind::kCorotationalFem) {
+      context.fail("cutter.type",
+                   "xfem needs model.type \"corotational-fem\" (virtual elements are "
+                   "integrated by the finite element model), not \"" +
+                       std::string(name_of(scene.model_type)) + "\"");
+    }
   }
   // A cutter without a tool path is kept for a live tool (the viewer's mouse, a device).
 

@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/boundary.hpp"
 #include "incise/mesh/predicates.hpp"
 
 namespace incise {
@@ -53,7 +54,22 @@ XfemCutter::XfemCutter(TetMesh& mesh, XfemCutterOptions options) : mesh_(&mesh),
     options_.quad_length =
         mesh.edge_count() > 0 ? total / static_cast<double>(mesh.edge_count()) : 1.0;
   }
+  for (const BoundaryFace& face : boundary_faces(mesh)) {
+    std::array<VertexId, 3> key = face.vertices;
+    std::sort(key.begin(), key.end());
+    rest_boundary_.insert(key);
+  }
   grid_ = std::make_unique<TetGrid>(mesh);
+}
+
+bool XfemCutter::opened(const Triangle& face) const {
+  std::array<VertexId, 3> key{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const VertexOrigin& origin = mesh_->vertex_origin(face[k]);
+    key[k] = static_cast<std::size_t>(face[k]) >= rest_vertices_ ? origin.parents[0] : face[k];
+  }
+  std::sort(key.begin(), key.end());
+  return !rest_boundary_.contains(key);
 }
 
 XfemCutter::~XfemCutter() = default;

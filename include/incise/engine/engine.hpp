@@ -24,6 +24,7 @@
 namespace incise {
 
 class SubdivisionCutter;
+class XfemCutter;
 class Integrator;
 
 /// One frame: stage times (s) named after the seed's Table 1, and the state after it.
@@ -86,8 +87,11 @@ class Engine {
   [[nodiscard]] const TetMesh& mesh() const;
   [[nodiscard]] const SimulationState& state() const;
   [[nodiscard]] std::span<const Vec3> positions() const;  ///< current (m)
-  /// The cutter, or null when the scene has none: its cut faces are the cut surface.
+  /// The subdivision cutter, or null when the scene has none: its cut faces are the cut
+  /// surface.
   [[nodiscard]] const SubdivisionCutter* cutter() const;
+  /// The XFEM cutter (scene `cutter: {"type": "xfem"}`), or null.
+  [[nodiscard]] const XfemCutter* xfem_cutter() const;
   /// The boundary triangles that lie on a cut (outward, vertex ids), empty without a cutter.
   [[nodiscard]] std::vector<Triangle> cut_surface() const;
   /// The boundary surface with its cut faces marked and the rest positions (the one the

@@ -30,7 +30,7 @@ enum class IntegratorKind {
   kBackwardEuler,
   kStatic
 };
-enum class CutterKind { kNone, kSubdivision };
+enum class CutterKind { kNone, kSubdivision, kXfem };
 
 /// The names scene files use for each kind ("rk4-hierarchical", ...), in one table each so the
 /// parser, error messages and reports agree.
@@ -100,6 +100,8 @@ struct ToolSpec {
   CutterKind cutter = CutterKind::kNone;
   double snap_fraction = 0.1;
   SplitMode split = SplitMode::kMinimal;  ///< kGeneric: the seed's 1:17 style, for comparison
+  double quad_length = 0.0;    ///< m, xfem: longest swept piece tested at once (0: mean edge)
+  double min_fraction = 1e-3;  ///< xfem: smallest material fraction of a virtual element
 };
 
 /// Where pictures of the scene are taken from (`camera` key); absent: fitted to the body.

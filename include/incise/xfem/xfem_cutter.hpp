@@ -30,6 +30,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <set>
 #include <unordered_map>
 #include <vector>
 
@@ -90,6 +91,9 @@ class XfemCutter {
   }
   /// Rest tetrahedra the cut has reached without crossing them completely.
   [[nodiscard]] std::vector<TetId> front() const;
+  /// Whether a boundary face (vertex ids) was opened by the cut: its vertices, taken back to
+  /// the originals they copy, are not a face of the body's boundary before the cut.
+  [[nodiscard]] bool opened(const Triangle& face) const;
   /// Degrees of freedom the cut added (3 per vertex copy).
   [[nodiscard]] std::size_t dofs_added() const { return 3 * stats_.copies; }
 
@@ -125,9 +129,10 @@ class XfemCutter {
   TetMesh* mesh_;
   XfemCutterOptions options_;
   std::unique_ptr<TetGrid> grid_;
-  std::vector<Tet> rest_tets_;     ///< the tetrahedra as they were (original ids)
-  std::size_t rest_vertices_ = 0;  ///< vertices before any copy
-  std::vector<TetState> state_;    ///< per rest tetrahedron
+  std::vector<Tet> rest_tets_;                       ///< the tetrahedra as they were (original ids)
+  std::set<std::array<VertexId, 3>> rest_boundary_;  ///< sorted vertex ids of boundary faces
+  std::size_t rest_vertices_ = 0;                    ///< vertices before any copy
+  std::vector<TetState> state_;                      ///< per rest tetrahedron
   std::vector<std::optional<ElementCut>> cuts_;
   std::vector<TetId> second_element_;    ///< per rest tetrahedron: element b's id, or -1
   std::vector<TetId> rest_of_appended_;  ///< per appended element (id - rest count)
