@@ -50,7 +50,7 @@ bool ElementCut::splits() const {
   return on_far > 0 && on_far < 4;
 }
 
-std::vector<Vec3> cut_polygon(const std::array<Vec3, 4>& corners, const ElementCut& cut) {
+std::vector<int> cut_polygon_edges(const std::array<Vec3, 4>& corners, const ElementCut& cut) {
   if (!cut.splits()) {
     return {};
   }
@@ -59,24 +59,26 @@ std::vector<Vec3> cut_polygon(const std::array<Vec3, 4>& corners, const ElementC
   for (int k = 0; k < 4; ++k) {
     (cut.on_b[static_cast<std::size_t>(k)] ? side_b : side_a).push_back(k);
   }
-  std::vector<Vec3> polygon;
+  std::vector<int> edges;
   if (side_a.size() == 1 || side_b.size() == 1) {
     const bool lone_a = side_a.size() == 1;
     const int lone = lone_a ? side_a[0] : side_b[0];
     for (int other : lone_a ? side_b : side_a) {
-      polygon.push_back(crossing_point(corners, cut, lone, other));
+      edges.push_back(edge_of(lone, other));
     }
   } else {
     // Two and two: the crossed edges a0-b0, a0-b1, a1-b1, a1-b0 form a cycle.
-    polygon = {crossing_point(corners, cut, side_a[0], side_b[0]),
-               crossing_point(corners, cut, side_a[0], side_b[1]),
-               crossing_point(corners, cut, side_a[1], side_b[1]),
-               crossing_point(corners, cut, side_a[1], side_b[0])};
+    edges = {edge_of(side_a[0], side_b[0]), edge_of(side_a[0], side_b[1]),
+             edge_of(side_a[1], side_b[1]), edge_of(side_a[1], side_b[0])};
   }
   // Orient the fan from a towards b.
+  const auto point = [&](int k) {
+    const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
+    return crossing_point(corners, cut, edge[0], edge[1]);
+  };
   Vec3 normal = Vec3::Zero();
-  for (std::size_t m = 1; m + 1 < polygon.size(); ++m) {
-    normal += (polygon[m] - polygon[0]).cross(polygon[m + 1] - polygon[0]);
+  for (std::size_t m = 1; m + 1 < edges.size(); ++m) {
+    normal += (point(edges[m]) - point(edges[0])).cross(point(edges[m + 1]) - point(edges[0]));
   }
   Vec3 centre_a = Vec3::Zero();
   Vec3 centre_b = Vec3::Zero();
@@ -87,7 +89,16 @@ std::vector<Vec3> cut_polygon(const std::array<Vec3, 4>& corners, const ElementC
     centre_b += corners[static_cast<std::size_t>(k)] / static_cast<double>(side_b.size());
   }
   if (normal.dot(centre_b - centre_a) < 0.0) {
-    std::reverse(polygon.begin() + 1, polygon.end());
+    std::reverse(edges.begin() + 1, edges.end());
+  }
+  return edges;
+}
+
+std::vector<Vec3> cut_polygon(const std::array<Vec3, 4>& corners, const ElementCut& cut) {
+  std::vector<Vec3> polygon;
+  for (int k : cut_polygon_edges(corners, cut)) {
+    const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
+    polygon.push_back(crossing_point(corners, cut, edge[0], edge[1]));
   }
   return polygon;
 }

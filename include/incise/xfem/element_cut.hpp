@@ -41,6 +41,9 @@ struct SideVolumes {
 /// fan (from the first point) oriented from side a towards side b. Empty when nothing splits.
 [[nodiscard]] std::vector<Vec3> cut_polygon(const std::array<Vec3, 4>& corners,
                                             const ElementCut& cut);
+/// The same polygon as the local edges (tet_local::kEdges indices) its points lie on.
+[[nodiscard]] std::vector<int> cut_polygon_edges(const std::array<Vec3, 4>& corners,
+                                                 const ElementCut& cut);
 
 /// Exact volumes on each side of the cut surface (the tetrahedron must be positive).
 [[nodiscard]] SideVolumes side_volumes(const std::array<Vec3, 4>& corners, const ElementCut& cut);

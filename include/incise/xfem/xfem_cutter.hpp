@@ -89,6 +89,12 @@ class XfemCutter {
   [[nodiscard]] const std::optional<ElementCut>& cut_of(TetId rest_tet) const {
     return cuts_[static_cast<std::size_t>(rest_tet)];
   }
+  /// The element of a split rest tetrahedron's side b when it has two (side a keeps the rest
+  /// tetrahedron's id), else kInvalidId (whole, or only side b holds material: then the one
+  /// element, at the rest tetrahedron's id, is side b's).
+  [[nodiscard]] TetId second_element(TetId rest_tet) const {
+    return second_element_[static_cast<std::size_t>(rest_tet)];
+  }
   /// Rest tetrahedra the cut has reached without crossing them completely.
   [[nodiscard]] std::vector<TetId> front() const;
   /// Whether a boundary face (vertex ids) was opened by the cut: its vertices, taken back to

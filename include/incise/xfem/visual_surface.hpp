@@ -1,0 +1,93 @@
+#pragma once
+// The visual surface of an XFEM body (Gutierrez & Ramos 3.2, 3.4): a triangle surface finer
+// than the physics mesh, embedded barycentrically in its rest tetrahedra, that follows the
+// cut. When tetrahedra split, the surface is cut along the cut surface the physics sees (in
+// each split tetrahedron the polygon through its edge crossings, quads as two triangles): the
+// visual triangles the cut crosses are split along it (CGAL's corefinement, exact predicates),
+// the cut surface inside the visual volume is added once per side, and every point is embedded
+// in the virtual element on its side. Points are shared wherever they would move together
+// (same rest place, same nodes of the physics mesh), so each piece's surface is closed and a
+// cut front still closed in the physics is closed in the picture too.
+//
+// A point outside the physics mesh (a visual surface that sticks out of it, as SOFA's
+// liver-smooth.obj around liver.msh) is carried by its nearest tetrahedron, extrapolated.
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "incise/core/types.hpp"
+#include "incise/cut/tet_grid.hpp"
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+class XfemCutter;
+
+/// A point carried by a tetrahedron of the physics mesh: x = sum weights[k] * x(nodes[k]).
+struct Embedding {
+  Tet nodes{};
+  std::array<double, 4> weights{};
+};
+
+class VisualSurface {
+ public:
+  /// Embeds `points`/`triangles` (m, rest frame; outward, closed for a closed result) in the
+  /// rest tetrahedra of `mesh`, which no cut has touched yet.
+  VisualSurface(const TetMesh& mesh, std::vector<Vec3> points, std::vector<Triangle> triangles);
+  ~VisualSurface();
+  VisualSurface(const VisualSurface&) = delete;
+  VisualSurface& operator=(const VisualSurface&) = delete;
+
+  /// Follows the cut `cutter` has made in `mesh` so far (does nothing when no tetrahedron
+  /// split since the last call). The surface is rebuilt from the original one, so it never
+  /// accumulates error.
+  void follow(const TetMesh& mesh, const XfemCutter& cutter);
+
+  /// Current positions (m) of the surface's points, from the physics nodes' positions.
+  [[nodiscard]] std::vector<Vec3> positions(std::span<const Vec3> nodes) const;
+  [[nodiscard]] std::span<const Vec3> rest_points() const { return rest_points_; }
+  [[nodiscard]] std::span<const Triangle> triangles() const { return triangles_; }
+  /// Per triangle: 1 when it lies on the cut surface, 0 on the original surface.
+  [[nodiscard]] std::span<const std::uint8_t> on_cut() const { return on_cut_; }
+  [[nodiscard]] std::span<const Embedding> embeddings() const { return embedding_; }
+  /// Points of the original surface outside the physics mesh.
+  [[nodiscard]] std::size_t outside_points() const { return outside_; }
+  /// Cut triangles left out because the original surface is not closed (no inside to keep).
+  [[nodiscard]] bool original_closed() const { return closed_; }
+
+ private:
+  /// The rest tetrahedron holding p, or the nearest one (`outside` set) for a point outside.
+  TetId locate(const Vec3& p, bool* outside = nullptr) const;
+  /// p's embedding in the element on the side of the cut that p + a little of `towards` lies.
+  Embedding embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p,
+                  const Vec3& towards) const;
+
+  /// Drops triangles rounding made flat and welds the seam where the picture's cut runs past
+  /// the physics' front.
+  void tidy();
+
+  TetMesh rest_mesh_;  ///< the physics mesh before any cut (its tetrahedra are the rest ones)
+  std::unique_ptr<TetGrid> grid_;
+  double nudge_ = 0.0;  ///< m: how far past a point its side is read
+  std::vector<Vec3> original_points_;
+  std::vector<Triangle> original_triangles_;
+  std::vector<Vec3> rest_points_;
+  std::vector<Triangle> triangles_;
+  std::vector<std::uint8_t> on_cut_;
+  std::vector<Embedding> embedding_;
+  std::size_t outside_ = 0;
+  std::size_t split_seen_ = 0;
+  bool closed_ = true;
+};
+
+/// Volume (m^3) a closed, outward-oriented triangle surface encloses (divergence theorem).
+[[nodiscard]] double enclosed_volume(std::span<const Vec3> points,
+                                     std::span<const Triangle> triangles);
+/// Whether the triangles close up: every edge is used as often in one direction as in the
+/// other (once each on a smooth surface; along a partial cut's front, where the two lips meet,
+/// twice each).
+[[nodiscard]] bool is_watertight(std::span<const Triangle> triangles);
+
+}  // namespace incise
