@@ -2,13 +2,12 @@
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -43,6 +42,11 @@ CgalMesh to_cgal(std::span<const Vec3> points, std::span<const Triangle> triangl
   for (const Triangle& t : triangles) {
     polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
                         static_cast<std::size_t>(t[2])});
+  }
+  // Pieces of a cut surface may touch at a single point: such points are duplicated so the
+  // soup becomes a polygon mesh (orientations, already consistent, are kept).
+  if (!PMP::is_polygon_soup_a_polygon_mesh(polygons)) {
+    PMP::orient_polygon_soup(cgal_points, polygons);
   }
   CgalMesh mesh;
   PMP::polygon_soup_to_polygon_mesh(cgal_points, polygons, mesh);
@@ -128,14 +132,26 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
   }
   nudge_ = 1e-6 * length / static_cast<double>(std::max<std::size_t>(1, rest_mesh_.edge_count()));
   closed_ = is_watertight(original_triangles_);
+  point_cell_ = std::max(1e6 * nudge_, 1e-12);  // the mean edge length of the physics mesh
+  for (std::size_t i = 0; i < original_points_.size(); ++i) {
+    const Vec3& q = original_points_[i];
+    point_cells_[{static_cast<long>(std::floor(q.x() / point_cell_)),
+                  static_cast<long>(std::floor(q.y() / point_cell_)),
+                  static_cast<long>(std::floor(q.z() / point_cell_))}]
+        .push_back(i);
+  }
   rest_points_ = original_points_;
   triangles_ = original_triangles_;
   on_cut_.assign(triangles_.size(), 0);
   embedding_.resize(rest_points_.size());
   for (std::size_t i = 0; i < rest_points_.size(); ++i) {
     bool outside = false;
-    (void)locate(rest_points_[i], &outside);
-    outside_ += outside ? 1 : 0;
+    const TetId tet = locate(rest_points_[i], &outside);
+    if (outside) {
+      ++outside_;
+      reach_ = std::max(
+          reach_, std::sqrt(squared_distance_to_tet(rest_points_[i], corners_of(rest_mesh_, tet))));
+    }
     embedding_[i] = embed(mesh, nullptr, rest_points_[i], Vec3::Zero());
   }
 }
@@ -143,6 +159,24 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
 VisualSurface::~VisualSurface() = default;
 
 TetId VisualSurface::locate(const Vec3& p, bool* outside) const {
+  // The original surface's points are located again after every cut: remember them.
+  const std::array<double, 3> key{p.x(), p.y(), p.z()};
+  if (const auto found = located_.find(key); found != located_.end()) {
+    if (outside != nullptr) {
+      *outside = found->second.second;
+    }
+    return found->second.first;
+  }
+  bool is_outside = false;
+  const TetId tet = locate_uncached(p, is_outside);
+  located_.emplace(key, std::pair(tet, is_outside));
+  if (outside != nullptr) {
+    *outside = is_outside;
+  }
+  return tet;
+}
+
+TetId VisualSurface::locate_uncached(const Vec3& p, bool& is_outside) const {
   std::vector<TetId> near;
   const Vec3 tiny = Vec3::Constant(nudge_);
   grid_->query(p - tiny, p + tiny, near);
@@ -150,15 +184,11 @@ TetId VisualSurface::locate(const Vec3& p, bool* outside) const {
   for (TetId t : near) {
     const auto x = corners_of(rest_mesh_, t);
     if (locate_in_tet(p, x[0], x[1], x[2], x[3]) != TetLocation::kOutside) {
-      if (outside != nullptr) {
-        *outside = false;
-      }
+      is_outside = false;
       return t;
     }
   }
-  if (outside != nullptr) {
-    *outside = true;
-  }
+  is_outside = true;
   // Outside the body: the nearest tetrahedron, searched in growing boxes.
   TetId best = kInvalidId;
   double best_distance = std::numeric_limits<double>::infinity();
@@ -237,6 +267,10 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
     }
   }
 
+  if (reach_ > 0.0) {
+    add_skirt(cut_points, cut_triangles);
+  }
+
   CgalMesh visual = to_cgal(original_points_, original_triangles_);
   CgalMesh cut_surface = to_cgal(cut_points, cut_triangles);
   std::unique_ptr<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>> inside;
@@ -246,7 +280,15 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
     inside = std::make_unique<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>>(original);
   }
   if (!cut_triangles.empty()) {
-    PMP::corefine(visual, cut_surface);
+    // Corefinement asks for surfaces that do not intersect themselves; real visual surfaces
+    // sometimes do (SOFA's liver-smooth.obj), and a skirt round a sharp rim may. When CGAL
+    // gives up, the picture keeps its last cut until the next split.
+    try {
+      PMP::corefine(visual, cut_surface);
+    } catch (const CGAL::Failure_exception&) {
+      ++failures_;
+      return;
+    }
   }
 
   std::map<PointKey, VertexId> index;
@@ -313,6 +355,157 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
   tidy();
 }
 
+void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles) const {
+  // The cut surface's edges on the body's boundary (not its front, which lies between split
+  // and whole tetrahedra inside), each with the tetrahedron whose polygon holds it.
+  std::map<std::pair<VertexId, VertexId>, std::size_t> directed;
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      directed[{triangles[t][k], triangles[t][(k + 1) % 3]}] = t;
+    }
+  }
+  std::vector<std::pair<VertexId, VertexId>> rim;
+  std::vector<Vec3> outward(points.size(), Vec3::Zero());
+  for (const auto& [edge, t] : directed) {
+    if (directed.contains({edge.second, edge.first})) {
+      continue;
+    }
+    const Vec3& a = points[static_cast<std::size_t>(edge.first)];
+    const Vec3& b = points[static_cast<std::size_t>(edge.second)];
+    const Triangle& tri = triangles[t];
+    const Vec3 normal =
+        (points[static_cast<std::size_t>(tri[1])] - points[static_cast<std::size_t>(tri[0])])
+            .cross(points[static_cast<std::size_t>(tri[2])] -
+                   points[static_cast<std::size_t>(tri[0])]);
+    // The edge's midpoint nudged outwards must leave the body: else it is the cut's front.
+    const Vec3 out = (b - a).cross(normal).normalized();
+    const Vec3 probe = 0.5 * (a + b) + 1e3 * nudge_ * out;
+    bool probe_outside = false;
+    (void)locate_uncached(probe, probe_outside);
+    if (!probe_outside) {
+      continue;
+    }
+    rim.push_back(edge);
+    outward[static_cast<std::size_t>(edge.first)] += out;
+    outward[static_cast<std::size_t>(edge.second)] += out;
+  }
+  // Each rim point extruded once (shared by its two rim edges) past the visual surface, as far
+  // as the surface sticks out at most; where band pieces would cross the cut surface or each
+  // other (the rim's concave bends), their ends are drawn in, halving until they do not, and a
+  // piece that still crosses is left out: corefinement needs a surface that does not intersect
+  // itself.
+  std::unordered_map<VertexId, std::size_t> far_index;  // rim point -> slot in far / length
+  std::vector<VertexId> rim_points;
+  for (const auto& [a, b] : rim) {
+    for (VertexId v : {a, b}) {
+      if (far_index.try_emplace(v, rim_points.size()).second) {
+        rim_points.push_back(v);
+      }
+    }
+  }
+  std::vector<double> length(rim_points.size());
+  for (std::size_t k = 0; k < rim_points.size(); ++k) {
+    const Vec3& p = points[static_cast<std::size_t>(rim_points[k])];
+    length[k] =
+        std::min(std::max(3.0 * nearest_visual_distance(p), reach_), 2.0 * reach_) + 1e3 * nudge_;
+  }
+  const std::size_t first_far = points.size();
+  points.resize(first_far + rim_points.size());
+  const auto place = [&](std::size_t k) {
+    const auto v = static_cast<std::size_t>(rim_points[k]);
+    points[first_far + k] = points[v] + length[k] * outward[v].normalized();
+  };
+  for (std::size_t k = 0; k < rim_points.size(); ++k) {
+    place(k);
+  }
+  const auto at = [&](VertexId v) -> const Vec3& { return points[static_cast<std::size_t>(v)]; };
+  const auto crosses = [&](const Triangle& candidate, std::span<const Triangle> others) {
+    for (const Triangle& other : others) {
+      bool shares = false;
+      for (VertexId v : candidate) {
+        shares = shares || std::find(other.begin(), other.end(), v) != other.end();
+      }
+      if (!shares && triangles_intersect(at(candidate[0]), at(candidate[1]), at(candidate[2]),
+                                         at(other[0]), at(other[1]), at(other[2]))) {
+        return true;
+      }
+    }
+    return false;
+  };
+  const std::size_t inside_count = triangles.size();
+  std::vector<std::array<Triangle, 2>> band;
+  for (const auto& [a, b] : rim) {
+    const auto a_far = static_cast<VertexId>(first_far + far_index.at(a));
+    const auto b_far = static_cast<VertexId>(first_far + far_index.at(b));
+    band.push_back({Triangle{b, a, a_far}, Triangle{b, a_far, b_far}});
+  }
+  std::vector<Triangle> all;
+  for (int round = 0; round < 8; ++round) {
+    all.assign(triangles.begin(), triangles.begin() + static_cast<std::ptrdiff_t>(inside_count));
+    for (const auto& piece : band) {
+      all.push_back(piece[0]);
+      all.push_back(piece[1]);
+    }
+    std::vector<bool> shrink(rim_points.size(), false);
+    bool any = false;
+    for (const auto& piece : band) {
+      if (crosses(piece[0], all) || crosses(piece[1], all)) {
+        shrink[static_cast<std::size_t>(piece[0][2]) - first_far] = true;
+        shrink[static_cast<std::size_t>(piece[1][2]) - first_far] = true;
+        any = true;
+      }
+    }
+    if (!any) {
+      break;
+    }
+    for (std::size_t k = 0; k < rim_points.size(); ++k) {
+      if (shrink[k]) {
+        length[k] *= 0.5;
+        place(k);
+      }
+    }
+  }
+  for (const auto& piece : band) {
+    if (!crosses(piece[0], all) && !crosses(piece[1], all)) {
+      triangles.push_back(piece[0]);
+      triangles.push_back(piece[1]);
+    }
+  }
+}
+
+double VisualSurface::nearest_visual_distance(const Vec3& p) const {
+  const auto cell_of = [&](const Vec3& q) {
+    return std::array<long, 3>{static_cast<long>(std::floor(q.x() / point_cell_)),
+                               static_cast<long>(std::floor(q.y() / point_cell_)),
+                               static_cast<long>(std::floor(q.z() / point_cell_))};
+  };
+  const auto centre = cell_of(p);
+  double best = std::numeric_limits<double>::infinity();
+  for (long ring = 0; ring < 1000; ++ring) {
+    for (long i = -ring; i <= ring; ++i) {
+      for (long j = -ring; j <= ring; ++j) {
+        for (long k = -ring; k <= ring; ++k) {
+          if (std::max({std::abs(i), std::abs(j), std::abs(k)}) != ring) {
+            continue;
+          }
+          const auto found = point_cells_.find({centre[0] + i, centre[1] + j, centre[2] + k});
+          if (found == point_cells_.end()) {
+            continue;
+          }
+          for (std::size_t index : found->second) {
+            best = std::min(best, (original_points_[index] - p).norm());
+          }
+        }
+      }
+    }
+    // Points in further rings lie at least `ring` cells away.
+    if (best <= static_cast<double>(ring) * point_cell_) {
+      break;
+    }
+  }
+  return std::isfinite(best) ? best : 0.0;
+}
+
 void VisualSurface::tidy() {
   // A triangle whose corners rounded onto one point has no area: it goes, with its two
   // opposite edges, which keeps every other edge's pairing.
@@ -353,9 +546,6 @@ void VisualSurface::tidy() {
       const Vec3& p = rest_points_[static_cast<std::size_t>(v)];
       const auto [slot, added] = first_at.try_emplace({p.x(), p.y(), p.z()}, v);
       if (!added && slot->second != v) {
-        if (std::getenv("INCISE_DEBUG_WELD") != nullptr) {
-          std::fprintf(stderr, "weld %d -> %d at %g %g %g\n", v, slot->second, p.x(), p.y(), p.z());
-        }
         weld[static_cast<std::size_t>(v)] = slot->second;
         welded = true;
       }

@@ -12,7 +12,9 @@
 // A point outside the physics mesh (a visual surface that sticks out of it, as SOFA's
 // liver-smooth.obj around liver.msh) is carried by its nearest tetrahedron, extrapolated.
 
+#include <array>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <span>
 #include <vector>
@@ -54,8 +56,11 @@ class VisualSurface {
   [[nodiscard]] std::span<const Embedding> embeddings() const { return embedding_; }
   /// Points of the original surface outside the physics mesh.
   [[nodiscard]] std::size_t outside_points() const { return outside_; }
-  /// Cut triangles left out because the original surface is not closed (no inside to keep).
+  /// Whether the original surface is closed (else no cut face is added: it has no inside).
   [[nodiscard]] bool original_closed() const { return closed_; }
+  /// Updates CGAL's corefinement gave up on (a surface that intersects itself); the surface
+  /// then kept its previous cut.
+  [[nodiscard]] std::size_t failures() const { return failures_; }
 
  private:
   /// The rest tetrahedron holding p, or the nearest one (`outside` set) for a point outside.
@@ -64,6 +69,13 @@ class VisualSurface {
   Embedding embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p,
                   const Vec3& towards) const;
 
+  TetId locate_uncached(const Vec3& p, bool& is_outside) const;
+  /// Extends the cut surface past the body's boundary far enough to cut a visual surface that
+  /// sticks out of the body: a band extruded outwards in each polygon's plane from the cut's
+  /// rim on the boundary.
+  void add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles) const;
+  /// m: from p to the nearest point of the original surface.
+  [[nodiscard]] double nearest_visual_distance(const Vec3& p) const;
   /// Drops triangles rounding made flat and welds the seam where the picture's cut runs past
   /// the physics' front.
   void tidy();
@@ -71,6 +83,10 @@ class VisualSurface {
   TetMesh rest_mesh_;  ///< the physics mesh before any cut (its tetrahedra are the rest ones)
   std::unique_ptr<TetGrid> grid_;
   double nudge_ = 0.0;  ///< m: how far past a point its side is read
+  double reach_ = 0.0;  ///< m: how far the surface sticks out of the body at most
+  mutable std::map<std::array<double, 3>, std::pair<TetId, bool>> located_;
+  double point_cell_ = 1.0;  ///< m: cell of the grid over the original points
+  std::map<std::array<long, 3>, std::vector<std::size_t>> point_cells_;
   std::vector<Vec3> original_points_;
   std::vector<Triangle> original_triangles_;
   std::vector<Vec3> rest_points_;
@@ -79,6 +95,7 @@ class VisualSurface {
   std::vector<Embedding> embedding_;
   std::size_t outside_ = 0;
   std::size_t split_seen_ = 0;
+  std::size_t failures_ = 0;
   bool closed_ = true;
 };
 
