@@ -1,4 +1,5 @@
 // incise cut MESH --blade PATH.csv [--method subdivision|xfem] -o OUT [--report R.json]
+//   [--visual SURFACE --visual-out OUT.vtp] (xfem)
 
 #include <fmt/format.h>
 
@@ -26,6 +27,8 @@ Runner add_cut_command(CLI::App& app) {
   auto snap = std::make_shared<double>(CutterOptions{}.snap_fraction);
   auto split = std::make_shared<std::string>("minimal");
   auto merge = std::make_shared<bool>(false);
+  auto visual = std::make_shared<std::string>();
+  auto visual_out = std::make_shared<std::string>();
   command->add_option("mesh", *mesh_path, "Tetrahedral mesh")->required()->check(CLI::ExistingFile);
   command
       ->add_option("--blade", *blade_path,
@@ -48,12 +51,21 @@ Runner add_cut_command(CLI::App& app) {
       ->required();
   command->add_option("--report", *report_path, "JSON report");
   command
+      ->add_option(
+          "--visual", *visual,
+          "xfem: a visual surface (OBJ, STL, PLY, VTP) embedded in the mesh and cut with it")
+      ->check(CLI::ExistingFile);
+  command->add_option("--visual-out", *visual_out, "xfem: the cut visual surface (.vtp)");
+  command
       ->add_option("--snap", *snap, "Snap crossings within this fraction of an edge to its vertex")
       ->check(CLI::Range(0.001, 0.49))
       ->capture_default_str();
   return [=]() {
     if (*method == "xfem") {
-      return cut_xfem(*mesh_path, *blade_path, *output, *report_path);
+      return cut_xfem({*mesh_path, *blade_path, *output, *report_path, *visual, *visual_out});
+    }
+    if (!visual->empty() || !visual_out->empty()) {
+      throw InputError("--visual and --visual-out apply to --method xfem only");
     }
     TetMesh mesh = read_tet_mesh(*mesh_path).mesh;
     const ValidationReport input_report = validate(mesh);

@@ -1,12 +1,13 @@
-// incise cut MESH --blade PATH.csv --method xfem -o OUT.vtu [--report R.json]: the XFEM cut of
-// a blade path, no physics. OUT.vtu holds the virtual elements (copies of vertices appended
-// after the originals) with their material fraction and rest tetrahedron as cell data.
+// incise cut MESH --blade PATH.csv --method xfem -o OUT.vtu [--visual SURFACE --visual-out
+// OUT.vtp] [--report R.json]: the XFEM cut of a blade path, pose by pose as in the engine, no
+// physics. OUT.vtu holds the virtual elements (copies of vertices appended after the
+// originals) with their material fraction and rest tetrahedron as cell data.
 
 #include "command_cut_xfem.hpp"
 
 #include <fmt/format.h>
 
-#include <chrono>
+#include <algorithm>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -14,89 +15,125 @@
 #include "incise/core/error.hpp"
 #include "incise/cut/blade.hpp"
 #include "incise/io/mesh_io.hpp"
+#include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
-#include "incise/xfem/virtual_mesh.hpp"
+#include "incise/xfem/visual_surface.hpp"
+#include "incise/xfem/xfem_cutter.hpp"
 
 namespace incise::app {
 
-int cut_xfem(const std::string& mesh_path, const std::string& blade_path, const std::string& output,
-             const std::string& report_path) {
-  if (std::filesystem::path(output).extension() != ".vtu") {
-    throw InputError("-o " + output +
+int cut_xfem(const XfemCutRequest& request) {
+  if (std::filesystem::path(request.output).extension() != ".vtu") {
+    throw InputError("-o " + request.output +
                      ": the XFEM cut is written as .vtu (virtual elements "
                      "with their material fraction as cell data)");
   }
-  const TetMesh mesh = read_tet_mesh(mesh_path).mesh;
+  if (!request.visual_out.empty() && request.visual.empty()) {
+    throw InputError("--visual-out needs --visual SURFACE");
+  }
+  if (!request.visual_out.empty() &&
+      std::filesystem::path(request.visual_out).extension() != ".vtp") {
+    throw InputError("--visual-out " + request.visual_out +
+                     ": the visual surface is written as .vtp");
+  }
+  TetMesh mesh = read_tet_mesh(request.mesh_path).mesh;
   const ValidationReport input_report = validate(mesh);
   if (!input_report.ok()) {
-    throw InputError(mesh_path, 0, "the mesh is not valid:\n" + input_report.describe());
+    throw InputError(request.mesh_path, 0, "the mesh is not valid:\n" + input_report.describe());
   }
-  const std::vector<BladePose> path = read_blade_path(blade_path);
-  std::vector<std::array<Vec3, 3>> triangles;
+  const std::vector<BladePose> path = read_blade_path(request.blade_path);
+  const std::size_t tets_in = mesh.tet_count();
+  const std::size_t vertices_in = mesh.vertex_count();
+  const double volume_in = total_volume(mesh);
+  std::unique_ptr<VisualSurface> visual;
+  double visual_volume_in = 0.0;
+  if (!request.visual.empty()) {
+    SurfaceMesh surface = read_surface(request.visual);
+    visual_volume_in = enclosed_volume(surface.points, surface.triangles);
+    visual = std::make_unique<VisualSurface>(mesh, std::move(surface.points),
+                                             std::move(surface.triangles));
+  }
+
+  XfemCutter cutter(mesh);
   double travel = 0.0;  // m, of the blade's midpoint
+  double cd = 0.0;      // ms, over all poses
+  double gc = 0.0;
+  cutter.start(path.front());
   for (std::size_t i = 1; i < path.size(); ++i) {
-    for (const auto& triangle : swept_triangles(path[i - 1], path[i])) {
-      triangles.push_back(triangle);
-    }
+    cutter.move_to(path[i]);
+    cd += 1e3 * cutter.stats().cd_seconds;
+    gc += 1e3 * cutter.stats().gc_seconds;
     travel +=
         (0.5 * (path[i].tip + path[i].base) - 0.5 * (path[i - 1].tip + path[i - 1].base)).norm();
   }
-  const auto start = std::chrono::steady_clock::now();
-  const SurfaceCuts cuts = cuts_by_surface(mesh, triangles);
-  const auto found = std::chrono::steady_clock::now();
-  // A stated minimum fraction keeps nearly empty elements from making the system singular.
-  constexpr double kMinFraction = 1e-3;
-  const VirtualMesh body = build_virtual_mesh(mesh, cuts.cuts, cuts.front, kMinFraction);
-  const auto built = std::chrono::steady_clock::now();
-  int pieces = 0;
-  (void)virtual_pieces(body, &pieces);
-  double min_fraction = 1.0;
-  for (double fraction : body.fraction) {
-    min_fraction = std::min(min_fraction, fraction);
+  if (visual) {
+    visual->follow(mesh, cutter);
+  }
+  const XfemCutterStats& stats = cutter.stats();
+  std::vector<std::int32_t> rest_tet(mesh.tet_count());
+  for (std::size_t t = 0; t < rest_tet.size(); ++t) {
+    rest_tet[t] = cutter.rest_tet_of(static_cast<TetId>(t));
+  }
+  double volume_out = 0.0;  // m^3, fraction-weighted
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    volume_out +=
+        mesh.material_fraction(static_cast<TetId>(t)) * signed_volume(mesh, static_cast<TetId>(t));
+  }
+  VtuFields fields;
+  fields.cell_data.push_back(
+      {"fraction", 1,
+       std::vector<double>(mesh.material_fractions().begin(), mesh.material_fractions().end())});
+  fields.cell_data.push_back({"rest_tet", 1, std::move(rest_tet)});
+  write_vtu(request.output, mesh, {}, fields);
+  if (visual && !request.visual_out.empty()) {
+    VtuFields surface_fields;
+    surface_fields.cell_data.push_back(
+        {"on_cut", 1, std::vector<std::int32_t>(visual->on_cut().begin(), visual->on_cut().end())});
+    write_vtp(request.visual_out, visual->rest_points(), visual->triangles(), surface_fields);
   }
 
-  const TetMesh virtual_mesh(body.rest_positions, body.elements);
-  VtuFields fields;
-  fields.cell_data.push_back({"fraction", 1, body.fraction});
-  fields.cell_data.push_back(
-      {"rest_tet", 1, std::vector<std::int32_t>(body.rest_tet.begin(), body.rest_tet.end())});
-  write_vtu(output, virtual_mesh, {}, fields);
-
-  const double cd = std::chrono::duration<double, std::milli>(found - start).count();
-  const double gc = std::chrono::duration<double, std::milli>(built - found).count();
-  const double volume_out = material_volume(body, mesh);
+  const int pieces = pieces_by_vertices(mesh);
+  const double per_cm = travel > 0.0 ? cutter.dofs_added() / (100.0 * travel) : 0.0;
   std::cerr << fmt::format(
       "xfem cut {} with {} poses: {} tets, {} split into virtual elements ({} elements), {} "
       "copies ({} DOFs, {:.1f} per cm of blade travel), {} pieces, smallest fraction {:.3g}, "
       "cd {:.3f} ms, gc {:.3f} ms\n",
-      mesh_path, path.size(), mesh.tet_count(), body.split, body.elements.size(), body.copies(),
-      body.dofs_added(), travel > 0.0 ? body.dofs_added() / (100.0 * travel) : 0.0, pieces,
-      min_fraction, cd, gc);
-  if (!report_path.empty()) {
-    const nlohmann::json json = {
-        {"mesh", mesh_path},
-        {"blade", blade_path},
-        {"method", "xfem"},
-        {"poses", path.size()},
-        {"tets_in", mesh.tet_count()},
-        {"tets_out", body.elements.size()},
-        {"vertices_in", mesh.vertex_count()},
-        {"vertices_out", body.rest_positions.size()},
-        {"volume_in", total_volume(mesh)},
-        {"volume_out", volume_out},
-        {"components", pieces},
-        {"inverted_tets", 0},  // no rest element is created or changed
-        {"cd", cd},
-        {"gc", gc},
-        {"elements_split", body.split},
-        {"front_tets", cuts.front.size()},
-        {"tied_vertices", body.tied},
-        {"dofs_added", body.dofs_added()},
-        {"blade_travel_m", travel},
-        {"dofs_added_per_cm", travel > 0.0 ? body.dofs_added() / (100.0 * travel) : 0.0},
-        {"min_fraction", min_fraction},
-        {"fractions_raised", body.raised}};
-    write_file_atomically(report_path, json.dump(2) + "\n");
+      request.mesh_path, path.size(), tets_in, stats.elements_split, mesh.tet_count(), stats.copies,
+      cutter.dofs_added(), per_cm, pieces, stats.min_fraction, cd, gc);
+  if (!request.report_path.empty()) {
+    nlohmann::json json = {{"mesh", request.mesh_path},
+                           {"blade", request.blade_path},
+                           {"method", "xfem"},
+                           {"poses", path.size()},
+                           {"tets_in", tets_in},
+                           {"tets_out", mesh.tet_count()},
+                           {"vertices_in", vertices_in},
+                           {"vertices_out", mesh.vertex_count()},
+                           {"volume_in", volume_in},
+                           {"volume_out", volume_out},
+                           {"components", pieces},
+                           {"inverted_tets", validate(mesh).inverted_tets.size()},
+                           {"cd", cd},
+                           {"gc", gc},
+                           {"elements_split", stats.elements_split},
+                           {"front_tets", stats.front_tets},
+                           {"waiting_tets", stats.waiting_tets},
+                           {"tied_vertices", stats.tied_vertices},
+                           {"tremor_edges", stats.tremor_edges},
+                           {"dofs_added", cutter.dofs_added()},
+                           {"blade_travel_m", travel},
+                           {"dofs_added_per_cm", per_cm},
+                           {"min_fraction", stats.min_fraction},
+                           {"fractions_raised", stats.fractions_raised}};
+    if (visual) {
+      json["visual_volume_in"] = visual_volume_in;
+      json["visual_volume_out"] = enclosed_volume(visual->rest_points(), visual->triangles());
+      json["visual_watertight"] = is_watertight(visual->triangles());
+      json["visual_triangles"] = visual->triangles().size();
+      json["visual_outside_points"] = visual->outside_points();
+      json["visual_failures"] = visual->failures();
+    }
+    write_file_atomically(request.report_path, json.dump(2) + "\n");
   }
   return 0;
 }

@@ -5,9 +5,17 @@
 
 namespace incise::app {
 
-/// Cuts `mesh_path` along `blade_path` with XFEM virtual elements; writes `output` (.vtu) and
-/// the report. Returns the exit code.
-int cut_xfem(const std::string& mesh_path, const std::string& blade_path, const std::string& output,
-             const std::string& report_path);
+struct XfemCutRequest {
+  std::string mesh_path;
+  std::string blade_path;
+  std::string output;       ///< .vtu of the virtual elements
+  std::string report_path;  ///< empty: no report
+  std::string visual;       ///< empty: no visual surface
+  std::string visual_out;   ///< .vtp of the cut visual surface
+};
+
+/// Cuts the mesh along the blade path pose by pose with the XFEM cutter (virtual elements);
+/// writes the output, the cut visual surface and the report. Returns the exit code.
+int cut_xfem(const XfemCutRequest& request);
 
 }  // namespace incise::app

@@ -140,6 +140,9 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
   }
   if (p.xfem) {
     p.xfem->load_state(in);
+    if (p.visual) {
+      p.visual->follow(p.mesh, *p.xfem);  // rebuilt from the cut, never stored
+    }
   }
   in.tag("end");
   if (!in.at_end()) {

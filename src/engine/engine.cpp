@@ -240,6 +240,19 @@ Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(s
     options.min_fraction = scene.tool.min_fraction;
     p.xfem = std::make_unique<XfemCutter>(p.mesh, options);
   }
+  if (scene.visual_file) {
+    SurfaceMesh surface = read_surface(*scene.visual_file);
+    for (Vec3& point : surface.points) {
+      point *= scene.visual_scale;
+    }
+    p.visual = std::make_unique<VisualSurface>(p.mesh, std::move(surface.points),
+                                               std::move(surface.triangles));
+    if (!p.visual->original_closed()) {
+      p.warnings.push_back(
+          scene.visual_file->string() +
+          ": the visual surface is not closed; cuts split it but add no cut faces");
+    }
+  }
   if (!scene.tool.poses.empty()) {
     p.tool = std::make_unique<ScriptedToolPath>(scene.tool.poses);
     p.blade = p.tool->pose(0, p.state.time);
@@ -390,6 +403,11 @@ bool Engine::step() {
       record.edited = p.mesh.revision() != revision;
       record.cd = p.xfem->stats().cd_seconds;
       record.gc = p.xfem->stats().gc_seconds;
+      if (p.visual && record.edited) {
+        const auto start = Clock::now();
+        p.visual->follow(p.mesh, *p.xfem);
+        record.gc += seconds_since(start);
+      }
       record.cut = true;
     }
   }
@@ -465,6 +483,10 @@ std::span<const Vec3> Engine::positions() const {
 }
 const XfemCutter* Engine::xfem_cutter() const {
   return parts_->xfem.get();
+}
+
+const VisualSurface* Engine::visual() const {
+  return parts_->visual.get();
 }
 
 const SubdivisionCutter* Engine::cutter() const {

@@ -13,6 +13,7 @@
 #include "incise/physics/force_model.hpp"
 #include "incise/physics/mechanical_system.hpp"
 #include "incise/solve/integrators.hpp"
+#include "incise/xfem/visual_surface.hpp"
 #include "incise/xfem/xfem_cutter.hpp"
 
 namespace incise {
@@ -28,7 +29,8 @@ struct Engine::Parts {
   SimulationState state;
   std::unique_ptr<Integrator> integrator;
   std::unique_ptr<SubdivisionCutter> cutter;
-  std::unique_ptr<XfemCutter> xfem;  ///< the scene's cutter when it is xfem (then no `cutter`)
+  std::unique_ptr<XfemCutter> xfem;       ///< the scene's cutter when it is xfem (then no `cutter`)
+  std::unique_ptr<VisualSurface> visual;  ///< the scene's embedded surface, if any
   std::unique_ptr<ToolPoseSource> tool;
   std::optional<BladePose> blade;
   std::vector<FrameSink*> sinks;

@@ -6,6 +6,7 @@
 #include "incise/core/timing.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/engine/frame_sink.hpp"
+#include "incise/xfem/visual_surface.hpp"
 
 namespace incise {
 namespace {
@@ -28,7 +29,8 @@ VtuSeriesSink::VtuSeriesSink(const std::filesystem::path& dir, std::string name,
       every_(std::max(1, every)),
       last_frame_(last_frame),
       continue_series_(continue_series),
-      series_(dir_ / (name_ + ".pvd")) {}
+      series_(dir_ / (name_ + ".pvd")),
+      visual_series_(dir_ / (name_ + "_visual.pvd")) {}
 
 void VtuSeriesSink::write(const Engine& engine) {
   const TetMesh& mesh = engine.mesh();
@@ -68,12 +70,25 @@ void VtuSeriesSink::write(const Engine& engine) {
   const std::string file = fmt::format("{}_{:06d}.vtu", name_, engine.frame());
   write_vtu(dir_ / file, mesh, state.x.values(), fields);
   series_.add(engine.time(), file);
+  // The embedded visual surface at the same frames: its own series (ParaView opens both).
+  if (const VisualSurface* visual = engine.visual()) {
+    VtuFields surface_fields;
+    surface_fields.cell_data.push_back(
+        {"on_cut", 1, std::vector<std::int32_t>(visual->on_cut().begin(), visual->on_cut().end())});
+    const std::string surface_file = fmt::format("{}_visual_{:06d}.vtp", name_, engine.frame());
+    write_vtp(dir_ / surface_file, visual->positions(state.x.values()), visual->triangles(),
+              surface_fields);
+    visual_series_.add(engine.time(), surface_file);
+  }
   written_frame_ = engine.frame();
 }
 
 void VtuSeriesSink::begin(const Engine& engine) {
   if (continue_series_) {
     series_.keep_existing_before(engine.time());
+    if (engine.visual() != nullptr) {
+      visual_series_.keep_existing_before(engine.time());
+    }
   }
   write(engine);
 }

@@ -403,6 +403,39 @@ bool has_labels(const TetMesh& mesh) {
 }
 }  // namespace
 
+/// Appends a point or cell array (checked: its size, finite values) to a VTK XML document.
+void add_field(AppendedVtkXml& document, const std::filesystem::path& path, const FieldArray& field,
+               std::size_t expected_tuples) {
+  std::string bytes;
+  if (const auto* reals = std::get_if<std::vector<double>>(&field.values)) {
+    if (reals->size() != expected_tuples * static_cast<std::size_t>(field.components)) {
+      throw InputError(path.string(), 0, "field '" + field.name + "' has the wrong size");
+    }
+    for (std::size_t i = 0; i < reals->size(); ++i) {
+      if (!std::isfinite((*reals)[i])) {
+        throw InputError(path.string(), 0,
+                         "refusing to write: field '" + field.name + "' value " +
+                             std::to_string(i) + " is not finite");
+      }
+      append_raw(bytes, (*reals)[i]);
+    }
+    document.add_array(fmt::format("type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\"",
+                                   field.name, field.components),
+                       bytes);
+  } else {
+    const auto& integers = std::get<std::vector<std::int32_t>>(field.values);
+    if (integers.size() != expected_tuples * static_cast<std::size_t>(field.components)) {
+      throw InputError(path.string(), 0, "field '" + field.name + "' has the wrong size");
+    }
+    for (std::int32_t value : integers) {
+      append_raw(bytes, value);
+    }
+    document.add_array(fmt::format("type=\"Int32\" Name=\"{}\" NumberOfComponents=\"{}\"",
+                                   field.name, field.components),
+                       bytes);
+  }
+}
+
 void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
                std::span<const Vec3> positions, const VtuFields& fields) {
   if (positions.empty()) {
@@ -417,35 +450,8 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
 
   AppendedVtkXml document;
   std::string& xml = document.xml;
-  auto field_xml = [&](const FieldArray& field, std::size_t expected_tuples) {
-    std::string bytes;
-    if (const auto* reals = std::get_if<std::vector<double>>(&field.values)) {
-      if (reals->size() != expected_tuples * static_cast<std::size_t>(field.components)) {
-        throw InputError(path.string(), 0, "field '" + field.name + "' has the wrong size");
-      }
-      for (std::size_t i = 0; i < reals->size(); ++i) {
-        if (!std::isfinite((*reals)[i])) {
-          throw InputError(path.string(), 0,
-                           "refusing to write: field '" + field.name + "' value " +
-                               std::to_string(i) + " is not finite");
-        }
-        append_raw(bytes, (*reals)[i]);
-      }
-      document.add_array(fmt::format("type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\"",
-                                     field.name, field.components),
-                         bytes);
-    } else {
-      const auto& integers = std::get<std::vector<std::int32_t>>(field.values);
-      if (integers.size() != expected_tuples * static_cast<std::size_t>(field.components)) {
-        throw InputError(path.string(), 0, "field '" + field.name + "' has the wrong size");
-      }
-      for (std::int32_t value : integers) {
-        append_raw(bytes, value);
-      }
-      document.add_array(fmt::format("type=\"Int32\" Name=\"{}\" NumberOfComponents=\"{}\"",
-                                     field.name, field.components),
-                         bytes);
-    }
+  const auto field_xml = [&](const FieldArray& field, std::size_t expected_tuples) {
+    add_field(document, path, field, expected_tuples);
   };
 
   xml += fmt::format(
@@ -490,15 +496,23 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
 }
 
 void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
-               std::span<const Triangle> triangles) {
+               std::span<const Triangle> triangles, const VtuFields& fields) {
   check_finite_positions(path, points);
   AppendedVtkXml document;
   document.xml = fmt::format(
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"{}\" "
       "header_type=\"UInt64\">\n  <PolyData>\n    <Piece NumberOfPoints=\"{}\" "
       "NumberOfPolys=\"{}\">\n"
-      "      <Points>\n",
+      "      <PointData>\n",
       host_byte_order(), points.size(), triangles.size());
+  for (const FieldArray& field : fields.point_data) {
+    add_field(document, path, field, points.size());
+  }
+  document.xml += "      </PointData>\n      <CellData>\n";
+  for (const FieldArray& field : fields.cell_data) {
+    add_field(document, path, field, triangles.size());
+  }
+  document.xml += "      </CellData>\n      <Points>\n";
   document.add_array("type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"",
                      xyz_bytes(points));
   document.xml += "      </Points>\n      <Polys>\n";

@@ -418,7 +418,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   const ObjectReader top(context, root, "",
                          {"description", "mesh", "material", "materials", "model", "damping",
                           "integrator", "fixed", "displacements", "forces", "gravity", "frames",
-                          "frame_dt", "output", "tool", "cutter", "camera"});
+                          "frame_dt", "output", "tool", "cutter", "camera", "visual"});
   SceneDescription scene;
   scene.file = file;
   scene.source_text = json_text;
@@ -714,6 +714,21 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
     }
   }
   // A cutter without a tool path is kept for a live tool (the viewer's mouse, a device).
+
+  if (top.has("visual")) {
+    const ObjectReader visual(context, top.at("visual"), "visual", {"file", "scale"});
+    if (!visual.has("file")) {
+      context.fail("visual.file", "is required: a triangle surface (OBJ, STL, PLY, VTP)");
+    }
+    scene.visual_file = resolve(context, visual.string("file", ""));
+    scene.visual_scale = visual.positive("scale", scene.mesh_scale);
+    // The surface is embedded in the rest tetrahedra: XFEM keeps them, subdivision does not.
+    if (scene.tool.cutter == CutterKind::kSubdivision) {
+      context.fail("visual",
+                   "an embedded visual surface needs cutter.type \"xfem\" (or no "
+                   "cutter): the subdivision cutter replaces the tetrahedra it lives in");
+    }
+  }
 
   if (top.has("output")) {
     const ObjectReader output(context, top.at("output"), "output", {"dir", "vtu_every"});

@@ -654,6 +654,24 @@ TEST(Cli, CutWithXfemSeparatesTheLiverWithFewerDofs) {
   const CommandResult obj = incise(common + "--method xfem -o " + (dir / "x.obj").string());
   EXPECT_EQ(obj.code, 2);
   EXPECT_NE(obj.err.find(".vtu"), std::string::npos) << obj.err;
+
+  // SOFA's visual liver, which sticks out of liver.msh, cut with it: closed, its volume kept.
+  const CommandResult with_visual =
+      incise(common + "--method xfem -o " + (dir / "xv.vtu").string() + " --visual " +
+             data("sofa/liver-smooth.obj") + " --visual-out " + (dir / "xv.vtp").string() +
+             " --report " + (dir / "xv.json").string());
+  ASSERT_EQ(with_visual.code, 0) << with_visual.err;
+  const auto v = nlohmann::json::parse(slurp(dir / "xv.json"));
+  EXPECT_TRUE(v["visual_watertight"].get<bool>());
+  EXPECT_NEAR(v["visual_volume_out"].get<double>(), v["visual_volume_in"].get<double>(),
+              0.01 * v["visual_volume_in"].get<double>());
+  EXPECT_GT(v["visual_triangles"].get<int>(), 0);
+  EXPECT_TRUE(std::filesystem::exists(dir / "xv.vtp"));
+  const CommandResult visual_with_subdivision = incise(
+      common + "-o " + (dir / "s.vtu").string() + " --visual " + data("sofa/liver-smooth.obj"));
+  EXPECT_EQ(visual_with_subdivision.code, 2);
+  EXPECT_NE(visual_with_subdivision.err.find("xfem"), std::string::npos)
+      << visual_with_subdivision.err;
 }
 
 }  // namespace

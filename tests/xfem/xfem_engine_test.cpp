@@ -16,6 +16,7 @@
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
 #include "incise/solve/integrators.hpp"
+#include "incise/xfem/visual_surface.hpp"
 #include "incise/xfem/xfem_cutter.hpp"
 #include "test_support.hpp"
 
@@ -113,6 +114,44 @@ TEST(XfemEngine, AFullCutOfEveryRealMeshIsStableAtASixtiethOfASecond) {
   if (meshes == 0) {
     GTEST_SKIP() << "no data meshes";
   }
+}
+
+TEST(XfemEngine, TheSkinSceneCutsItsVisualSurfaceAndWritesIt) {
+  const SceneDescription scene =
+      load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "xfem_skin.json");
+  Engine engine(scene);
+  ASSERT_NE(engine.visual(), nullptr);
+  const VisualSurface& visual = *engine.visual();
+  EXPECT_TRUE(visual.original_closed());
+  const double volume = enclosed_volume(visual.rest_points(), visual.triangles());
+  const auto dir = test::scratch_dir("xfem-skin");
+  VtuSeriesSink sink(dir, "skin", 20);
+  engine.add_sink(sink);
+  const RunResult result = run(engine, scene.frames);
+  ASSERT_FALSE(result.diverged) << result.divergence;
+  // The picture follows the cut: closed, the same volume at rest, faces on the cut, and the
+  // lips of the visual surface part as the physics' do.
+  EXPECT_TRUE(is_watertight(visual.triangles()));
+  EXPECT_NEAR(enclosed_volume(visual.rest_points(), visual.triangles()), volume, 1e-6 * volume);
+  EXPECT_EQ(visual.failures(), 0u);
+  std::size_t cut_faces = 0;
+  for (std::uint8_t on : visual.on_cut()) {
+    cut_faces += on;
+  }
+  EXPECT_GT(cut_faces, 0u);
+  const double widest = widest_opening(engine);
+  EXPECT_GT(widest, 0.5e-3);  // m: the stretched skin gapes
+  std::printf(
+      "skin patch: %zu tetrahedra split, lips part by %.2f mm, visual surface %zu "
+      "triangles (%zu on the cut)\n",
+      engine.xfem_cutter()->stats().elements_split, widest * 1e3, visual.triangles().size(),
+      cut_faces);
+  EXPECT_TRUE(std::filesystem::exists(dir / "skin_visual.pvd"));
+  EXPECT_TRUE(std::filesystem::exists(dir / fmt::format("skin_visual_{:06d}.vtp", scene.frames)));
+  // A visual surface lives in rest tetrahedra the subdivision cutter would replace.
+  std::string text = scene.source_text;
+  text.replace(text.find("\"xfem\""), 6, "\"subdivision\"");
+  EXPECT_THROW((void)parse_scene(text, scene.file), InputError);
 }
 
 TEST(XfemEngine, XfemNeedsTheFiniteElementModel) {

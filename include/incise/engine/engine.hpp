@@ -25,6 +25,7 @@ namespace incise {
 
 class SubdivisionCutter;
 class XfemCutter;
+class VisualSurface;
 class Integrator;
 
 /// One frame: stage times (s) named after the seed's Table 1, and the state after it.
@@ -92,6 +93,8 @@ class Engine {
   [[nodiscard]] const SubdivisionCutter* cutter() const;
   /// The XFEM cutter (scene `cutter: {"type": "xfem"}`), or null.
   [[nodiscard]] const XfemCutter* xfem_cutter() const;
+  /// The embedded visual surface (scene `visual`), or null; its positions() follow positions().
+  [[nodiscard]] const VisualSurface* visual() const;
   /// The boundary triangles that lie on a cut (outward, vertex ids), empty without a cutter.
   [[nodiscard]] std::vector<Triangle> cut_surface() const;
   /// The boundary surface with its cut faces marked and the rest positions (the one the

@@ -55,6 +55,7 @@ class VtuSeriesSink final : public FrameSink {
   int written_frame_ = -1;
   bool continue_series_;
   PvdSeries series_;
+  PvdSeries visual_series_;  ///< NAME_visual.pvd, when the scene has a visual surface
 };
 
 /// Records the blade pose of every frame to a blade-path CSV at the end, so a live session

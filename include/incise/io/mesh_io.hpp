@@ -122,9 +122,9 @@ void write_obj(const std::filesystem::path& path, std::span<const Vec3> points,
                std::span<const Triangle> triangles);
 /// TetGen .node and .ele (0-based) next to `path` (its extension is replaced).
 void write_tetgen(const std::filesystem::path& path, const TetMesh& mesh);
-/// VTK XML .vtp of a triangle surface.
+/// VTK XML .vtp of a triangle surface, with optional point and cell (triangle) arrays.
 void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
-               std::span<const Triangle> triangles);
+               std::span<const Triangle> triangles, const VtuFields& fields = {});
 
 /// Writes by extension: .msh, .vtu, .mesh, .obj, .node/.ele. Throws InputError otherwise.
 void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh);

@@ -138,6 +138,9 @@ struct SceneDescription {
   std::filesystem::path output_dir = "out";
   int vtu_every = 1;  ///< write every n-th frame (the first and last always)
   std::optional<CameraSpec> camera;
+  /// An embedded visual surface (`visual` key; OBJ, STL, PLY, VTP), written beside the frames.
+  std::optional<std::filesystem::path> visual_file;
+  double visual_scale = 1.0;  ///< metres per file unit (default: the mesh's)
 };
 
 /// The blade pose at time t (s): linear interpolation between path poses, clamped at the ends.
