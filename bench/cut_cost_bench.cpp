@@ -46,8 +46,7 @@ struct Means {
   [[nodiscard]] double mean() const { return frames > 0 ? total / frames : 0.0; }
 };
 
-std::string scene_text(int cells, const std::string& model, const std::string& cutter,
-                       double x) {
+std::string scene_text(int cells, const std::string& model, const std::string& cutter, double x) {
   // Frames 1-10: the blade waits outside (y < 0); 11-45: it moves 1 mm per frame to 3 cm deep
   // (5 mm of approach first); 46-65: it rests inside.
   return fmt::format(R"({{

@@ -267,7 +267,10 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
     }
   }
 
-  if (reach_ > 0.0) {
+  // The band past the boundary also keeps the cut's rim off a visual surface that lies on the
+  // body's boundary (the body's own surface): corefinement then meets a crossing, not two
+  // nearly coplanar triangles.
+  if (closed_) {
     add_skirt(cut_points, cut_triangles);
   }
 
