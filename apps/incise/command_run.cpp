@@ -276,6 +276,9 @@ Runner add_run_command(CLI::App& app) {
           last.time, last.kinetic_energy, last.max_displacement, last.tets);
     }
     std::cout << "ParaView series: " << series.pvd().string() << "\n";
+    if (engine->visual() != nullptr) {
+      std::cout << "visual surface series: " << series.visual_pvd().string() << "\n";
+    }
     if (pictures.sink) {
       std::cout << fmt::format("pictures: {} in {}{}\n", pictures.sink->pictures().size(),
                                *render_dir, video->empty() ? "" : ", video: " + *video);
@@ -305,6 +308,9 @@ Runner add_run_command(CLI::App& app) {
                            {"total", 1e3 * total / count}};
       report["frames_per_second"] = total > 0.0 ? count / total : 0.0;
       report["pvd"] = series.pvd().string();
+      if (engine->visual() != nullptr) {
+        report["visual_pvd"] = series.visual_pvd().string();
+      }
       nlohmann::ordered_json per_frame = nlohmann::ordered_json::array();
       for (const FrameRecord& record : result.frames) {
         per_frame.push_back({{"frame", record.frame},

@@ -330,6 +330,19 @@ const std::shared_ptr<const SurfaceTopology>& Engine::Parts::current_surface() {
   return surface;
 }
 
+const std::shared_ptr<const SurfaceTopology>& Engine::Parts::current_visual_surface() {
+  if (visual && (!visual_topology || visual_topology->version != visual->revision())) {
+    auto topology = std::make_shared<SurfaceTopology>();
+    topology->mesh_revision = mesh.revision();
+    topology->version = visual->revision();
+    topology->triangles.assign(visual->triangles().begin(), visual->triangles().end());
+    topology->on_cut.assign(visual->on_cut().begin(), visual->on_cut().end());
+    topology->rest_positions.assign(visual->rest_points().begin(), visual->rest_points().end());
+    visual_topology = std::move(topology);
+  }
+  return visual_topology;
+}
+
 void Engine::Parts::publish() {
   auto snapshot = std::make_shared<Snapshot>();
   snapshot->frame = last.frame;
@@ -349,6 +362,10 @@ void Engine::Parts::publish() {
       }
       snapshot->active.push_back(active);
     }
+  }
+  if (visual) {
+    snapshot->visual_surface = current_visual_surface();
+    snapshot->visual_positions = visual->positions(state.x.values());
   }
   channel.publish(std::move(snapshot));
 }
@@ -487,6 +504,10 @@ const XfemCutter* Engine::xfem_cutter() const {
 
 const VisualSurface* Engine::visual() const {
   return parts_->visual.get();
+}
+
+std::shared_ptr<const SurfaceTopology> Engine::visual_surface() const {
+  return parts_->current_visual_surface();
 }
 
 const SubdivisionCutter* Engine::cutter() const {

@@ -46,7 +46,11 @@ struct Engine::Parts {
   std::shared_ptr<const SurfaceTopology> surface;
   std::size_t surface_moves = 0;  ///< cutter moves when `surface` was built
 
+  std::shared_ptr<const SurfaceTopology> visual_topology;  ///< of `visual`, per its revision
+
   std::string measure(FrameRecord& record) const;
+  /// The visual surface as render topology, rebuilt only when it changed (null without one).
+  const std::shared_ptr<const SurfaceTopology>& current_visual_surface();
   /// The boundary with its cut faces marked, rebuilt only when the mesh or the cut changed.
   const std::shared_ptr<const SurfaceTopology>& current_surface();
   void publish();

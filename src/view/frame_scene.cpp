@@ -1,6 +1,7 @@
 #include "incise/view/frame_scene.hpp"
 
 #include "incise/cut/subdivision_cutter.hpp"
+#include "incise/xfem/visual_surface.hpp"
 
 namespace incise {
 
@@ -35,6 +36,14 @@ FrameScene frame_scene(const Engine& engine, bool highlight_active) {
   scene.positions = engine.positions();
   if (engine.blade()) {
     scene.blade = segment(*engine.blade());
+  }
+  if (engine.visual() != nullptr) {
+    // The visual surface is what a user sees; highlights still follow the physics mesh.
+    scene.surface = engine.visual_surface();
+    scene.owned =
+        std::make_shared<const std::vector<Vec3>>(engine.visual()->positions(engine.positions()));
+    scene.positions = *scene.owned;
+    highlight_active = false;
   }
   if (highlight_active && engine.cutter() != nullptr) {
     const TetMesh& mesh = engine.mesh();
@@ -72,6 +81,10 @@ FrameScene frame_scene(std::shared_ptr<const Snapshot> snapshot, bool highlight_
         }
       }
     }
+  }
+  if (snapshot->visual_surface) {
+    scene.surface = snapshot->visual_surface;
+    scene.positions = snapshot->visual_positions;
   }
   scene.snapshot = std::move(snapshot);
   return scene;

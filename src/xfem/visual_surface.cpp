@@ -356,6 +356,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
     }
   }
   tidy();
+  ++revision_;
 }
 
 void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles) const {

@@ -43,6 +43,7 @@ XfemCutter::XfemCutter(TetMesh& mesh, XfemCutterOptions options) : mesh_(&mesh),
   state_.assign(rest_tets_.size(), TetState::kWhole);
   cuts_.resize(rest_tets_.size());
   second_element_.assign(rest_tets_.size(), kInvalidId);
+  reached_at_.assign(rest_tets_.size(), {0.0, 0.0});
   touched_.assign(rest_vertices_, 0);
   copy_of_.assign(rest_vertices_, kInvalidId);
   if (options_.quad_length <= 0.0) {
@@ -450,6 +451,7 @@ void XfemCutter::move_to(const BladePose& pose) {
   auto start = Clock::now();
   std::vector<TetId> changed;
   sweep(last_, pose, changed);
+  travel_ += (0.5 * (pose.tip + pose.base) - 0.5 * (last_.tip + last_.base)).norm();
   last_ = pose;
   ++stats_.moves;
   // Whole tetrahedra the records now cross completely, and the front.
@@ -466,7 +468,11 @@ void XfemCutter::move_to(const BladePose& pose) {
       continue;
     }
     bool reached = false;
-    if (auto cut = resolve(t, reached)) {
+    auto cut = resolve(t, reached);
+    if ((cut || reached) && state == TetState::kWhole) {
+      reached_at_[static_cast<std::size_t>(t)] = {pose.time, travel_};
+    }
+    if (cut) {
       ready.emplace_back(t, *cut);
       state = TetState::kWaiting;
       front_.push_back(t);
@@ -483,7 +489,15 @@ void XfemCutter::move_to(const BladePose& pose) {
   const std::vector<std::uint8_t> tied = tied_now();
   release_ties(tied);
   for (const auto& [t, cut] : ready) {
-    (void)split(t, cut, tied);
+    if (split(t, cut, tied)) {
+      // How long the physics waited behind the blade: from the move that first reached the
+      // tetrahedron to the one that split it (the seed's Fig. 12 delay).
+      const auto& [time, travel] = reached_at_[static_cast<std::size_t>(t)];
+      stats_.delay_sum += pose.time - time;
+      stats_.delay_max = std::max(stats_.delay_max, pose.time - time);
+      stats_.delay_travel_sum += travel_ - travel;
+      stats_.delay_travel_max = std::max(stats_.delay_travel_max, travel_ - travel);
+    }
   }
   std::erase_if(front_,
                 [&](TetId t) { return state_[static_cast<std::size_t>(t)] == TetState::kSplit; });
@@ -538,6 +552,8 @@ void XfemCutter::save_state(StateWriter& out) const {
   out.values(tied_vertices);
   out.nested(tied_lists);
   out.values(front_);
+  out.values(reached_at_);
+  out.value(travel_);
 }
 
 void XfemCutter::load_state(StateReader& in) {
@@ -576,6 +592,11 @@ void XfemCutter::load_state(StateReader& in) {
     tied_users_[tied_vertices[k]] = tied_lists[k];
   }
   front_ = in.values<TetId>("xfem front");
+  reached_at_ = in.values<std::pair<double, double>>("xfem reached");
+  if (reached_at_.size() != rest_tets_.size()) {
+    in.fail("xfem reached", "one per rest tetrahedron");
+  }
+  travel_ = in.value<double>("xfem travel");
 }
 
 }  // namespace incise

@@ -3,12 +3,14 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 
 #include "incise/mesh/validate.hpp"
 #include "incise/view/frame_scene.hpp"
 #include "incise/view/mouse_scalpel.hpp"
 #include "incise/view/session_recording.hpp"
+#include "incise/xfem/visual_surface.hpp"
 #include "test_support.hpp"
 
 namespace incise {
@@ -173,6 +175,41 @@ TEST(SessionRecording, ABadFileNamesItsLine) {
   expect_error(start + "{\"frame\": 0, \"pose\": [1, 2, 3]}\n", "3");
   expect_error(start + "not json\n", "3");
   expect_error("{\"incise_session\": 1}\n{\"frame\": 0, \"lift\": true}\n", "2");
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+TEST(FrameSceneOfAVisualSurface, DrawsTheEmbeddedSurfaceOnEveryThread) {
+  Engine engine(load_scene(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes" / "xfem_skin.json"));
+  engine.publish_snapshots(true);
+  while (engine.frame() < 80) {  // the blade is half way across the patch
+    ASSERT_TRUE(engine.step()) << engine.divergence();
+  }
+  ASSERT_NE(engine.visual(), nullptr);
+  const FrameScene here = frame_scene(engine);
+  EXPECT_EQ(here.surface, engine.visual_surface());
+  EXPECT_EQ(here.surface->triangles.size(), engine.visual()->triangles().size());
+  ASSERT_EQ(here.positions.size(), engine.visual()->rest_points().size());
+  std::size_t cut = 0;
+  for (std::uint8_t on : here.surface->on_cut) {
+    cut += on;
+  }
+  EXPECT_GT(cut, 0u);  // the wound's faces, drawn with the cut texture
+  // A copy of the scene keeps its positions (they are shared, not borrowed).
+  const FrameScene copy = here;
+  EXPECT_EQ(copy.positions.data(), here.positions.data());
+  // Another thread's view of the same frame draws the same surface at the same places.
+  const FrameScene there = frame_scene(engine.snapshots().latest());
+  ASSERT_EQ(there.surface->triangles.size(), here.surface->triangles.size());
+  ASSERT_EQ(there.positions.size(), here.positions.size());
+  for (std::size_t i = 0; i < here.positions.size(); ++i) {
+    ASSERT_EQ(there.positions[i], here.positions[i]) << "point " << i;
+  }
+  EXPECT_EQ(there.input().triangles.size(), here.input().triangles.size());
 }
 
 }  // namespace

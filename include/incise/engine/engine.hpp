@@ -95,6 +95,9 @@ class Engine {
   [[nodiscard]] const XfemCutter* xfem_cutter() const;
   /// The embedded visual surface (scene `visual`), or null; its positions() follow positions().
   [[nodiscard]] const VisualSurface* visual() const;
+  /// The visual surface as render topology (rest positions: the surface's points), rebuilt
+  /// when it changes; null without one.
+  [[nodiscard]] std::shared_ptr<const SurfaceTopology> visual_surface() const;
   /// The boundary triangles that lie on a cut (outward, vertex ids), empty without a cutter.
   [[nodiscard]] std::vector<Triangle> cut_surface() const;
   /// The boundary surface with its cut faces marked and the rest positions (the one the

@@ -45,6 +45,8 @@ class VtuSeriesSink final : public FrameSink {
   bool frame(const Engine& engine, const FrameRecord& record) override;
   void end(const Engine& engine) override;
   [[nodiscard]] const std::filesystem::path& pvd() const { return series_.path(); }
+  /// The embedded visual surface's series (written only when the scene has one).
+  [[nodiscard]] const std::filesystem::path& visual_pvd() const { return visual_series_.path(); }
 
  private:
   void write(const Engine& engine);

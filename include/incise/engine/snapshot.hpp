@@ -45,6 +45,10 @@ struct Snapshot {
   double rx = 0.0;
   std::size_t tets = 0;  ///< tetrahedra in the mesh
   std::vector<ActiveTet> active;
+  /// The embedded visual surface (scene `visual`), drawn instead of `surface` when present:
+  /// its triangles index `visual_positions` (m), its rest positions are the surface's own.
+  std::shared_ptr<const SurfaceTopology> visual_surface;
+  std::vector<Vec3> visual_positions;
 };
 
 /// One published snapshot at a time, swapped atomically.

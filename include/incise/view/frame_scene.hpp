@@ -1,7 +1,8 @@
 #pragma once
 // What the renderer draws of a running engine: its boundary surface (cut faces marked, rest
-// positions for the solid textures), current positions, the blade and optional highlights,
-// taken either on the engine's thread or from a published snapshot on any other.
+// positions for the solid textures), or its embedded visual surface when the scene has one,
+// current positions, the blade and optional highlights, taken either on the engine's thread or
+// from a published snapshot on any other.
 
 #include <array>
 #include <memory>
@@ -17,7 +18,9 @@ namespace incise {
 /// Owns (or shares) everything a RenderInput points to.
 struct FrameScene {
   std::shared_ptr<const SurfaceTopology> surface;
-  std::span<const Vec3> positions;  ///< the engine's, or `snapshot`'s
+  std::span<const Vec3> positions;  ///< the engine's, `snapshot`'s, or `owned`
+  /// Positions computed for this frame (an embedded visual surface's), shared by copies.
+  std::shared_ptr<const std::vector<Vec3>> owned;
   std::shared_ptr<const Snapshot> snapshot;
   std::optional<std::array<Vec3, 2>> blade;
   std::vector<std::array<Vec3, 2>> highlights;

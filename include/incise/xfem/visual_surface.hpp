@@ -61,6 +61,8 @@ class VisualSurface {
   /// Updates CGAL's corefinement gave up on (a surface that intersects itself); the surface
   /// then kept its previous cut.
   [[nodiscard]] std::size_t failures() const { return failures_; }
+  /// Grows each time the surface's triangles change (a renderer uploads them again then).
+  [[nodiscard]] std::uint64_t revision() const { return revision_; }
 
  private:
   /// The rest tetrahedron holding p, or the nearest one (`outside` set) for a point outside.
@@ -96,6 +98,7 @@ class VisualSurface {
   std::size_t outside_ = 0;
   std::size_t split_seen_ = 0;
   std::size_t failures_ = 0;
+  std::uint64_t revision_ = 1;
   bool closed_ = true;
 };
 

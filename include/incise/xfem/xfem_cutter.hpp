@@ -62,8 +62,14 @@ struct XfemCutterStats {
   std::size_t waiting_tets = 0;      ///< crossed completely, waiting for ties to release
   std::size_t tremor_edges = 0;      ///< edges crossed an even number of times
   double min_fraction = 1.0;         ///< smallest fraction of any virtual element so far
-  double cd_seconds = 0.0;           ///< last move: finding the crossings (s)
-  double gc_seconds = 0.0;           ///< last move: splitting and tying (s)
+  /// The physics' delay behind the blade, over every split: from the move that first reached
+  /// a tetrahedron to the one that split it, in time (s) and in blade travel (m, midpoint).
+  double delay_sum = 0.0;
+  double delay_max = 0.0;
+  double delay_travel_sum = 0.0;
+  double delay_travel_max = 0.0;
+  double cd_seconds = 0.0;  ///< last move: finding the crossings (s)
+  double gc_seconds = 0.0;  ///< last move: splitting and tying (s)
 };
 
 class XfemCutter {
@@ -150,6 +156,9 @@ class XfemCutter {
   std::vector<TetId> front_;  ///< rest tetrahedra in state kFront or kWaiting
   BladePose last_{};
   std::uint64_t quad_index_ = 0;  ///< quads swept so far
+  double travel_ = 0.0;           ///< m: the blade midpoint's travel so far
+  /// Per rest tetrahedron: time (s) and travel (m) of the move that first reached it.
+  std::vector<std::pair<double, double>> reached_at_;
   bool started_ = false;
   XfemCutterStats stats_;
 };
