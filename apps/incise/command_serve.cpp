@@ -23,6 +23,7 @@
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
+#include "incise/xfem/visual_surface.hpp"
 
 namespace incise::app {
 namespace {
@@ -134,15 +135,32 @@ int serve(const ServeOptions& options) {
         blade = pose->blade;
       }
     }
-    const auto surface = engine.surface();
+    // The device touches the collision surface and Slicer shows the visual one, when the
+    // scene embeds them (XFEM); else both are the mesh's boundary.
+    const auto boundary = engine.surface();
+    const auto shown = engine.visual() != nullptr ? engine.visual_surface() : boundary;
+    std::vector<Vec3> shown_positions;
+    if (engine.visual() != nullptr) {
+      shown_positions = engine.visual()->positions(engine.positions());
+    }
+    const std::span<const Vec3> shown_at =
+        engine.visual() != nullptr ? std::span<const Vec3>(shown_positions) : engine.positions();
     if (blade) {
-      haptics.set_model(std::make_shared<const ContactModel>(
-          build_contact_model(surface->triangles, surface->on_cut, engine.positions(), *blade,
-                              scene.material, scene.tool.haptics, engine.frame())));
+      const VisualSurface* touched = engine.collision();
+      if (touched != nullptr && touched != engine.visual()) {
+        const std::vector<Vec3> touched_at = touched->positions(engine.positions());
+        haptics.set_model(std::make_shared<const ContactModel>(
+            build_contact_model(touched->triangles(), touched->on_cut(), touched_at, *blade,
+                                scene.material, scene.tool.haptics, engine.frame())));
+      } else {
+        haptics.set_model(std::make_shared<const ContactModel>(
+            build_contact_model(shown->triangles, shown->on_cut, shown_at, *blade, scene.material,
+                                scene.tool.haptics, engine.frame())));
+      }
     }
     if (server->has_client()) {
-      server->send_surface(igtl::encode_surface(surface->triangles, surface->on_cut,
-                                                engine.positions(), server_options.surface_device,
+      server->send_surface(igtl::encode_surface(shown->triangles, shown->on_cut, shown_at,
+                                                server_options.surface_device,
                                                 igtl::timestamp_of(engine.time())));
     }
     physics_seconds +=

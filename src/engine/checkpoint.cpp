@@ -140,8 +140,10 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
   }
   if (p.xfem) {
     p.xfem->load_state(in);
-    if (p.visual) {
-      p.visual->follow(p.mesh, *p.xfem);  // rebuilt from the cut, never stored
+    for (VisualSurface* surface : {p.visual.get(), p.collision.get()}) {
+      if (surface != nullptr) {
+        surface->follow(p.mesh, *p.xfem);  // rebuilt from the cut, never stored
+      }
     }
   }
   in.tag("end");

@@ -240,18 +240,24 @@ Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(s
     options.min_fraction = scene.tool.min_fraction;
     p.xfem = std::make_unique<XfemCutter>(p.mesh, options);
   }
-  if (scene.visual_file) {
-    SurfaceMesh surface = read_surface(*scene.visual_file);
+  const auto embedded = [&](const std::filesystem::path& file, double scale) {
+    SurfaceMesh surface = read_surface(file);
     for (Vec3& point : surface.points) {
-      point *= scene.visual_scale;
+      point *= scale;
     }
-    p.visual = std::make_unique<VisualSurface>(p.mesh, std::move(surface.points),
-                                               std::move(surface.triangles));
-    if (!p.visual->original_closed()) {
-      p.warnings.push_back(
-          scene.visual_file->string() +
-          ": the visual surface is not closed; cuts split it but add no cut faces");
+    auto result = std::make_unique<VisualSurface>(p.mesh, std::move(surface.points),
+                                                  std::move(surface.triangles));
+    if (!result->original_closed()) {
+      p.warnings.push_back(file.string() +
+                           ": the surface is not closed; cuts split it but add no cut faces");
     }
+    return result;
+  };
+  if (scene.visual_file) {
+    p.visual = embedded(*scene.visual_file, scene.visual_scale);
+  }
+  if (scene.collision_file) {
+    p.collision = embedded(*scene.collision_file, scene.collision_scale);
   }
   if (!scene.tool.poses.empty()) {
     p.tool = std::make_unique<ScriptedToolPath>(scene.tool.poses);
@@ -420,9 +426,13 @@ bool Engine::step() {
       record.edited = p.mesh.revision() != revision;
       record.cd = p.xfem->stats().cd_seconds;
       record.gc = p.xfem->stats().gc_seconds;
-      if (p.visual && record.edited) {
+      if (record.edited && (p.visual || p.collision)) {
         const auto start = Clock::now();
-        p.visual->follow(p.mesh, *p.xfem);
+        for (VisualSurface* surface : {p.visual.get(), p.collision.get()}) {
+          if (surface != nullptr) {
+            surface->follow(p.mesh, *p.xfem);
+          }
+        }
         record.gc += seconds_since(start);
       }
       record.cut = true;
@@ -431,6 +441,9 @@ bool Engine::step() {
   p.blade = pose;
 
   // ---- relaxation: rx -------------------------------------------------------------------------
+  for (const auto& [vertex, force] : p.pushes) {
+    p.conditions.add_point_force(vertex, force);  // this step only
+  }
   auto start = Clock::now();
   for (int s = 0; s < p.steps_per_frame; ++s) {
     p.integrator->step(p.system, p.state.x.values(), p.state.v.values(), p.state.time, dt);
@@ -438,6 +451,10 @@ bool Engine::step() {
   }
   p.state.time = frame_dt * record.frame;
   record.rx = seconds_since(start);
+  for (const auto& [vertex, force] : p.pushes) {
+    p.conditions.add_point_force(vertex, -force);
+  }
+  p.pushes.clear();
   record.time = p.state.time;
   const std::string problem = p.measure(record);
   p.last = record;
@@ -504,6 +521,26 @@ const XfemCutter* Engine::xfem_cutter() const {
 
 const VisualSurface* Engine::visual() const {
   return parts_->visual.get();
+}
+
+const VisualSurface* Engine::collision() const {
+  const Parts& p = *parts_;
+  return p.collision ? p.collision.get() : p.visual.get();
+}
+
+void Engine::push(std::size_t triangle, const std::array<double, 3>& barycentric,
+                  const Vec3& force) {
+  const VisualSurface* surface = collision();
+  if (surface == nullptr) {
+    throw InputError("push: the scene has no collision or visual surface");
+  }
+  if (triangle >= surface->triangles().size() || !force.allFinite()) {
+    throw InputError("push: triangle " + std::to_string(triangle) +
+                     " does not exist or the force is not finite");
+  }
+  for (const auto& [node, weight] : carriers(*surface, triangle, barycentric)) {
+    parts_->pushes.emplace_back(node, weight * force);
+  }
 }
 
 std::shared_ptr<const SurfaceTopology> Engine::visual_surface() const {

@@ -31,6 +31,8 @@ struct Engine::Parts {
   std::unique_ptr<SubdivisionCutter> cutter;
   std::unique_ptr<XfemCutter> xfem;       ///< the scene's cutter when it is xfem (then no `cutter`)
   std::unique_ptr<VisualSurface> visual;  ///< the scene's embedded surface, if any
+  std::unique_ptr<VisualSurface> collision;       ///< the scene's collision surface, if any
+  std::vector<std::pair<VertexId, Vec3>> pushes;  ///< N, for the next step only
   std::unique_ptr<ToolPoseSource> tool;
   std::optional<BladePose> blade;
   std::vector<FrameSink*> sinks;

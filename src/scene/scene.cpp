@@ -418,7 +418,7 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   const ObjectReader top(context, root, "",
                          {"description", "mesh", "material", "materials", "model", "damping",
                           "integrator", "fixed", "displacements", "forces", "gravity", "frames",
-                          "frame_dt", "output", "tool", "cutter", "camera", "visual"});
+                          "frame_dt", "output", "tool", "cutter", "camera", "visual", "collision"});
   SceneDescription scene;
   scene.file = file;
   scene.source_text = json_text;
@@ -715,19 +715,26 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   }
   // A cutter without a tool path is kept for a live tool (the viewer's mouse, a device).
 
-  if (top.has("visual")) {
-    const ObjectReader visual(context, top.at("visual"), "visual", {"file", "scale"});
-    if (!visual.has("file")) {
-      context.fail("visual.file", "is required: a triangle surface (OBJ, STL, PLY, VTP)");
+  // Embedded surfaces live in the rest tetrahedra: XFEM keeps them, subdivision does not.
+  for (const char* key : {"visual", "collision"}) {
+    if (!top.has(key)) {
+      continue;
     }
-    scene.visual_file = resolve(context, visual.string("file", ""));
-    scene.visual_scale = visual.positive("scale", scene.mesh_scale);
-    // The surface is embedded in the rest tetrahedra: XFEM keeps them, subdivision does not.
+    const ObjectReader embedded(context, top.at(key), key, {"file", "scale"});
+    if (!embedded.has("file")) {
+      context.fail(std::string(key) + ".file",
+                   "is required: a triangle surface (OBJ, STL, PLY, VTP)");
+    }
     if (scene.tool.cutter == CutterKind::kSubdivision) {
-      context.fail("visual",
-                   "an embedded visual surface needs cutter.type \"xfem\" (or no "
-                   "cutter): the subdivision cutter replaces the tetrahedra it lives in");
+      context.fail(key, std::string("an embedded ") + key +
+                            " surface needs cutter.type \"xfem\" (or no cutter): the "
+                            "subdivision cutter replaces the tetrahedra it lives in");
     }
+    auto& surface_file =
+        std::string_view(key) == "visual" ? scene.visual_file : scene.collision_file;
+    auto& scale = std::string_view(key) == "visual" ? scene.visual_scale : scene.collision_scale;
+    surface_file = resolve(context, embedded.string("file", ""));
+    scale = embedded.positive("scale", scene.mesh_scale);
   }
 
   if (top.has("output")) {

@@ -586,6 +586,30 @@ std::vector<Vec3> VisualSurface::positions(std::span<const Vec3> nodes) const {
   return result;
 }
 
+std::vector<std::pair<VertexId, double>> carriers(const VisualSurface& surface,
+                                                  std::size_t triangle,
+                                                  const std::array<double, 3>& barycentric) {
+  std::vector<std::pair<VertexId, double>> result;
+  const Triangle& corners = surface.triangles()[triangle];
+  for (std::size_t c = 0; c < 3; ++c) {
+    const Embedding& at = surface.embeddings()[static_cast<std::size_t>(corners[c])];
+    for (std::size_t k = 0; k < 4; ++k) {
+      const double weight = barycentric[c] * at.weights[k];
+      if (weight == 0.0) {
+        continue;
+      }
+      auto found = std::find_if(result.begin(), result.end(),
+                                [&](const auto& entry) { return entry.first == at.nodes[k]; });
+      if (found == result.end()) {
+        result.emplace_back(at.nodes[k], weight);
+      } else {
+        found->second += weight;
+      }
+    }
+  }
+  return result;
+}
+
 double enclosed_volume(std::span<const Vec3> points, std::span<const Triangle> triangles) {
   double six = 0.0;
   for (const Triangle& t : triangles) {

@@ -98,6 +98,13 @@ class Engine {
   /// The visual surface as render topology (rest positions: the surface's points), rebuilt
   /// when it changes; null without one.
   [[nodiscard]] std::shared_ptr<const SurfaceTopology> visual_surface() const;
+  /// Where contact acts: the collision surface (scene `collision`), else the visual one, else
+  /// null.
+  [[nodiscard]] const VisualSurface* collision() const;
+  /// Pushes on the body during the next step only: a force (N) at a point of a collision
+  /// triangle (barycentric coordinates), spread over the physics nodes that carry that point,
+  /// so on a cut body it moves the piece the point lies on (virtual elements' own nodes).
+  void push(std::size_t triangle, const std::array<double, 3>& barycentric, const Vec3& force);
   /// The boundary triangles that lie on a cut (outward, vertex ids), empty without a cutter.
   [[nodiscard]] std::vector<Triangle> cut_surface() const;
   /// The boundary surface with its cut faces marked and the rest positions (the one the

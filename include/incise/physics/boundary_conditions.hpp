@@ -21,6 +21,8 @@ class BoundaryConditions {
                               double ramp_time);
   /// Spreads a total force (N) evenly over the vertices.
   void add_force(std::span<const VertexId> vertices, const Vec3& total_force);
+  /// Adds a force (N) on one vertex (the engine's pushes add and take back theirs each step).
+  void add_point_force(VertexId vertex, const Vec3& force) { point_force_[vertex] += force; }
   /// Gravitational acceleration (m/s^2).
   void set_gravity(const Vec3& gravity) { gravity_ = gravity; }
   [[nodiscard]] const Vec3& gravity() const { return gravity_; }

@@ -141,6 +141,10 @@ struct SceneDescription {
   /// An embedded visual surface (`visual` key; OBJ, STL, PLY, VTP), written beside the frames.
   std::optional<std::filesystem::path> visual_file;
   double visual_scale = 1.0;  ///< metres per file unit (default: the mesh's)
+  /// An embedded collision surface (`collision` key): where contact forces act (the haptic
+  /// contact model's surface, pushes on the body); default the visual surface.
+  std::optional<std::filesystem::path> collision_file;
+  double collision_scale = 1.0;  ///< metres per file unit (default: the mesh's)
 };
 
 /// The blade pose at time t (s): linear interpolation between path poses, clamped at the ends.

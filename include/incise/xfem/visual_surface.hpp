@@ -102,6 +102,12 @@ class VisualSurface {
   bool closed_ = true;
 };
 
+/// The physics nodes that carry a point of a triangle of `surface` (barycentric coordinates
+/// in the triangle, summing to 1), with their weights (summing to 1): a force F there is
+/// w * F on each node (the seed's 3.5: a collision force goes to its virtual element's DOFs).
+[[nodiscard]] std::vector<std::pair<VertexId, double>> carriers(
+    const VisualSurface& surface, std::size_t triangle, const std::array<double, 3>& barycentric);
+
 /// Volume (m^3) a closed, outward-oriented triangle surface encloses (divergence theorem).
 [[nodiscard]] double enclosed_volume(std::span<const Vec3> points,
                                      std::span<const Triangle> triangles);
