@@ -163,42 +163,57 @@ TEST(XfemCutter, ACutInAGridPlaneSeparatesWithoutEmptyElements) {
   }
 }
 
-TEST(XfemCutter, AFullCutSeparatesRealMeshesPoseByPose) {
-  // Issue "Cut real anatomy right"'s full cut: a vertical blade swept across the whole body
-  // at 0.513 of its y-extent, in 25 poses, checked after every pose.
+TEST(XfemCutter, FullCutsSeparateAndPartialCutsDoNotOnEveryDataMesh) {
+  // Issue "Cut real anatomy right"'s cuts on every tetrahedral mesh in ../shared/data: a
+  // vertical blade swept along x at 0.513 of the y-extent, through the whole body (25 poses)
+  // or to 45 % of it (12 poses), checked after every pose.
   int meshes = 0;
-  for (const char* name : {"sofa/liver.msh", "sofa-mor/liverCoarse.vtu", "pbd/armadillo_4k.node",
-                           "sofa/cylinder.msh", "libigl/octopus-low.mesh"}) {
+  for (const char* name :
+       {"sofa/liver.msh", "sofa/cylinder.msh", "sofa/cube_low_res.msh",
+        "sofa-mor/liverTinyMesh.vtu", "sofa-mor/liverVeryCOARSE.vtu", "sofa-mor/liverCoarse.vtu",
+        "sofa-mor/liverSemiFine.vtu", "pbd/armadillo_4k.node", "libigl/octopus-low.mesh"}) {
     const auto path = test::data_file(name);
     if (!std::filesystem::exists(path)) {
       continue;
     }
     ++meshes;
-    TetMesh mesh = read_tet_mesh(path).mesh;
-    const double rest = total_volume(mesh);
-    const int pieces_before = pieces_by_vertices(mesh);
-    const auto [low, high] = bounding_box(mesh);
-    const Vec3 margin = 0.05 * (high - low);
-    const double y = low.y() + 0.513 * (high.y() - low.y());
-    XfemCutter cutter(mesh);
-    for (int i = 0; i <= 24; ++i) {
-      const double x = low.x() - margin.x() + (high.x() - low.x() + 2 * margin.x()) * i / 24.0;
-      const BladePose pose{0.04 * i, Vec3(x, y, low.z() - margin.z()),
-                           Vec3(x, y, high.z() + margin.z())};
-      if (i == 0) {
-        cutter.start(pose);
-        continue;
+    for (const bool full : {true, false}) {
+      TetMesh mesh = read_tet_mesh(path).mesh;
+      const double rest = total_volume(mesh);
+      const int pieces_before = pieces_by_vertices(mesh);
+      const auto [low, high] = bounding_box(mesh);
+      const Vec3 margin = 0.05 * (high - low);
+      const double y = low.y() + 0.513 * (high.y() - low.y());
+      const double reach = full ? high.x() - low.x() + 2 * margin.x() : 0.45 * (high.x() - low.x());
+      const int poses = full ? 24 : 12;
+      XfemCutter cutter(mesh);
+      for (int i = 0; i <= poses; ++i) {
+        const double x = low.x() - margin.x() + (reach + (full ? 0.0 : margin.x())) * i / poses;
+        const BladePose pose{0.04 * i, Vec3(x, y, low.z() - margin.z()),
+                             Vec3(x, y, high.z() + margin.z())};
+        if (i == 0) {
+          cutter.start(pose);
+          continue;
+        }
+        cutter.move_to(pose);
+        expect_sound(mesh, cutter, rest, std::string(name) + " pose " + std::to_string(i));
       }
-      cutter.move_to(pose);
-      expect_sound(mesh, cutter, rest, std::string(name) + " pose " + std::to_string(i));
+      EXPECT_GE(cutter.stats().min_fraction, 1e-3) << name;
+      if (full) {
+        EXPECT_GT(cutter.stats().elements_split, 0u) << name;
+        EXPECT_EQ(cutter.stats().front_tets, 0u) << name;
+        EXPECT_EQ(cutter.stats().waiting_tets, 0u) << name;
+        EXPECT_GT(pieces_by_vertices(mesh), pieces_before) << name;
+      } else if (std::string(name) != "libigl/octopus-low.mesh") {
+        // (The octopus's tentacles are thin: a cut to 45 % passes right through some of them,
+        // and they come off, as they should.)
+        EXPECT_GT(cutter.stats().front_tets, 0u) << name;
+        EXPECT_EQ(pieces_by_vertices(mesh), pieces_before) << name << ": a partial cut separated";
+      }
+      std::printf("%s, %s cut: %zu rest tets, %zu split, %zu copies, %d pieces\n", name,
+                  full ? "full" : "partial", cutter.rest_tet_count(), cutter.stats().elements_split,
+                  cutter.stats().copies, pieces_by_vertices(mesh));
     }
-    EXPECT_EQ(cutter.stats().front_tets, 0u) << name;
-    EXPECT_EQ(cutter.stats().waiting_tets, 0u) << name;
-    EXPECT_GT(pieces_by_vertices(mesh), pieces_before) << name;
-    EXPECT_GE(cutter.stats().min_fraction, 1e-3) << name;
-    std::printf("%s: %zu rest tets, %zu split, %zu copies, %d pieces\n", name,
-                cutter.rest_tet_count(), cutter.stats().elements_split, cutter.stats().copies,
-                pieces_by_vertices(mesh));
   }
   if (meshes == 0) {
     GTEST_SKIP() << "no data meshes";
