@@ -15,6 +15,7 @@
 #include <unordered_map>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/boundary.hpp"
 #include "incise/mesh/predicates.hpp"
 #include "incise/xfem/element_cut.hpp"
 #include "incise/xfem/xfem_cutter.hpp"
@@ -132,6 +133,11 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
   }
   nudge_ = 1e-6 * length / static_cast<double>(std::max<std::size_t>(1, rest_mesh_.edge_count()));
   closed_ = is_watertight(original_triangles_);
+  for (const BoundaryFace& face : boundary_faces(rest_mesh_)) {
+    std::array<VertexId, 3> key = face.vertices;
+    std::sort(key.begin(), key.end());
+    rest_boundary_.insert(key);
+  }
   point_cell_ = std::max(1e6 * nudge_, 1e-12);  // the mean edge length of the physics mesh
   for (std::size_t i = 0; i < original_points_.size(); ++i) {
     const Vec3& q = original_points_[i];
@@ -214,7 +220,29 @@ TetId VisualSurface::locate_uncached(const Vec3& p, bool& is_outside) const {
 
 Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p,
                                const Vec3& towards) const {
-  const TetId rest = locate(p);
+  bool outside = false;
+  TetId rest = locate(p, &outside);
+  if (outside && cutter != nullptr) {
+    // Outside the body near the cut, the nearest tetrahedron may lie across the cut: a point
+    // follows the nearest split tetrahedron within the surface's reach instead, on its side of
+    // that tetrahedron's (extended) cut, as the band past the boundary cuts the surface.
+    const double nearest = std::sqrt(squared_distance_to_tet(p, corners_of(rest_mesh_, rest)));
+    const double radius = nearest + reach_;
+    std::vector<TetId> near;
+    grid_->query(p - Vec3::Constant(radius), p + Vec3::Constant(radius), near);
+    std::sort(near.begin(), near.end());
+    double best = radius;
+    for (TetId t : near) {
+      if (!cutter->cut_of(t)) {
+        continue;
+      }
+      const double distance = std::sqrt(squared_distance_to_tet(p, corners_of(rest_mesh_, t)));
+      if (distance <= best) {
+        best = distance;
+        rest = t;
+      }
+    }
+  }
   const auto x = corners_of(rest_mesh_, rest);
   TetId element = rest;
   if (cutter != nullptr && cutter->cut_of(rest)) {
@@ -242,6 +270,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
   std::vector<Vec3> cut_points;
   std::vector<Triangle> cut_triangles;
   std::unordered_map<std::uint64_t, VertexId> crossing_point;
+  std::vector<std::uint64_t> edge_of_point;  // the mesh edge each cut point lies on
   for (std::size_t t = 0; t < rest_mesh_.tet_count(); ++t) {
     const auto& cut = cutter.cut_of(static_cast<TetId>(t));
     if (!cut) {
@@ -259,6 +288,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
       if (added) {
         const double along = cut->crossing[static_cast<std::size_t>(k)];
         cut_points.push_back((1.0 - along) * x[i] + along * x[j]);
+        edge_of_point.push_back(edge_key(tet[i], tet[j]));
       }
       polygon.push_back(slot->second);
     }
@@ -271,7 +301,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
   // body's boundary (the body's own surface): corefinement then meets a crossing, not two
   // nearly coplanar triangles.
   if (closed_) {
-    add_skirt(cut_points, cut_triangles);
+    add_skirt(cut_points, cut_triangles, edge_of_point);
   }
 
   CgalMesh visual = to_cgal(original_points_, original_triangles_);
@@ -359,9 +389,10 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
   ++revision_;
 }
 
-void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles) const {
+void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles,
+                              std::span<const std::uint64_t> edge_of_point) const {
   // The cut surface's edges on the body's boundary (not its front, which lies between split
-  // and whole tetrahedra inside), each with the tetrahedron whose polygon holds it.
+  // and whole tetrahedra inside): the two mesh edges their ends cross span a boundary face.
   std::map<std::pair<VertexId, VertexId>, std::size_t> directed;
   for (std::size_t t = 0; t < triangles.size(); ++t) {
     for (std::size_t k = 0; k < 3; ++k) {
@@ -381,12 +412,22 @@ void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& 
         (points[static_cast<std::size_t>(tri[1])] - points[static_cast<std::size_t>(tri[0])])
             .cross(points[static_cast<std::size_t>(tri[2])] -
                    points[static_cast<std::size_t>(tri[0])]);
-    // The edge's midpoint nudged outwards must leave the body: else it is the cut's front.
     const Vec3 out = (b - a).cross(normal).normalized();
-    const Vec3 probe = 0.5 * (a + b) + 1e3 * nudge_ * out;
-    bool probe_outside = false;
-    (void)locate_uncached(probe, probe_outside);
-    if (!probe_outside) {
+    std::array<VertexId, 4> ends{};
+    for (std::size_t k = 0; k < 2; ++k) {
+      const std::uint64_t key =
+          edge_of_point[static_cast<std::size_t>(k == 0 ? edge.first : edge.second)];
+      ends[2 * k] = static_cast<VertexId>(key >> 32);
+      ends[2 * k + 1] = static_cast<VertexId>(key & 0xffffffffu);
+    }
+    std::sort(ends.begin(), ends.end());
+    std::array<VertexId, 3> face{};
+    const auto last = std::unique(ends.begin(), ends.end());
+    if (last - ends.begin() != 3) {
+      continue;
+    }
+    std::copy(ends.begin(), last, face.begin());
+    if (!rest_boundary_.contains(face)) {
       continue;
     }
     rim.push_back(edge);

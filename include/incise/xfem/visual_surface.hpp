@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <set>
 #include <span>
 #include <vector>
 
@@ -75,7 +76,8 @@ class VisualSurface {
   /// Extends the cut surface past the body's boundary far enough to cut a visual surface that
   /// sticks out of the body: a band extruded outwards in each polygon's plane from the cut's
   /// rim on the boundary.
-  void add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles) const;
+  void add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles,
+                 std::span<const std::uint64_t> edge_of_point) const;
   /// m: from p to the nearest point of the original surface.
   [[nodiscard]] double nearest_visual_distance(const Vec3& p) const;
   /// Drops triangles rounding made flat and welds the seam where the picture's cut runs past
@@ -87,6 +89,7 @@ class VisualSurface {
   double nudge_ = 0.0;  ///< m: how far past a point its side is read
   double reach_ = 0.0;  ///< m: how far the surface sticks out of the body at most
   mutable std::map<std::array<double, 3>, std::pair<TetId, bool>> located_;
+  std::set<std::array<VertexId, 3>> rest_boundary_;  ///< sorted vertex ids of boundary faces
   double point_cell_ = 1.0;  ///< m: cell of the grid over the original points
   std::map<std::array<long, 3>, std::vector<std::size_t>> point_cells_;
   std::vector<Vec3> original_points_;
