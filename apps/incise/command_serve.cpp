@@ -12,6 +12,7 @@
 #include <csignal>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -64,8 +65,16 @@ int serve(const ServeOptions& options) {
   const std::size_t tets_start = start_mesh.tet_count();
 
   std::unique_ptr<igtl::Server> server;
-  HapticLoop haptics(scene.tool.haptics, [&server](const Vec3& force, const DevicePose& pose) {
+  // The device's forces over a physics frame, summed on the haptic thread: their mean, reversed,
+  // is the tissue's reaction (pushed on the collision surface when the scene embeds one).
+  std::mutex reaction_mutex;
+  Vec3 reaction_sum = Vec3::Zero();
+  int reaction_samples = 0;
+  HapticLoop haptics(scene.tool.haptics, [&](const Vec3& force, const DevicePose& pose) {
     server->send_force(force, pose.device_stamp);
+    const std::lock_guard lock(reaction_mutex);
+    reaction_sum += force;
+    ++reaction_samples;
   });
   std::atomic<int> clients_seen{0};
   igtl::ServerOptions server_options;
@@ -108,6 +117,11 @@ int serve(const ServeOptions& options) {
   bool diverged = false;
   int frames = 0;
   double physics_seconds = 0.0;
+  std::shared_ptr<const ContactModel>
+      reaction_model;  // the last model built on a collision surface
+  std::uint64_t reaction_revision = 0;
+  int reaction_pushes = 0;
+  double largest_reaction = 0.0;  // N
   while (!stop_requested.load()) {
     if (options.exit_when_idle && clients_seen.load() > 0 && !server->has_client()) {
       ended = "idle (the last device left)";
@@ -122,6 +136,27 @@ int serve(const ServeOptions& options) {
     std::this_thread::sleep_until(
         start + std::chrono::duration_cast<std::chrono::nanoseconds>(frame_period * (frames + 1)));
     const auto frame_start = std::chrono::steady_clock::now();
+    {
+      Vec3 mean = Vec3::Zero();
+      {
+        const std::lock_guard lock(reaction_mutex);
+        if (reaction_samples > 0) {
+          mean = reaction_sum / reaction_samples;
+        }
+        reaction_sum = Vec3::Zero();
+        reaction_samples = 0;
+      }
+      // The model the device felt was built on the collision surface as it is now (no split
+      // since): the reaction goes to the nodes that carry the touched point.
+      const VisualSurface* touched = engine.collision();
+      if (touched != nullptr && reaction_model && reaction_model->has_surface &&
+          reaction_revision == touched->revision() && mean.norm() > 0.0 &&
+          reaction_model->triangle < touched->triangles().size()) {
+        engine.push(reaction_model->triangle, reaction_model->barycentric, -mean);
+        ++reaction_pushes;
+        largest_reaction = std::max(largest_reaction, mean.norm());
+      }
+    }
     if (!engine.step()) {
       ended = "diverged: " + engine.divergence();
       diverged = true;
@@ -147,16 +182,20 @@ int serve(const ServeOptions& options) {
         engine.visual() != nullptr ? std::span<const Vec3>(shown_positions) : engine.positions();
     if (blade) {
       const VisualSurface* touched = engine.collision();
+      std::shared_ptr<const ContactModel> model;
       if (touched != nullptr && touched != engine.visual()) {
         const std::vector<Vec3> touched_at = touched->positions(engine.positions());
-        haptics.set_model(std::make_shared<const ContactModel>(
+        model = std::make_shared<const ContactModel>(
             build_contact_model(touched->triangles(), touched->on_cut(), touched_at, *blade,
-                                scene.material, scene.tool.haptics, engine.frame())));
+                                scene.material, scene.tool.haptics, engine.frame()));
       } else {
-        haptics.set_model(std::make_shared<const ContactModel>(
+        model = std::make_shared<const ContactModel>(
             build_contact_model(shown->triangles, shown->on_cut, shown_at, *blade, scene.material,
-                                scene.tool.haptics, engine.frame())));
+                                scene.tool.haptics, engine.frame()));
       }
+      haptics.set_model(model);
+      reaction_model = touched != nullptr ? model : nullptr;
+      reaction_revision = touched != nullptr ? touched->revision() : 0;
     }
     if (server->has_client()) {
       server->send_surface(igtl::encode_surface(shown->triangles, shown->on_cut, shown_at,
@@ -217,7 +256,9 @@ int serve(const ServeOptions& options) {
         {"pose_to_force_latency_s",
          histogram_json(haptic.latency_p50, haptic.latency_p99, haptic.latency_max)},
         {"largest_force_n", haptic.largest_force},
-        {"largest_force_step_n", haptic.largest_step}}},
+        {"largest_force_step_n", haptic.largest_step},
+        {"reaction_pushes", reaction_pushes},
+        {"largest_reaction_n", largest_reaction}}},
       {"messages",
        {{"received", counters.received},
         {"poses", counters.poses},

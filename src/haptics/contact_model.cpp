@@ -118,6 +118,22 @@ ContactModel build_contact_model(std::span<const Triangle> triangles,
   }
   model.normal = normal.norm() > 1e-6 * face_normal.norm() ? normal.normalized() : unit_face_normal;
   model.has_surface = true;
+  // The anchor's place in its triangle (projected, clamped inside), for the reaction.
+  model.triangle = touched;
+  const double area2 = face_normal.squaredNorm();
+  const Vec3 on_plane = model.anchor - unit_face_normal.dot(model.anchor - a) * unit_face_normal;
+  std::array<double, 3> weights{(b - on_plane).cross(c - on_plane).dot(face_normal) / area2,
+                                (c - on_plane).cross(a - on_plane).dot(face_normal) / area2, 0.0};
+  weights[2] = 1.0 - weights[0] - weights[1];
+  double sum = 0.0;
+  for (double& w : weights) {
+    w = std::max(w, 0.0);
+    sum += w;
+  }
+  for (double& w : weights) {
+    w = sum > 0.0 ? w / sum : 1.0 / 3;
+  }
+  model.barycentric = weights;
 
   // A rigid flat punch of radius a on an elastic half-space: k = 2 a E / (1 - nu^2)
   // (Boussinesq); the punch is half the region, and desktop devices render only so much.

@@ -579,6 +579,34 @@ TEST(Cli, ServeAndDeviceCutTheDefaultBlockOverLoopback) {
   EXPECT_GT(in_contact, 100);
 }
 
+TEST(Cli, ServeAnXfemSceneTheTissueFeelsTheDevicesReaction) {
+  if (incise("serve --help").code != 0) {
+    GTEST_SKIP() << "built without OpenIGTLink";
+  }
+  const auto dir = test::scratch_dir("serve-xfem");
+  // The skin patch's stroke: 5 mm deep along y across it, played by the device in 1 s.
+  {
+    std::ofstream stroke(dir / "path.csv");
+    stroke << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
+           << "0.0,0.0317,-0.006,0.005,0.0317,-0.006,0.03\n"
+           << "1.0,0.0317,0.046,0.005,0.0317,0.046,0.03\n";
+  }
+  const std::string scene = std::string(INCISE_SOURCE_DIR) + "/scenes/xfem_skin.json";
+  const std::string port = start_server(
+      dir, scene + " --exit-when-idle --max-seconds 60 --out " + (dir / "out").string());
+  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  const CommandResult device = incise("device " + (dir / "path.csv").string() + " --port " + port);
+  ASSERT_EQ(device.code, 0) << device.err;
+  ASSERT_TRUE(appears(dir / "out" / "report.json")) << slurp(dir / "serve.log");
+  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  EXPECT_TRUE(report["valid"].get<bool>());
+  EXPECT_GT(report["tets"].get<int>(), report["tets_start"].get<int>());  // virtual elements
+  // The device felt the skin, and the skin felt the device back, on its collision surface.
+  EXPECT_GT(report["haptic"]["largest_force_n"].get<double>(), 0.0);
+  EXPECT_GT(report["haptic"]["reaction_pushes"].get<int>(), 10);
+  EXPECT_GT(report["haptic"]["largest_reaction_n"].get<double>(), 0.0);
+}
+
 TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
   if (incise("serve --help").code != 0) {
     GTEST_SKIP() << "built without OpenIGTLink";

@@ -43,6 +43,17 @@ TEST(ContactModel, FindsTheTopFaceWhereTheBladeEnters) {
   EXPECT_NEAR(model.normal.dot(Vec3::UnitZ()), 1.0, 1e-12);
   EXPECT_GT(model.stiffness, 0.0);
   EXPECT_LE(model.stiffness, HapticSpec{}.contact_stiffness_limit);
+  // The touched triangle and the anchor's place in it: where the tissue feels the reaction.
+  ASSERT_LT(model.triangle, block.triangles.size());
+  Vec3 at = Vec3::Zero();
+  double sum = 0.0;
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_GE(model.barycentric[k], 0.0);
+    sum += model.barycentric[k];
+    at += model.barycentric[k] * block.mesh.rest_position(block.triangles[model.triangle][k]);
+  }
+  EXPECT_NEAR(sum, 1.0, 1e-12);
+  EXPECT_LT((at - model.anchor).norm(), 1e-12);
 }
 
 TEST(ContactModel, ZeroOutOfContact) {

@@ -26,6 +26,10 @@ struct ContactModel {
   double toughness = 0.0;       ///< J/m^2, work per area of cut
   double advance_speed = 0.01;  ///< m/s, where the cutting resistance saturates
   int frame = -1;               ///< the physics frame it was built from
+  /// The touched triangle (index into the surface it was built from; none without contact)
+  /// and the anchor's barycentric coordinates in it: where the tissue feels the reaction.
+  std::size_t triangle = static_cast<std::size_t>(-1);
+  std::array<double, 3> barycentric{1.0 / 3, 1.0 / 3, 1.0 / 3};
 };
 
 /// The force for one blade pose, in parts (N), and what it was computed from.
