@@ -146,15 +146,23 @@ int serve(const ServeOptions& options) {
         reaction_sum = Vec3::Zero();
         reaction_samples = 0;
       }
-      // The model the device felt was built on the collision surface as it is now (no split
-      // since): the reaction goes to the nodes that carry the touched point.
+      // The reaction goes to the nodes that carry the point the device touched.
       const VisualSurface* touched = engine.collision();
       if (touched != nullptr && reaction_model && reaction_model->has_surface &&
-          reaction_revision == touched->revision() && mean.norm() > 0.0 &&
-          reaction_model->triangle < touched->triangles().size()) {
-        engine.push(reaction_model->triangle, reaction_model->barycentric, -mean);
-        ++reaction_pushes;
-        largest_reaction = std::max(largest_reaction, mean.norm());
+          mean.norm() > 0.0) {
+        SurfacePoint at{reaction_model->triangle, reaction_model->barycentric};
+        if (reaction_revision != touched->revision() ||
+            at.triangle >= touched->triangles().size()) {
+          // A split rebuilt the surface since: the anchor's nearest point on it now.
+          at =
+              nearest_surface_point(touched->triangles(), touched->on_cut(),
+                                    touched->positions(engine.positions()), reaction_model->anchor);
+        }
+        if (at.triangle < touched->triangles().size()) {
+          engine.push(at.triangle, at.barycentric, -mean);
+          ++reaction_pushes;
+          largest_reaction = std::max(largest_reaction, mean.norm());
+        }
       }
     }
     if (!engine.step()) {

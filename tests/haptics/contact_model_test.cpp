@@ -56,6 +56,29 @@ TEST(ContactModel, FindsTheTopFaceWhereTheBladeEnters) {
   EXPECT_LT((at - model.anchor).norm(), 1e-12);
 }
 
+TEST(ContactModel, NearestSurfacePointInsideOnAnEdgeAndAtACorner) {
+  const std::vector<Vec3> points{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(5, 5, 5)};
+  const std::vector<Triangle> triangles{{0, 1, 2}, {1, 3, 2}};
+  const std::vector<std::uint8_t> exterior{0, 1};  // the second is a cut face: never touched
+  const auto at = [&](const Vec3& p) {
+    return nearest_surface_point(triangles, exterior, points, p);
+  };
+  const SurfacePoint above = at(Vec3(0.25, 0.25, 3.0));
+  EXPECT_EQ(above.triangle, 0u);
+  EXPECT_NEAR(above.barycentric[1], 0.25, 1e-12);
+  EXPECT_NEAR(above.barycentric[2], 0.25, 1e-12);
+  const SurfacePoint beside = at(Vec3(0.5, -2.0, 0.0));  // nearest the edge 0-1
+  EXPECT_NEAR(beside.barycentric[0], 0.5, 1e-12);
+  EXPECT_NEAR(beside.barycentric[1], 0.5, 1e-12);
+  EXPECT_NEAR(beside.barycentric[2], 0.0, 1e-12);
+  const SurfacePoint corner = at(Vec3(3.0, 3.0, 0.0));  // nearer the cut face: still triangle 0
+  EXPECT_EQ(corner.triangle, 0u);
+  EXPECT_NEAR(corner.barycentric[0], 0.0, 1e-12);
+  EXPECT_NEAR(corner.barycentric[1] + corner.barycentric[2], 1.0, 1e-12);
+  EXPECT_EQ(nearest_surface_point({}, {}, points, Vec3::Zero()).triangle,
+            static_cast<std::size_t>(-1));
+}
+
 TEST(ContactModel, ZeroOutOfContact) {
   const Block block;
   const BladePose above = vertical_blade(Vec3(0.021, 0.03, 0.045));

@@ -32,6 +32,19 @@ struct ContactModel {
   std::array<double, 3> barycentric{1.0 / 3, 1.0 / 3, 1.0 / 3};
 };
 
+/// A point of a surface: its triangle and barycentric coordinates there.
+struct SurfacePoint {
+  std::size_t triangle = static_cast<std::size_t>(-1);  ///< none for an empty surface
+  std::array<double, 3> barycentric{1.0 / 3, 1.0 / 3, 1.0 / 3};
+};
+
+/// The point of the exterior triangles (on_cut 0) nearest `point` (m): where a force at
+/// `point` reaches a surface that was rebuilt since (Ericson's closest point on a triangle).
+[[nodiscard]] SurfacePoint nearest_surface_point(std::span<const Triangle> triangles,
+                                                 std::span<const std::uint8_t> on_cut,
+                                                 std::span<const Vec3> positions,
+                                                 const Vec3& point);
+
 /// The force for one blade pose, in parts (N), and what it was computed from.
 struct ForceSample {
   Vec3 contact = Vec3::Zero();  ///< pushes out along the normal, k * depth
