@@ -66,8 +66,11 @@ TEST(XfemEngine, TheBlockUnderTensionOpensAlongTheCut) {
 
 TEST(XfemEngine, AFullCutOfEveryRealMeshIsStableAtASixtiethOfASecond) {
   int meshes = 0;
-  for (const char* name : {"sofa/liver.msh", "sofa-mor/liverCoarse.vtu", "pbd/armadillo_4k.node",
-                           "sofa/cylinder.msh", "libigl/octopus-low.mesh"}) {
+  // Every tetrahedral mesh in ../shared/data.
+  for (const char* name :
+       {"sofa/liver.msh", "sofa/cylinder.msh", "sofa/cube_low_res.msh",
+        "sofa-mor/liverTinyMesh.vtu", "sofa-mor/liverVeryCOARSE.vtu", "sofa-mor/liverCoarse.vtu",
+        "sofa-mor/liverSemiFine.vtu", "pbd/armadillo_4k.node", "libigl/octopus-low.mesh"}) {
     const auto path = test::data_file(name);
     if (!std::filesystem::exists(path)) {
       continue;
