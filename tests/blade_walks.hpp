@@ -1,14 +1,19 @@
 #pragma once
-// Blade paths and meshes for soak-style tests, shared by every cutter's tests: a seeded random
-// blade walk (reversals, tremor, stops, re-entry, curves, tilt) and a randomly perturbed grid.
+// Blade paths and meshes shared by every cutter's tests: the tetrahedral meshes in
+// ../shared/data, a straight sweep across a body, a seeded random blade walk (reversals,
+// tremor, stops, re-entry, curves, tilt), a randomly perturbed grid, and playing a path.
 
+#include <array>
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "incise/cut/blade.hpp"
+#include "incise/io/mesh_io.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/tet_mesh.hpp"
+#include "test_support.hpp"
 
 namespace incise::test {
 
@@ -24,6 +29,48 @@ inline Box bounds(const TetMesh& mesh) {
     box.high = box.high.cwiseMax(p);
   }
   return box;
+}
+
+/// Every tetrahedral mesh in ../shared/data.
+inline const std::vector<std::string>& data_meshes() {
+  static const std::vector<std::string> all = {"sofa/liver.msh",
+                                               "sofa/cylinder.msh",
+                                               "sofa/cube_low_res.msh",
+                                               "sofa-mor/liverTinyMesh.vtu",
+                                               "sofa-mor/liverVeryCOARSE.vtu",
+                                               "sofa-mor/liverCoarse.vtu",
+                                               "sofa-mor/liverSemiFine.vtu",
+                                               "pbd/armadillo_4k.ele",
+                                               "libigl/octopus-low.mesh"};
+  return all;
+}
+
+/// A vertical blade (from `margin` of the z-extent below the body to as far above it) swept
+/// along x at `y_fraction` of the y-extent, from `margin` of the x-extent before the body to
+/// `end_fraction` of its x-extent, in `poses` moves `dt` s apart.
+inline std::vector<BladePose> sweep_along_x(const Box& box, double y_fraction, double end_fraction,
+                                            int poses, double margin = 0.1, double dt = 0.01) {
+  const Vec3 size = box.high - box.low;
+  const double y = box.low.y() + y_fraction * size.y();
+  std::vector<BladePose> path;
+  for (int i = 0; i <= poses; ++i) {
+    const double x =
+        box.low.x() - margin * size.x() + (end_fraction + margin) * size.x() * i / poses;
+    path.push_back({dt * i, Vec3(x, y, box.low.z() - margin * size.z()),
+                    Vec3(x, y, box.high.z() + margin * size.z())});
+  }
+  return path;
+}
+
+/// Starts `cutter` at the path's first pose and moves it through the others, calling
+/// after_pose(i) after move i (1-based).
+template <typename Cutter, typename AfterPose>
+void play(Cutter& cutter, const std::vector<BladePose>& path, AfterPose after_pose) {
+  cutter.start(path.front());
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    cutter.move_to(path[i]);
+    after_pose(i);
+  }
 }
 
 /// A seeded random blade walk in normalised coordinates of the box: reversals, tremor, stops,
@@ -78,6 +125,17 @@ inline TetMesh perturbed_grid(std::mt19937& rng) {
     }
   }
   return TetMesh(moved, std::vector<Tet>(grid.tets().begin(), grid.tets().end()));
+}
+
+/// The body a seeded walk cuts: every third seed a real mesh (when ../shared/data is there),
+/// else a perturbed grid drawn from `rng`.
+inline TetMesh walk_mesh(unsigned seed, bool have_data, std::mt19937& rng) {
+  if (have_data && seed % 3 == 0) {
+    const std::array<const char*, 4> real = {"sofa-mor/liverVeryCOARSE.vtu", "sofa/liver.msh",
+                                             "libigl/octopus-low.mesh", "sofa/cylinder.msh"};
+    return read_tet_mesh(data_file(real[(seed / 3) % real.size()])).mesh;
+  }
+  return perturbed_grid(rng);
 }
 
 }  // namespace incise::test

@@ -35,12 +35,6 @@ inline double longest_edge(const std::array<Vec3, 4>& corners) {
   return longest;
 }
 
-inline std::array<Vec3, 4> rest_corners(const TetMesh& mesh, TetId tet) {
-  const Tet& v = mesh.tet(tet);
-  return {mesh.rest_position(v[0]), mesh.rest_position(v[1]), mesh.rest_position(v[2]),
-          mesh.rest_position(v[3])};
-}
-
 /// A face's corners at rest, in tet_local::kFaces order.
 inline std::array<Vec3, 3> rest_face(const TetMesh& mesh, TetId tet, int local_face) {
   const Tet& v = mesh.tet(tet);

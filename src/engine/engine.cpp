@@ -389,20 +389,26 @@ bool Engine::step() {
   // ---- the tool: cd and gc --------------------------------------------------------------------
   const std::optional<BladePose> pose =
       p.tool ? p.tool->pose(record.frame, frame_dt * record.frame) : std::nullopt;
+  // Either cutter: a stroke starts where the blade was at the start of the frame (or here, when
+  // it was lifted); the blade moves to its pose at the end of this frame and cuts what it
+  // swept. True when the blade moved.
+  const auto cut_with = [&](auto& cutter) {
+    if (!cutter.started() || !p.blade) {
+      cutter.start(p.blade ? *p.blade : *pose);
+    }
+    if (!p.blade) {
+      return false;
+    }
+    const std::uint64_t revision = p.mesh.revision();
+    cutter.move_to(*pose);
+    record.edited = p.mesh.revision() != revision;
+    record.cd = cutter.stats().cd_seconds;
+    record.gc = cutter.stats().gc_seconds;
+    record.cut = true;
+    return true;
+  };
   if (p.cutter && pose) {
-    // A stroke starts where the blade was at the start of the frame (or here, when it was
-    // lifted); the blade moves to its pose at the end of this frame and cuts what it swept.
-    if (!p.cutter->started() || !p.blade) {
-      p.cutter->start(p.blade ? *p.blade : *pose);
-    }
-    if (p.blade) {
-      const std::uint64_t revision = p.mesh.revision();
-      p.cutter->move_to(*pose);
-      record.edited = p.mesh.revision() != revision;
-      record.cd = p.cutter->stats().cd_seconds;
-      record.gc = p.cutter->stats().gc_seconds;
-      record.cut = true;
-    }
+    (void)cut_with(*p.cutter);
     // Local relaxation starts at the vertex nearest the blade tip.
     const TetId holder = p.cutter->active_point_tet();
     if (holder != kInvalidId) {
@@ -416,27 +422,14 @@ bool Engine::step() {
       p.integrator->focus_on(nearest);
     }
   }
-  if (p.xfem && pose) {
-    if (!p.xfem->started() || !p.blade) {
-      p.xfem->start(p.blade ? *p.blade : *pose);
-    }
-    if (p.blade) {
-      const std::uint64_t revision = p.mesh.revision();
-      p.xfem->move_to(*pose);
-      record.edited = p.mesh.revision() != revision;
-      record.cd = p.xfem->stats().cd_seconds;
-      record.gc = p.xfem->stats().gc_seconds;
-      if (record.edited && (p.visual || p.collision)) {
-        const auto start = Clock::now();
-        for (VisualSurface* surface : {p.visual.get(), p.collision.get()}) {
-          if (surface != nullptr) {
-            surface->follow(p.mesh, *p.xfem);
-          }
-        }
-        record.gc += seconds_since(start);
+  if (p.xfem && pose && cut_with(*p.xfem) && record.edited && (p.visual || p.collision)) {
+    const auto start = Clock::now();
+    for (VisualSurface* surface : {p.visual.get(), p.collision.get()}) {
+      if (surface != nullptr) {
+        surface->follow(p.mesh, *p.xfem);
       }
-      record.cut = true;
     }
+    record.gc += seconds_since(start);
   }
   p.blade = pose;
 

@@ -42,77 +42,27 @@ std::optional<double> crossing(const Vec3& tip, const Vec3& base, const Vec3& a,
 
 }  // namespace
 
-namespace {
-
-/// Barycentric coordinates of the point of triangle (a, b, c) nearest p (Ericson, Real-Time
-/// Collision Detection, 5.1.5).
-std::array<double, 3> closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
-                                          const Vec3& c) {
-  const Vec3 ab = b - a;
-  const Vec3 ac = c - a;
-  const Vec3 ap = p - a;
-  const double d1 = ab.dot(ap);
-  const double d2 = ac.dot(ap);
-  if (d1 <= 0.0 && d2 <= 0.0) {
-    return {1.0, 0.0, 0.0};
-  }
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp);
-  const double d4 = ac.dot(bp);
-  if (d3 >= 0.0 && d4 <= d3) {
-    return {0.0, 1.0, 0.0};
-  }
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
-    const double v = d1 / (d1 - d3);
-    return {1.0 - v, v, 0.0};
-  }
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp);
-  const double d6 = ac.dot(cp);
-  if (d6 >= 0.0 && d5 <= d6) {
-    return {0.0, 0.0, 1.0};
-  }
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
-    const double w = d2 / (d2 - d6);
-    return {1.0 - w, 0.0, w};
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return {0.0, 1.0 - w, w};
-  }
-  const double denominator = va + vb + vc;
-  if (!(denominator > 0.0)) {
-    return {1.0 / 3, 1.0 / 3, 1.0 / 3};  // a degenerate triangle
-  }
-  const double v = vb / denominator;
-  const double w = vc / denominator;
-  return {1.0 - v - w, v, w};
-}
-
-}  // namespace
-
 SurfacePoint nearest_surface_point(std::span<const Triangle> triangles,
                                    std::span<const std::uint8_t> on_cut,
                                    std::span<const Vec3> positions, const Vec3& point) {
   SurfacePoint best;
-  double best_distance = std::numeric_limits<double>::infinity();
+  double nearest = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < triangles.size(); ++i) {
     if (on_cut[i] != 0) {
       continue;
     }
-    const Vec3& a = positions[static_cast<std::size_t>(triangles[i][0])];
-    const Vec3& b = positions[static_cast<std::size_t>(triangles[i][1])];
-    const Vec3& c = positions[static_cast<std::size_t>(triangles[i][2])];
-    const auto weights = closest_on_triangle(point, a, b, c);
-    const double distance =
-        (weights[0] * a + weights[1] * b + weights[2] * c - point).squaredNorm();
-    if (distance < best_distance) {
-      best_distance = distance;
-      best = {i, weights};
+    const Triangle& t = triangles[i];
+    const double d2 =
+        squared_distance_to_triangle(point, positions[t[0]], positions[t[1]], positions[t[2]]);
+    if (d2 < nearest) {
+      nearest = d2;
+      best.triangle = i;
     }
+  }
+  if (best.triangle < triangles.size()) {
+    const Triangle& t = triangles[best.triangle];
+    best.barycentric =
+        closest_point_barycentric(point, positions[t[0]], positions[t[1]], positions[t[2]]);
   }
   return best;
 }
@@ -144,19 +94,8 @@ ContactModel build_contact_model(std::span<const Triangle> triangles,
     }
   }
   if (touched == triangles.size()) {
-    double nearest = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < triangles.size(); ++i) {
-      if (on_cut[i] != 0) {
-        continue;
-      }
-      const Triangle& t = triangles[i];
-      const double d2 = squared_distance_to_triangle(blade.tip, positions[t[0]], positions[t[1]],
-                                                     positions[t[2]]);
-      if (d2 < nearest) {
-        nearest = d2;
-        touched = i;
-      }
-    }
+    touched = std::min(nearest_surface_point(triangles, on_cut, positions, blade.tip).triangle,
+                       triangles.size());
   }
   if (touched == triangles.size()) {
     return model;  // no exterior surface at all
@@ -195,7 +134,7 @@ ContactModel build_contact_model(std::span<const Triangle> triangles,
   model.has_surface = true;
   // The anchor's place in its triangle (the nearest point of it), for the reaction.
   model.triangle = touched;
-  model.barycentric = closest_on_triangle(model.anchor, a, b, c);
+  model.barycentric = closest_point_barycentric(model.anchor, a, b, c);
 
   // A rigid flat punch of radius a on an elastic half-space: k = 2 a E / (1 - nu^2)
   // (Boussinesq); the punch is half the region, and desktop devices render only so much.

@@ -41,9 +41,7 @@ SurfaceEdgeCheck check_surface_edges(std::span<const Triangle> triangles) {
     for (int i = 0; i < 3; ++i) {
       const VertexId a = triangle[i];
       const VertexId b = triangle[(i + 1) % 3];
-      const auto low = static_cast<std::uint32_t>(std::min(a, b));
-      const auto high = static_cast<std::uint32_t>(std::max(a, b));
-      Uses& uses = edges[(static_cast<std::uint64_t>(low) << 32U) | high];
+      Uses& uses = edges[edge_key(a, b)];
       (a < b ? uses.forward : uses.backward) += 1;
     }
   }

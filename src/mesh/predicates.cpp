@@ -226,56 +226,133 @@ double squared_distance_to_segment(const Vec3& p, const Vec3& a, const Vec3& b) 
   return (a + t * ab - p).squaredNorm();
 }
 
-}  // namespace
+/// Where the point of triangle (a, b, c) nearest p lies, by Ericson's Voronoi-region tests
+/// (Real-Time Collision Detection, 5.1.5): a corner, an edge, the face, or nowhere in
+/// particular for collinear corners. For an edge, `s` places the point along it (ab: a + s ab,
+/// ac: a + s ac, bc: b + s (c - b)); for the face, a + s ab + t ac.
+struct NearestOnTriangle {
+  enum class Region { kA, kB, kC, kAB, kAC, kBC, kFace, kDegenerate };
+  Region region = Region::kFace;
+  double s = 0.0;
+  double t = 0.0;
+};
 
-// Ericson's closest point on a triangle (Real-Time Collision Detection, 5.1.5) in plain double:
-// the cutter asks millions of these per second against tolerances of a fraction of an edge,
-// where CGAL's version, exact in its degeneracy test, fell back to multi-precision arithmetic
-// on the thin triangles a cut accumulates and dominated the cost of a pose.
-double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+NearestOnTriangle nearest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  using Region = NearestOnTriangle::Region;
   const Vec3 ab = b - a;
   const Vec3 ac = c - a;
   const Vec3 ap = p - a;
   const double d1 = ab.dot(ap);
   const double d2 = ac.dot(ap);
   if (d1 <= 0.0 && d2 <= 0.0) {
-    return ap.squaredNorm();  // vertex a
+    return {Region::kA};
   }
   const Vec3 bp = p - b;
   const double d3 = ab.dot(bp);
   const double d4 = ac.dot(bp);
   if (d3 >= 0.0 && d4 <= d3) {
-    return bp.squaredNorm();  // vertex b
+    return {Region::kB};
   }
   const Vec3 cp = p - c;
   const double d5 = ab.dot(cp);
   const double d6 = ac.dot(cp);
   if (d6 >= 0.0 && d5 <= d6) {
-    return cp.squaredNorm();  // vertex c
+    return {Region::kC};
   }
   const double vc = d1 * d4 - d3 * d2;
   if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
-    return squared_distance_to_segment(p, a, b);  // edge ab
+    return {Region::kAB, d1 / (d1 - d3)};
   }
   const double vb = d5 * d2 - d1 * d6;
   if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
-    return squared_distance_to_segment(p, a, c);  // edge ac
+    return {Region::kAC, d2 / (d2 - d6)};
   }
   const double va = d3 * d6 - d5 * d4;
   if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-    return squared_distance_to_segment(p, b, c);  // edge bc
+    return {Region::kBC, (d4 - d3) / ((d4 - d3) + (d5 - d6))};
   }
   const double denominator = va + vb + vc;
-  const double scale = ab.squaredNorm() * ac.squaredNorm();
-  if (!(denominator > 1e-14 * scale)) {
-    // Degenerate (collinear corners): the nearest of the three edges.
-    return std::min({squared_distance_to_segment(p, a, b), squared_distance_to_segment(p, b, c),
-                     squared_distance_to_segment(p, c, a)});
+  if (!(denominator > 1e-14 * ab.squaredNorm() * ac.squaredNorm())) {
+    return {Region::kDegenerate};
+  }
+  return {Region::kFace, vb / denominator, vc / denominator};
+}
+
+}  // namespace
+
+// Ericson's closest point in plain double: the cutter asks millions of these per second
+// against tolerances of a fraction of an edge, where CGAL's version, exact in its degeneracy
+// test, fell back to multi-precision arithmetic on the thin triangles a cut accumulates and
+// dominated the cost of a pose.
+double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  using Region = NearestOnTriangle::Region;
+  switch (nearest_on_triangle(p, a, b, c).region) {
+    case Region::kA:
+      return (p - a).squaredNorm();
+    case Region::kB:
+      return (p - b).squaredNorm();
+    case Region::kC:
+      return (p - c).squaredNorm();
+    case Region::kAB:
+      return squared_distance_to_segment(p, a, b);
+    case Region::kAC:
+      return squared_distance_to_segment(p, a, c);
+    case Region::kBC:
+      return squared_distance_to_segment(p, b, c);
+    case Region::kDegenerate:
+      // Collinear corners: the nearest of the three edges.
+      return std::min({squared_distance_to_segment(p, a, b), squared_distance_to_segment(p, b, c),
+                       squared_distance_to_segment(p, c, a)});
+    case Region::kFace:
+      break;
   }
   // Inside the face: the distance to its plane, free of the cancellation in a + v ab + w ac - p.
-  const Vec3 normal = ab.cross(ac);
-  const double height = normal.dot(ap);
+  const Vec3 normal = (b - a).cross(c - a);
+  const double height = normal.dot(p - a);
   return height * height / normal.squaredNorm();
+}
+
+std::array<double, 3> closest_point_barycentric(const Vec3& p, const Vec3& a, const Vec3& b,
+                                                const Vec3& c) {
+  using Region = NearestOnTriangle::Region;
+  const NearestOnTriangle nearest = nearest_on_triangle(p, a, b, c);
+  switch (nearest.region) {
+    case Region::kA:
+      return {1.0, 0.0, 0.0};
+    case Region::kB:
+      return {0.0, 1.0, 0.0};
+    case Region::kC:
+      return {0.0, 0.0, 1.0};
+    case Region::kAB:
+      return {1.0 - nearest.s, nearest.s, 0.0};
+    case Region::kAC:
+      return {1.0 - nearest.s, 0.0, nearest.s};
+    case Region::kBC:
+      return {0.0, 1.0 - nearest.s, nearest.s};
+    case Region::kFace:
+      return {1.0 - nearest.s - nearest.t, nearest.s, nearest.t};
+    case Region::kDegenerate:
+      break;
+  }
+  // Collinear corners: the nearest point of the nearest edge.
+  const auto on_edge = [&](const Vec3& from, const Vec3& to) {
+    const Vec3 along = to - from;
+    const double length2 = along.squaredNorm();
+    return length2 > 0.0 ? std::clamp((p - from).dot(along) / length2, 0.0, 1.0) : 0.0;
+  };
+  const std::array<double, 3> ab{1.0 - on_edge(a, b), on_edge(a, b), 0.0};
+  const std::array<double, 3> bc{0.0, 1.0 - on_edge(b, c), on_edge(b, c)};
+  const std::array<double, 3> ca{on_edge(c, a), 0.0, 1.0 - on_edge(c, a)};
+  const auto distance = [&](const std::array<double, 3>& w) {
+    return (w[0] * a + w[1] * b + w[2] * c - p).squaredNorm();
+  };
+  std::array<double, 3> best = ab;
+  for (const auto& candidate : {bc, ca}) {
+    if (distance(candidate) < distance(best)) {
+      best = candidate;
+    }
+  }
+  return best;
 }
 
 TetLocation locate_in_tet(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,

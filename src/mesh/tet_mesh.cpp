@@ -15,8 +15,6 @@ constexpr const char* kObservedMove =
     "(build the mesh, move it into place, then attach them)";
 }  // namespace
 
-namespace {
-
 std::uint64_t edge_key(VertexId a, VertexId b) {
   if (a > b) {
     std::swap(a, b);
@@ -24,6 +22,14 @@ std::uint64_t edge_key(VertexId a, VertexId b) {
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32U) |
          static_cast<std::uint32_t>(b);
 }
+
+std::array<Vec3, 4> rest_corners(const TetMesh& mesh, TetId tet) {
+  const Tet& corners = mesh.tet(tet);
+  return {mesh.rest_position(corners[0]), mesh.rest_position(corners[1]),
+          mesh.rest_position(corners[2]), mesh.rest_position(corners[3])};
+}
+
+namespace {
 
 bool contains(const Tet& tet, VertexId vertex) {
   return std::find(tet.begin(), tet.end(), vertex) != tet.end();

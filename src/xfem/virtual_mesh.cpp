@@ -9,15 +9,6 @@
 #include "incise/mesh/disjoint_sets.hpp"
 
 namespace incise {
-namespace {
-
-std::array<Vec3, 4> corners_of(const TetMesh& mesh, const Tet& tet) {
-  return {mesh.rest_position(tet[0]), mesh.rest_position(tet[1]), mesh.rest_position(tet[2]),
-          mesh.rest_position(tet[3])};
-}
-
-}  // namespace
-
 VirtualMesh build_virtual_mesh(const TetMesh& mesh, std::span<const std::optional<ElementCut>> cuts,
                                std::span<const TetId> front, double min_fraction) {
   INCISE_ASSERT(min_fraction >= 0.0 && min_fraction < 0.5, "a minimum fraction in [0, 0.5)");
@@ -31,10 +22,6 @@ VirtualMesh build_virtual_mesh(const TetMesh& mesh, std::span<const std::optiona
 
   // Tie the ends of every crossed edge that a front tetrahedron holds: the cut is open only
   // where it has crossed every element around.
-  const auto edge_key = [](VertexId a, VertexId b) {
-    return (static_cast<std::uint64_t>(std::min(a, b)) << 32) |
-           static_cast<std::uint32_t>(std::max(a, b));
-  };
   std::unordered_set<std::uint64_t> front_edges;
   for (TetId t : front) {
     const Tet& tet = mesh.tet(t);
@@ -82,7 +69,7 @@ VirtualMesh build_virtual_mesh(const TetMesh& mesh, std::span<const std::optiona
       body.fraction.push_back(1.0);
       continue;
     }
-    const SideVolumes volumes = side_volumes(corners_of(mesh, tet), *cuts[t]);
+    const SideVolumes volumes = side_volumes(rest_corners(mesh, id), *cuts[t]);
     const Tet copies = {copy_of(tet[0]), copy_of(tet[1]), copy_of(tet[2]), copy_of(tet[3])};
     const VirtualElements split = virtual_elements(tet, *cuts[t], copies);
     double fraction_a = volumes.fraction_a();
@@ -120,7 +107,7 @@ SurfaceCuts cuts_by_surface(const TetMesh& mesh, std::span<const std::array<Vec3
   }
   std::vector<std::array<Vec3, 3>> near;
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    const auto x = corners_of(mesh, mesh.tet(static_cast<TetId>(t)));
+    const auto x = rest_corners(mesh, static_cast<TetId>(t));
     const Vec3 tet_low = x[0].cwiseMin(x[1]).cwiseMin(x[2]).cwiseMin(x[3]);
     const Vec3 tet_high = x[0].cwiseMax(x[1]).cwiseMax(x[2]).cwiseMax(x[3]);
     if ((tet_high.array() < low.array()).any() || (tet_low.array() > high.array()).any()) {

@@ -54,17 +54,6 @@ CgalMesh to_cgal(std::span<const Vec3> points, std::span<const Triangle> triangl
   return mesh;
 }
 
-std::uint64_t edge_key(VertexId a, VertexId b) {
-  return (static_cast<std::uint64_t>(std::min(a, b)) << 32) |
-         static_cast<std::uint32_t>(std::max(a, b));
-}
-
-std::array<Vec3, 4> corners_of(const TetMesh& mesh, TetId t) {
-  const Tet& tet = mesh.tet(t);
-  return {mesh.rest_position(tet[0]), mesh.rest_position(tet[1]), mesh.rest_position(tet[2]),
-          mesh.rest_position(tet[3])};
-}
-
 /// m^2: squared distance from p to a closed tetrahedron (0 inside).
 double squared_distance_to_tet(const Vec3& p, const std::array<Vec3, 4>& x) {
   const auto w = barycentric_coordinates(p, x[0], x[1], x[2], x[3]);
@@ -155,8 +144,8 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
     const TetId tet = locate(rest_points_[i], &outside);
     if (outside) {
       ++outside_;
-      reach_ = std::max(
-          reach_, std::sqrt(squared_distance_to_tet(rest_points_[i], corners_of(rest_mesh_, tet))));
+      reach_ = std::max(reach_, std::sqrt(squared_distance_to_tet(rest_points_[i],
+                                                                  rest_corners(rest_mesh_, tet))));
     }
     embedding_[i] = embed(mesh, nullptr, rest_points_[i], Vec3::Zero());
   }
@@ -188,7 +177,7 @@ TetId VisualSurface::locate_uncached(const Vec3& p, bool& is_outside) const {
   grid_->query(p - tiny, p + tiny, near);
   std::sort(near.begin(), near.end());  // the same answer whatever the grid's order
   for (TetId t : near) {
-    const auto x = corners_of(rest_mesh_, t);
+    const auto x = rest_corners(rest_mesh_, t);
     if (locate_in_tet(p, x[0], x[1], x[2], x[3]) != TetLocation::kOutside) {
       is_outside = false;
       return t;
@@ -203,7 +192,7 @@ TetId VisualSurface::locate_uncached(const Vec3& p, bool& is_outside) const {
     grid_->query(p - Vec3::Constant(radius), p + Vec3::Constant(radius), near);
     std::sort(near.begin(), near.end());
     for (TetId t : near) {
-      const double distance = squared_distance_to_tet(p, corners_of(rest_mesh_, t));
+      const double distance = squared_distance_to_tet(p, rest_corners(rest_mesh_, t));
       if (distance < best_distance) {
         best_distance = distance;
         best = t;
@@ -226,7 +215,7 @@ Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, co
     // Outside the body near the cut, the nearest tetrahedron may lie across the cut: a point
     // follows the nearest split tetrahedron within the surface's reach instead, on its side of
     // that tetrahedron's (extended) cut, as the band past the boundary cuts the surface.
-    const double nearest = std::sqrt(squared_distance_to_tet(p, corners_of(rest_mesh_, rest)));
+    const double nearest = std::sqrt(squared_distance_to_tet(p, rest_corners(rest_mesh_, rest)));
     const double radius = nearest + reach_;
     std::vector<TetId> near;
     grid_->query(p - Vec3::Constant(radius), p + Vec3::Constant(radius), near);
@@ -236,14 +225,14 @@ Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, co
       if (!cutter->cut_of(t)) {
         continue;
       }
-      const double distance = std::sqrt(squared_distance_to_tet(p, corners_of(rest_mesh_, t)));
+      const double distance = std::sqrt(squared_distance_to_tet(p, rest_corners(rest_mesh_, t)));
       if (distance <= best) {
         best = distance;
         rest = t;
       }
     }
   }
-  const auto x = corners_of(rest_mesh_, rest);
+  const auto x = rest_corners(rest_mesh_, rest);
   TetId element = rest;
   if (cutter != nullptr && cutter->cut_of(rest)) {
     const TetId second = cutter->second_element(rest);
@@ -277,7 +266,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
       continue;
     }
     const Tet& tet = rest_mesh_.tet(static_cast<TetId>(t));
-    const auto x = corners_of(rest_mesh_, static_cast<TetId>(t));
+    const auto x = rest_corners(rest_mesh_, static_cast<TetId>(t));
     std::vector<VertexId> polygon;
     for (int k : cut_polygon_edges(x, *cut)) {
       const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];

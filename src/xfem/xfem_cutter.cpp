@@ -14,11 +14,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::uint64_t edge_key(VertexId a, VertexId b) {
-  return (static_cast<std::uint64_t>(std::min(a, b)) << 32) |
-         static_cast<std::uint32_t>(std::max(a, b));
-}
-
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
@@ -368,10 +363,7 @@ bool XfemCutter::split(TetId rest_tet, const ElementCut& cut,
   if (tied_corners >= 3 && !a_empty) {
     return false;  // the two elements would share a face: wait for the front to move on
   }
-  std::array<Vec3, 4> corners;
-  for (std::size_t c = 0; c < 4; ++c) {
-    corners[c] = mesh_->rest_position(real[c]);
-  }
+  const std::array<Vec3, 4> corners = rest_corners(*mesh_, rest_tet);  // still whole here
   double fraction_a = 0.0;
   if (!a_empty) {
     fraction_a = side_volumes(corners, cut).fraction_a();

@@ -27,36 +27,11 @@ namespace {
 
 using test::bounds;
 using test::Box;
+using test::data_meshes;
 using test::perturbed_grid;
 using test::random_walk;
-
-const std::vector<std::string>& data_meshes() {
-  static const std::vector<std::string> all = {"sofa/liver.msh",
-                                               "sofa/cylinder.msh",
-                                               "sofa/cube_low_res.msh",
-                                               "sofa-mor/liverTinyMesh.vtu",
-                                               "sofa-mor/liverVeryCOARSE.vtu",
-                                               "sofa-mor/liverCoarse.vtu",
-                                               "sofa-mor/liverSemiFine.vtu",
-                                               "pbd/armadillo_4k.ele",
-                                               "libigl/octopus-low.mesh"};
-  return all;
-}
-
-/// A vertical blade (from below to above the body) swept along x at `y_fraction` of the
-/// y-extent, from before the body to `end_fraction` of its x-extent, in `poses` moves.
-std::vector<BladePose> sweep_along_x(const Box& box, double y_fraction, double end_fraction,
-                                     int poses) {
-  const Vec3 size = box.high - box.low;
-  const double y = box.low.y() + y_fraction * size.y();
-  std::vector<BladePose> path;
-  for (int i = 0; i <= poses; ++i) {
-    const double x = box.low.x() - 0.1 * size.x() + (end_fraction + 0.1) * size.x() * i / poses;
-    path.push_back({0.01 * i, Vec3(x, y, box.low.z() - 0.1 * size.z()),
-                    Vec3(x, y, box.high.z() + 0.1 * size.z())});
-  }
-  return path;
-}
+using test::sweep_along_x;
+using test::walk_mesh;
 
 struct Pieces {
   int by_faces = 0;
@@ -343,14 +318,7 @@ TEST(RandomBladeWalks, KeepEveryInvariantAfterEveryPose) {
   const bool have_data = std::filesystem::exists(test::data_dir());
   for (unsigned seed = 1; seed <= 12; ++seed) {
     std::mt19937 rng(seed);
-    TetMesh mesh;
-    if (have_data && seed % 3 == 0) {
-      const std::array<const char*, 4> real = {"sofa-mor/liverVeryCOARSE.vtu", "sofa/liver.msh",
-                                               "libigl/octopus-low.mesh", "sofa/cylinder.msh"};
-      mesh = read_tet_mesh(test::data_file(real[(seed / 3) % real.size()])).mesh;
-    } else {
-      mesh = perturbed_grid(rng);
-    }
+    TetMesh mesh = walk_mesh(seed, have_data, rng);
     ASSERT_TRUE(validate(mesh).ok()) << "seed " << seed;
     const double volume = total_volume(mesh);
     SCOPED_TRACE("seed " + std::to_string(seed));

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "blade_walks.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/disjoint_sets.hpp"
@@ -130,21 +131,9 @@ TEST(VisualSurface, ASurfaceStickingOutOfTheBodyIsCarriedByItsNearestElements) {
   VisualSurface visual(mesh, surface.points, surface.triangles);
   std::printf("liver-smooth.obj: %zu points, %zu outside liver.msh, volume %.4g\n",
               surface.points.size(), visual.outside_points(), volume);
-  const auto [low, high] = bounding_box(mesh);
-  const Vec3 margin = 0.05 * (high - low);
-  const double y = low.y() + 0.513 * (high.y() - low.y());
   XfemCutter cutter(mesh);
-  for (int i = 0; i <= 24; ++i) {
-    const double x = low.x() - margin.x() + (high.x() - low.x() + 2 * margin.x()) * i / 24.0;
-    const BladePose pose{0.04 * i, Vec3(x, y, low.z() - margin.z()),
-                         Vec3(x, y, high.z() + margin.z())};
-    if (i == 0) {
-      cutter.start(pose);
-      continue;
-    }
-    cutter.move_to(pose);
-    visual.follow(mesh, cutter);
-  }
+  test::play(cutter, test::sweep_along_x(test::bounds(mesh), 0.513, 1.05, 24, 0.05, 0.04),
+             [&](std::size_t) { visual.follow(mesh, cutter); });
   std::printf(
       "after the full cut: %zu triangles, watertight %d, volume %.4g (%.3g %%), %d pieces, "
       "%zu updates CGAL gave up on\n",

@@ -168,10 +168,7 @@ TEST(XfemCutter, FullCutsSeparateAndPartialCutsDoNotOnEveryDataMesh) {
   // vertical blade swept along x at 0.513 of the y-extent, through the whole body (25 poses)
   // or to 45 % of it (12 poses), checked after every pose.
   int meshes = 0;
-  for (const char* name :
-       {"sofa/liver.msh", "sofa/cylinder.msh", "sofa/cube_low_res.msh",
-        "sofa-mor/liverTinyMesh.vtu", "sofa-mor/liverVeryCOARSE.vtu", "sofa-mor/liverCoarse.vtu",
-        "sofa-mor/liverSemiFine.vtu", "pbd/armadillo_4k.node", "libigl/octopus-low.mesh"}) {
+  for (const std::string& name : test::data_meshes()) {
     const auto path = test::data_file(name);
     if (!std::filesystem::exists(path)) {
       continue;
@@ -181,36 +178,26 @@ TEST(XfemCutter, FullCutsSeparateAndPartialCutsDoNotOnEveryDataMesh) {
       TetMesh mesh = read_tet_mesh(path).mesh;
       const double rest = total_volume(mesh);
       const int pieces_before = pieces_by_vertices(mesh);
-      const auto [low, high] = bounding_box(mesh);
-      const Vec3 margin = 0.05 * (high - low);
-      const double y = low.y() + 0.513 * (high.y() - low.y());
-      const double reach = full ? high.x() - low.x() + 2 * margin.x() : 0.45 * (high.x() - low.x());
-      const int poses = full ? 24 : 12;
       XfemCutter cutter(mesh);
-      for (int i = 0; i <= poses; ++i) {
-        const double x = low.x() - margin.x() + (reach + (full ? 0.0 : margin.x())) * i / poses;
-        const BladePose pose{0.04 * i, Vec3(x, y, low.z() - margin.z()),
-                             Vec3(x, y, high.z() + margin.z())};
-        if (i == 0) {
-          cutter.start(pose);
-          continue;
-        }
-        cutter.move_to(pose);
-        expect_sound(mesh, cutter, rest, std::string(name) + " pose " + std::to_string(i));
-      }
+      test::play(cutter,
+                 test::sweep_along_x(test::bounds(mesh), 0.513, full ? 1.05 : 0.45, full ? 24 : 12,
+                                     0.05, 0.04),
+                 [&](std::size_t i) {
+                   expect_sound(mesh, cutter, rest, name + " pose " + std::to_string(i));
+                 });
       EXPECT_GE(cutter.stats().min_fraction, 1e-3) << name;
       if (full) {
         EXPECT_GT(cutter.stats().elements_split, 0u) << name;
         EXPECT_EQ(cutter.stats().front_tets, 0u) << name;
         EXPECT_EQ(cutter.stats().waiting_tets, 0u) << name;
         EXPECT_GT(pieces_by_vertices(mesh), pieces_before) << name;
-      } else if (std::string(name) != "libigl/octopus-low.mesh") {
+      } else if (name != "libigl/octopus-low.mesh") {
         // (The octopus's tentacles are thin: a cut to 45 % passes right through some of them,
         // and they come off, as they should.)
         EXPECT_GT(cutter.stats().front_tets, 0u) << name;
         EXPECT_EQ(pieces_by_vertices(mesh), pieces_before) << name << ": a partial cut separated";
       }
-      std::printf("%s, %s cut: %zu rest tets, %zu split, %zu copies, %d pieces\n", name,
+      std::printf("%s, %s cut: %zu rest tets, %zu split, %zu copies, %d pieces\n", name.c_str(),
                   full ? "full" : "partial", cutter.rest_tet_count(), cutter.stats().elements_split,
                   cutter.stats().copies, pieces_by_vertices(mesh));
     }
@@ -228,14 +215,7 @@ TEST(XfemCutter, RandomBladeWalksKeepEveryInvariantAfterEveryPose) {
   for (unsigned seed = 1; seed <= 12; ++seed) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     std::mt19937 rng(seed);
-    TetMesh mesh;
-    if (have_data && seed % 3 == 0) {
-      const std::array<const char*, 4> real = {"sofa-mor/liverVeryCOARSE.vtu", "sofa/liver.msh",
-                                               "libigl/octopus-low.mesh", "sofa/cylinder.msh"};
-      mesh = read_tet_mesh(test::data_file(real[(seed / 3) % real.size()])).mesh;
-    } else {
-      mesh = test::perturbed_grid(rng);
-    }
+    TetMesh mesh = test::walk_mesh(seed, have_data, rng);
     const double rest = total_volume(mesh);
     std::vector<Triangle> boundary;
     for (const BoundaryFace& face : boundary_faces(mesh)) {

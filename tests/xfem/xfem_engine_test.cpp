@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "blade_walks.hpp"
 #include "incise/core/error.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/io/mesh_io.hpp"
@@ -66,11 +67,7 @@ TEST(XfemEngine, TheBlockUnderTensionOpensAlongTheCut) {
 
 TEST(XfemEngine, AFullCutOfEveryRealMeshIsStableAtASixtiethOfASecond) {
   int meshes = 0;
-  // Every tetrahedral mesh in ../shared/data.
-  for (const char* name :
-       {"sofa/liver.msh", "sofa/cylinder.msh", "sofa/cube_low_res.msh",
-        "sofa-mor/liverTinyMesh.vtu", "sofa-mor/liverVeryCOARSE.vtu", "sofa-mor/liverCoarse.vtu",
-        "sofa-mor/liverSemiFine.vtu", "pbd/armadillo_4k.node", "libigl/octopus-low.mesh"}) {
+  for (const std::string& name : test::data_meshes()) {
     const auto path = test::data_file(name);
     if (!std::filesystem::exists(path)) {
       continue;
@@ -113,7 +110,7 @@ TEST(XfemEngine, AFullCutOfEveryRealMeshIsStableAtASixtiethOfASecond) {
     EXPECT_LE(after, 2 * before) << "CG iterations per step before " << before << ", after "
                                  << after;
     std::printf("%s: %zu split, CG iterations per step at most %zu before the cut, %zu after\n",
-                name, engine.xfem_cutter()->stats().elements_split, before, after);
+                name.c_str(), engine.xfem_cutter()->stats().elements_split, before, after);
   }
   if (meshes == 0) {
     GTEST_SKIP() << "no data meshes";

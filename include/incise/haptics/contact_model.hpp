@@ -39,7 +39,8 @@ struct SurfacePoint {
 };
 
 /// The point of the exterior triangles (on_cut 0) nearest `point` (m): where a force at
-/// `point` reaches a surface that was rebuilt since (Ericson's closest point on a triangle).
+/// `point` reaches a surface that was rebuilt since, or where a blade that enters no exterior
+/// face touches. The first nearest triangle wins ties.
 [[nodiscard]] SurfacePoint nearest_surface_point(std::span<const Triangle> triangles,
                                                  std::span<const std::uint8_t> on_cut,
                                                  std::span<const Vec3> positions,

@@ -3,6 +3,8 @@
 // arithmetic with an exact fallback), so cutting decisions never depend on round-off.
 // Inputs must be finite.
 
+#include <array>
+
 #include "incise/core/types.hpp"
 
 namespace incise {
@@ -33,6 +35,10 @@ enum class Sign : int { kNegative = -1, kZero = 0, kPositive = 1 };
 /// Squared distance (m^2) from a point to a closed triangle (floating point).
 [[nodiscard]] double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b,
                                                   const Vec3& c);
+/// Barycentric coordinates of the triangle's point nearest p (floating point, the same region
+/// tests as squared_distance_to_triangle).
+[[nodiscard]] std::array<double, 3> closest_point_barycentric(const Vec3& p, const Vec3& a,
+                                                              const Vec3& b, const Vec3& c);
 
 /// Where a point lies with respect to a positively oriented tetrahedron.
 enum class TetLocation { kOutside, kBoundary, kInside };

@@ -268,6 +268,10 @@ class TetMesh {
 [[nodiscard]] std::array<double, 4> barycentric_coordinates(const Vec3& p, const Vec3& a,
                                                             const Vec3& b, const Vec3& c,
                                                             const Vec3& d);
+/// One key per undirected edge: the smaller vertex id in the high 32 bits, the larger below.
+[[nodiscard]] std::uint64_t edge_key(VertexId a, VertexId b);
+/// Rest positions (m) of a tetrahedron's four corners, in its order.
+[[nodiscard]] std::array<Vec3, 4> rest_corners(const TetMesh& mesh, TetId tet);
 /// Sum of signed tetrahedron volumes (m^3).
 [[nodiscard]] double total_volume(const TetMesh& mesh);
 
