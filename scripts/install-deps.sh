@@ -7,8 +7,8 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential clang cmake ninja-build pkg-config clang-format
-  # core numerics and parallel loops
-  libeigen3-dev libtbb-dev
+  # core numerics and parallel loops; sparse direct solves (CHOLMOD) with an optimised BLAS
+  libeigen3-dev libtbb-dev libsuitesparse-dev libopenblas0-pthread
   # robust geometry (CGAL is header-only in 5.x; GMP/MPFR back its exact kernel)
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev
   # tetrahedral meshing (TetGen's library)

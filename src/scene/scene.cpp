@@ -587,7 +587,8 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
           {"type", "preconditioner", "tolerance", "max_iterations", "warm_start", "start_history"});
       LinearSolverOptions options;
       try {
-        options.type = parse_linear_solver_type(solver.string("type", "cg"));
+        options.type = parse_linear_solver_type(
+            solver.string("type", spec.type == IntegratorKind::kStatic ? "auto" : "cg"));
       } catch (const InputError& error) {
         context.fail("integrator.solver.type", error.what());
       }

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "direct_factorization.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 
@@ -94,7 +95,10 @@ LinearSolverType parse_linear_solver_type(const std::string& name) {
   if (name == "direct") {
     return LinearSolverType::kDirect;
   }
-  throw InputError("unknown linear solver '" + name + "' (known: cg, direct)");
+  if (name == "auto") {
+    return LinearSolverType::kAuto;
+  }
+  throw InputError("unknown linear solver '" + name + "' (known: cg, direct, auto)");
 }
 
 Preconditioner parse_preconditioner(const std::string& name) {
@@ -209,7 +213,9 @@ void LinearizedSystemSolver::build_scalar_pattern() {
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
   scalar_pattern_revision_ = assembled_.pattern_revision();
   scalar_constrained_.assign(constrained_.begin(), constrained_.end());
-  direct_analyzed_ = false;
+  if (direct_) {
+    direct_->reset_pattern();
+  }
 }
 
 void LinearizedSystemSolver::fill_scalar_values() {
@@ -452,26 +458,36 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     stats.seconds_total = seconds_since(start);
     return stats;
   }
-  const bool needs_matrix = options_.type == LinearSolverType::kDirect ||
-                            options_.preconditioner == Preconditioner::kIncompleteCholesky;
+  std::size_t free_unknowns = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    free_unknowns += constrained_[i] == 0 ? 3 : 0;
+  }
+  bool direct = options_.type == LinearSolverType::kDirect ||
+                (options_.type == LinearSolverType::kAuto && free_unknowns <= auto_direct_limit());
+  bool needs_matrix = direct || options_.preconditioner == Preconditioner::kIncompleteCholesky;
+  bool assembled = false;
+  const auto matrix_start = Clock::now();
   if (needs_matrix) {
-    const auto build_start = Clock::now();
-    if (!assemble(system, mass_scale, a, b)) {
+    assembled = assemble(system, mass_scale, a, b);
+    if (!assembled && options_.type == LinearSolverType::kAuto) {
+      // A matrix-free model: auto falls back to CG.
+      direct = false;
+      needs_matrix = options_.preconditioner == Preconditioner::kIncompleteCholesky;
+    }
+  }
+  stats.direct = direct;
+  if (needs_matrix) {
+    if (!assembled) {
       throw InputError(
           "this model offers matrix-free products only: use the cg solver with the jacobi or "
           "block-jacobi preconditioner");
     }
     fill_scalar_values();
-    if (options_.type == LinearSolverType::kDirect) {
+    if (direct) {
       if (!direct_) {
-        direct_ = std::make_unique<Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower>>();
+        direct_ = std::make_unique<DirectFactorization>();
       }
-      if (!direct_analyzed_) {
-        direct_->analyzePattern(scalar_);
-        direct_analyzed_ = true;
-      }
-      direct_->factorize(scalar_);
-      if (direct_->info() != Eigen::Success) {
+      if (!direct_->factorize(scalar_)) {
         throw InputError(
             "the direct solver could not factorise the system matrix (is the body "
             "held, or does it have a mass?)");
@@ -485,7 +501,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
         throw InputError("incomplete Cholesky factorisation failed");
       }
     }
-    stats.seconds_preconditioner = seconds_since(build_start);
+    stats.seconds_preconditioner = seconds_since(matrix_start);
   }
   auto to_scalar = [&](std::span<const Vec3> field, Eigen::VectorXd& out) {
     out.resize(scalar_.rows());
@@ -500,7 +516,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
       field[i] = free_index_[i] >= 0 ? Vec3(in.segment<3>(free_index_[i])) : Vec3::Zero();
     }
   };
-  if (options_.type == LinearSolverType::kDirect) {
+  if (direct) {
     to_scalar(rhs, scalar_rhs_);
     scalar_solution_ = direct_->solve(scalar_rhs_);
     from_scalar(scalar_solution_, x);

@@ -130,6 +130,28 @@ TEST(SceneParsing, WrongTypesAndValues) {
       std::string::npos);
 }
 
+TEST(SceneParsing, StaticSolvesPickTheirLinearSolverByDefault) {
+  // Static: "auto" (factorised up to a size), with or without a solver object; dynamics: CG.
+  for (const char* text :
+       {R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"type": "static", "dt": 1}})",
+        R"({"mesh": {"box": {"cells": [2, 2, 2]}},
+            "integrator": {"type": "static", "dt": 1, "solver": {"tolerance": 1e-9}}})"}) {
+    EXPECT_EQ(parse_scene(text, "static.json").integrator.static_solve.solver.type,
+              LinearSolverType::kAuto)
+        << text;
+  }
+  const SceneDescription dynamic = parse_scene(
+      R"({"mesh": {"box": {"cells": [2, 2, 2]}},
+          "integrator": {"type": "backward-euler", "dt": 0.01, "solver": {"tolerance": 1e-9}}})",
+      "dynamic.json");
+  EXPECT_EQ(dynamic.integrator.backward_euler.solver.type, LinearSolverType::kConjugateGradient);
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}},
+                         "integrator": {"solver": {"type": "cholesky"}}})")
+                .find("auto"),
+            std::string::npos)
+      << "the error lists the known solvers";
+}
+
 TEST(SceneParsing, CorotationalFemKeys) {
   const SceneDescription scene = parse_scene(
       R"({"mesh": {"box": {"cells": [2, 2, 2]}},

@@ -180,7 +180,9 @@ struct StaticOptions {
   /// Converged when the free vertices' force residual falls below this fraction of the load
   /// (gravity plus point forces, or the first residual when only displacements load the body).
   double tolerance = 1e-8;
-  LinearSolverOptions solver;
+  /// Factorises up to auto_direct_limit() unknowns (exact Newton steps, robust on slender
+  /// bodies), CG above.
+  LinearSolverOptions solver = {.type = LinearSolverType::kAuto};
 };
 
 /// Static equilibrium f(x) = 0 by Newton's method with a backtracking line search on the
@@ -200,6 +202,11 @@ class StaticEquilibrium final : public Integrator {
   bool solve(DynamicSystem& system, std::span<Vec3> x, double t);
   [[nodiscard]] int last_iterations() const { return last_iterations_; }
   [[nodiscard]] double last_residual() const { return last_residual_; }
+  /// The last solve's linear solves: CG iterations summed (one per factorisation), whether
+  /// they were factorised, and their time (s) building preconditioners or factors.
+  [[nodiscard]] long long last_linear_iterations() const { return last_linear_iterations_; }
+  [[nodiscard]] bool last_solve_direct() const { return last_solve_direct_; }
+  [[nodiscard]] double last_factorization_seconds() const { return last_factorization_seconds_; }
 
  private:
   StaticOptions options_;
@@ -208,6 +215,9 @@ class StaticEquilibrium final : public Integrator {
   std::vector<char> constrained_;
   int last_iterations_ = 0;
   double last_residual_ = 0.0;
+  long long last_linear_iterations_ = 0;
+  bool last_solve_direct_ = false;
+  double last_factorization_seconds_ = 0.0;
 };
 
 /// Largest stable step (s) of an explicit scheme for the system's highest frequency: about

@@ -2,10 +2,10 @@
 // Solvers for the linearised systems of implicit steps and static equilibrium:
 //   (mass_scale M + a K + b D) x = rhs   on the vertices that are not constrained,
 // by preconditioned conjugate gradients (products from the system, matrix-free or assembled)
-// or by a sparse LDL^T factorisation (Eigen's SimplicialLDLT) of the assembled matrix. Every
+// or by a sparse direct factorisation of the assembled matrix (CHOLMOD's supernodal Cholesky
+// where built with it, else Eigen's SimplicialLDLT; see src/solve/direct_factorization.hpp). Every
 // reduction is summed in fixed chunks, so results do not depend on the thread count.
 
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <memory>
 #include <span>
@@ -17,8 +17,17 @@
 
 namespace incise {
 
-enum class LinearSolverType { kConjugateGradient, kDirect };
+class DirectFactorization;
+
+/// kAuto: the direct factorisation up to auto_direct_limit() free unknowns, CG above (measured
+/// in BENCHMARKS.md: factorised Newton steps converge where block-Jacobi CG stalls on slender
+/// bodies; CG's memory grows slower on very large ones).
+enum class LinearSolverType { kConjugateGradient, kDirect, kAuto };
 enum class Preconditioner { kNone, kJacobi, kBlockJacobi, kIncompleteCholesky };
+
+/// Free scalar unknowns up to which kAuto factorises: 150,000 with CHOLMOD (about 1 GB of
+/// factor at most), 15,000 with the simplicial fallback.
+[[nodiscard]] std::size_t auto_direct_limit();
 
 struct LinearSolverOptions {
   LinearSolverType type = LinearSolverType::kConjugateGradient;
@@ -35,7 +44,7 @@ struct LinearSolverOptions {
   bool assembled = true;
 };
 
-/// Parses "cg" / "direct" and "none" / "jacobi" / "block-jacobi" / "incomplete-cholesky";
+/// Parses "cg" / "direct" / "auto" and "none" / "jacobi" / "block-jacobi" / "incomplete-cholesky";
 /// throws InputError listing the valid names.
 [[nodiscard]] LinearSolverType parse_linear_solver_type(const std::string& name);
 [[nodiscard]] Preconditioner parse_preconditioner(const std::string& name);
@@ -49,6 +58,7 @@ struct LinearSolveStats {
   double seconds_vector_updates = 0.0;  ///< the x, r, z updates and their dot products
   double seconds_start = 0.0;           ///< the starting guess from a basis
   double seconds_total = 0.0;
+  bool direct = false;  ///< solved by factorisation (kDirect, or kAuto below its limit)
 };
 
 class LinearizedSystemSolver {
@@ -108,12 +118,14 @@ class LinearizedSystemSolver {
   std::vector<int> free_index_;             ///< vertex -> first scalar unknown, or -1
   std::vector<std::size_t> scalar_source_;  ///< scalar nonzero -> offset in the block values
   SparseMatrix scalar_;
-  std::unique_ptr<Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower>> direct_;
-  bool direct_analyzed_ = false;
+  std::unique_ptr<DirectFactorization> direct_;
   struct IncompleteCholesky;
   std::unique_ptr<IncompleteCholesky> incomplete_;
   Eigen::VectorXd scalar_rhs_, scalar_solution_;
 };
+
+/// Whether direct solves use CHOLMOD's supernodal Cholesky (built with INCISE_WITH_CHOLMOD).
+[[nodiscard]] bool has_cholmod_backend();
 
 /// Deterministic parallel dot product of two vertex fields (fixed chunks, summed in order).
 [[nodiscard]] double parallel_dot(std::span<const Vec3> a, std::span<const Vec3> b);

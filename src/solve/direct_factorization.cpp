@@ -1,0 +1,82 @@
+#include "direct_factorization.hpp"
+
+#include <Eigen/SparseCholesky>
+
+#include "incise/solve/linear_solvers.hpp"
+
+#ifdef INCISE_HAVE_CHOLMOD
+#include <Eigen/CholmodSupport>
+#endif
+
+namespace incise {
+
+struct DirectFactorization::Backends {
+#ifdef INCISE_HAVE_CHOLMOD
+  Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> cholmod;
+  bool cholmod_analyzed = false;
+#endif
+  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt;
+  bool ldlt_analyzed = false;
+  bool using_cholmod = false;
+};
+
+DirectFactorization::DirectFactorization() : backends_(std::make_unique<Backends>()) {}
+DirectFactorization::~DirectFactorization() = default;
+
+void DirectFactorization::reset_pattern() {
+#ifdef INCISE_HAVE_CHOLMOD
+  backends_->cholmod_analyzed = false;
+#endif
+  backends_->ldlt_analyzed = false;
+}
+
+bool DirectFactorization::factorize(const SparseMatrix& matrix) {
+  Backends& b = *backends_;
+#ifdef INCISE_HAVE_CHOLMOD
+  if (!b.cholmod_analyzed) {
+    b.cholmod.analyzePattern(matrix);
+    b.cholmod_analyzed = true;
+  }
+  b.cholmod.factorize(matrix);
+  if (b.cholmod.info() == Eigen::Success) {
+    b.using_cholmod = true;
+    return true;
+  }
+#endif
+  // Not positive definite (or no CHOLMOD): LDL^T takes symmetric indefinite matrices whose
+  // pivots stay nonzero.
+  b.using_cholmod = false;
+  if (!b.ldlt_analyzed) {
+    b.ldlt.analyzePattern(matrix);
+    b.ldlt_analyzed = true;
+  }
+  b.ldlt.factorize(matrix);
+  return b.ldlt.info() == Eigen::Success;
+}
+
+Eigen::VectorXd DirectFactorization::solve(const Eigen::VectorXd& rhs) const {
+#ifdef INCISE_HAVE_CHOLMOD
+  if (backends_->using_cholmod) {
+    return backends_->cholmod.solve(rhs);
+  }
+#endif
+  return backends_->ldlt.solve(rhs);
+}
+
+std::string DirectFactorization::backend() const {
+  return backends_->using_cholmod ? "cholmod-supernodal" : "simplicial-ldlt";
+}
+
+std::size_t auto_direct_limit() {
+  return has_cholmod_backend() ? 150000 : 15000;
+}
+
+bool has_cholmod_backend() {
+#ifdef INCISE_HAVE_CHOLMOD
+  return true;
+#else
+  return false;
+#endif
+}
+
+}  // namespace incise

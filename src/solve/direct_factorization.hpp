@@ -1,0 +1,36 @@
+#pragma once
+// Sparse direct factorisation of the free rows of a system matrix. CHOLMOD's supernodal
+// Cholesky (SuiteSparse, through Eigen's support module) when incise is built with it: its
+// dense supernode blocks run through BLAS and are many times faster than a simplicial
+// factorisation on the fill-heavy matrices of 3-D meshes. Eigen's SimplicialLDLT otherwise,
+// and as the fallback for matrices that are symmetric but not positive definite (a
+// mass-spring tangent with compressed springs).
+
+#include <Eigen/SparseCore>
+#include <memory>
+#include <string>
+
+namespace incise {
+
+class DirectFactorization {
+ public:
+  using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+  DirectFactorization();
+  ~DirectFactorization();
+  DirectFactorization(const DirectFactorization&) = delete;
+  DirectFactorization& operator=(const DirectFactorization&) = delete;
+
+  /// Forgets the symbolic analysis (the sparsity pattern changed).
+  void reset_pattern();
+  /// Factorises the matrix (lower triangle read); false when neither backend can.
+  [[nodiscard]] bool factorize(const SparseMatrix& matrix);
+  [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const;
+  /// "cholmod-supernodal" or "simplicial-ldlt": which backend factorised last.
+  [[nodiscard]] std::string backend() const;
+
+ private:
+  struct Backends;
+  std::unique_ptr<Backends> backends_;
+};
+
+}  // namespace incise
