@@ -9,6 +9,8 @@ packages=(
   build-essential clang cmake ninja-build pkg-config clang-format
   # core numerics and parallel loops; sparse direct solves (CHOLMOD) with an optimised BLAS
   libeigen3-dev libtbb-dev libsuitesparse-dev libopenblas0-pthread
+  # planning: L-BFGS minimisation
+  liblbfgs-dev
   # robust geometry (CGAL is header-only in 5.x; GMP/MPFR back its exact kernel)
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev
   # tetrahedral meshing (TetGen's library)

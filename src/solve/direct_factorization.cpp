@@ -1,4 +1,4 @@
-#include "direct_factorization.hpp"
+#include "incise/solve/direct_factorization.hpp"
 
 #include <Eigen/SparseCholesky>
 

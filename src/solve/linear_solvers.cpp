@@ -9,9 +9,9 @@
 #include <chrono>
 #include <cmath>
 
-#include "direct_factorization.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
+#include "incise/solve/direct_factorization.hpp"
 
 namespace incise {
 

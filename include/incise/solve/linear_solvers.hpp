@@ -3,7 +3,7 @@
 //   (mass_scale M + a K + b D) x = rhs   on the vertices that are not constrained,
 // by preconditioned conjugate gradients (products from the system, matrix-free or assembled)
 // or by a sparse direct factorisation of the assembled matrix (CHOLMOD's supernodal Cholesky
-// where built with it, else Eigen's SimplicialLDLT; see src/solve/direct_factorization.hpp). Every
+// where built with it, else Eigen's SimplicialLDLT; see direct_factorization.hpp). Every
 // reduction is summed in fixed chunks, so results do not depend on the thread count.
 
 #include <Eigen/SparseCore>

@@ -4,7 +4,8 @@
 // dense supernode blocks run through BLAS and are many times faster than a simplicial
 // factorisation on the fill-heavy matrices of 3-D meshes. Eigen's SimplicialLDLT otherwise,
 // and as the fallback for matrices that are symmetric but not positive definite (a
-// mass-spring tangent with compressed springs).
+// mass-spring tangent with compressed springs). Used by LinearizedSystemSolver and by the
+// planning module's equilibrium initialisation.
 
 #include <Eigen/SparseCore>
 #include <memory>

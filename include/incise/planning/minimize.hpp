@@ -1,0 +1,52 @@
+#pragma once
+// Unconstrained minimisation of a smooth function of point positions over the points marked
+// free (the others stay where they are): the seed's nonlinear conjugate gradients
+// (Polak-Ribiere+, restarted when not a descent direction, with a strong-Wolfe line search)
+// and limited-memory BFGS (liblbfgs from Debian, More-Thuente line search), which the seed
+// did not have. Both accept only steps that decrease the function: the value is monotone.
+
+#include <functional>
+#include <span>
+#include <string>
+
+#include "incise/core/types.hpp"
+
+namespace incise::planning {
+
+enum class Minimizer { kNonlinearCG, kLbfgs };
+
+/// "cg" / "lbfgs"; throws InputError naming the known ones.
+[[nodiscard]] Minimizer parse_minimizer(const std::string& name);
+[[nodiscard]] std::string to_string(Minimizer minimizer);
+
+struct MinimizeOptions {
+  Minimizer method = Minimizer::kLbfgs;
+  /// Converged when the largest free gradient entry (per point, Euclidean) is at most this
+  /// (units of the gradient: N for energies in J over positions in m).
+  double gradient_tolerance = 1e-9;
+  int max_iterations = 20000;
+  int lbfgs_memory = 8;
+};
+
+struct MinimizeResult {
+  bool converged = false;
+  int iterations = 0;
+  int evaluations = 0;  ///< function-and-gradient evaluations
+  double initial_value = 0.0;
+  double final_value = 0.0;
+  double initial_gradient = 0.0;  ///< largest free gradient entry at the start
+  double final_gradient = 0.0;
+  bool monotone = true;  ///< every accepted iterate decreased the value
+  double seconds = 0.0;
+  std::string message;  ///< why it stopped
+};
+
+/// Value and, into `gradient` (every point; entries of fixed points are ignored), gradient.
+using Objective = std::function<double(std::span<const Vec3> x, std::span<Vec3> gradient)>;
+/// Called after each iteration with its number and the largest free gradient entry.
+using MinimizeProgress = std::function<void(int iteration, double gradient)>;
+
+MinimizeResult minimize(const Objective& objective, std::span<Vec3> x, std::span<const char> free,
+                        const MinimizeOptions& options, const MinimizeProgress& progress = {});
+
+}  // namespace incise::planning

@@ -1,0 +1,72 @@
+#pragma once
+// Bone cutting and realignment: cut planes divide a bone surface into segments, rigid moves
+// carry segments to new places, and moved segments are checked for interpenetration.
+//
+// A cut plane separates two triangles that share an edge when their centroids lie on
+// opposite sides of it and both lie within its radius of its point (measured in the plane):
+// a disc-shaped saw cut. Segments are the connected pieces that remain.
+
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "incise/core/types.hpp"
+#include "incise/io/mesh_io.hpp"
+
+namespace incise::planning {
+
+struct CutPlane {
+  Vec3 point = Vec3::Zero();                                ///< m
+  Vec3 normal = Vec3::UnitZ();                              ///< unit
+  double radius = std::numeric_limits<double>::infinity();  ///< m
+};
+
+struct BoneSegments {
+  std::vector<int> triangle_segment;  ///< segment of each bone triangle, 0 .. count - 1
+  int count = 0;
+  /// Triangles per segment.
+  std::vector<int> sizes;
+};
+
+/// Segments the bone; throws InputError for a plane with a zero normal.
+[[nodiscard]] BoneSegments segment_bone(const SurfaceMesh& bone, std::span<const CutPlane> planes);
+
+/// A rigid motion x -> R (x - center) + center + translation.
+struct RigidMove {
+  Vec3 segment_near = Vec3::Zero();  ///< m: the moved segment is the one nearest this point
+  Vec3 translation = Vec3::Zero();   ///< m
+  Vec3 axis = Vec3::UnitZ();
+  double angle = 0.0;          ///< rad
+  Vec3 center = Vec3::Zero();  ///< m
+  [[nodiscard]] Vec3 apply(const Vec3& x) const;
+};
+
+/// The segment whose surface passes nearest to `point`.
+[[nodiscard]] int nearest_segment(const SurfaceMesh& bone, const BoneSegments& segments,
+                                  const Vec3& point);
+
+struct Interpenetration {
+  int first = 0;
+  int second = 0;
+  int crossing_triangle_pairs = 0;
+  double depth = 0.0;  ///< m: largest distance a vertex of one lies inside the other's side
+                       ///< of the plane that separated them (0 when no plane did)
+};
+
+/// Positions of every bone vertex per segment after the moves: vertices on a cut belong to
+/// several segments and are moved with each. Returns, per triangle, its three moved corners.
+[[nodiscard]] std::vector<std::array<Vec3, 3>> moved_triangles(
+    const SurfaceMesh& bone, const BoneSegments& segments,
+    std::span<const RigidMove> segment_moves);
+
+/// Pairs of segments, at least one of them moved, whose moved triangles cross where they did
+/// not before the move (exact predicates; triangles that share a vertex are not compared), or
+/// of which a moved one reaches further than before (1 um) beyond a plane that separates them
+/// (a cap pushed into a closed bone crosses no surface).
+/// `segment_moves` holds one move per segment (identity for those that stay).
+[[nodiscard]] std::vector<Interpenetration> find_interpenetrations(
+    const SurfaceMesh& bone, const BoneSegments& segments, std::span<const RigidMove> segment_moves,
+    std::span<const CutPlane> planes);
+
+}  // namespace incise::planning

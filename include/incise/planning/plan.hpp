@@ -1,0 +1,78 @@
+#pragma once
+// A surgical plan (`incise plan PLAN.json`): the surfaces, the layered tissue's parameters,
+// the osteotomies and segment moves, instruments and soft-tissue cuts, and how to predict.
+// Lengths in a plan and in its outputs are millimetres (as in DICOM and the surface files);
+// materials are SI (Pa, kg/m^3), gravity m/s^2, forces N. Inside, everything is SI.
+
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "incise/planning/layered_tissue.hpp"
+#include "incise/planning/minimize.hpp"
+#include "incise/planning/osteotomy.hpp"
+
+namespace incise::planning {
+
+/// Skin points near a point are held by an instrument and carried by `translation`.
+struct Instrument {
+  Vec3 near = Vec3::Zero();         ///< m
+  double radius = 0.0;              ///< m
+  Vec3 translation = Vec3::Zero();  ///< m
+};
+
+enum class PredictionMethod { kEnergy, kForce };
+
+struct PlanDescription {
+  std::filesystem::path file;  ///< the plan (outputs and messages name it)
+  std::filesystem::path skin;  ///< surface files, resolved against the plan's folder
+  std::filesystem::path bone;
+  std::optional<double> decimation_max_error;  ///< m
+  /// m: the skin remeshed isotropically to this edge length before the model is built
+  /// (well-shaped prisms; a scan's slivers make the minimisation crawl).
+  std::optional<double> skin_edge_length;
+  LayeredTissueOptions tissue;
+  Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< m/s^2
+  bool equilibrium = true;               ///< initialise the equilibrium first
+  std::vector<CutPlane> osteotomies;
+  std::vector<RigidMove> moves;
+  std::vector<Instrument> instruments;
+  std::vector<CutPlane> cuts;  ///< soft-tissue cuts (discs)
+  PredictionMethod method = PredictionMethod::kEnergy;
+  MinimizeOptions solver;
+  /// Converged when the largest free force is below this fraction of the largest point weight.
+  double relative_tolerance = 1e-4;
+};
+
+/// Parses a plan's JSON text; every key is checked and an unknown key or a bad value throws an
+/// InputError naming the file, the line and the key.
+[[nodiscard]] PlanDescription parse_plan(const std::string& text,
+                                         const std::filesystem::path& file);
+[[nodiscard]] PlanDescription load_plan(const std::filesystem::path& file);
+
+/// Stage name and the fraction of the whole run done (0..1), for a progress bar.
+using PlanProgress = std::function<void(const std::string& stage, double fraction)>;
+
+struct PlanSummary {
+  std::size_t points = 0;
+  std::size_t springs = 0;
+  std::size_t prisms = 0;
+  int segments = 0;
+  int moved_segments = 0;
+  double residual_force_before = 0.0;  ///< N
+  double residual_force_after = 0.0;   ///< N
+  MinimizeResult prediction;
+  double max_displacement = 0.0;  ///< mm, skin
+  double seconds = 0.0;
+  std::filesystem::path report;  ///< report.json
+};
+
+/// Runs the plan, writes skin_before/after.vtp, bone_before/after.vtp, tissue.vtu and
+/// report.json into `out_dir` (created). Throws InputError for bad input, including
+/// interpenetrating bone segments (naming them and the depth).
+PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& out_dir,
+                     const PlanProgress& progress = {});
+
+}  // namespace incise::planning

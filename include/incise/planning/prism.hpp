@@ -1,0 +1,30 @@
+#pragma once
+// The prismatic volume element of the layered soft-tissue model (Teschner et al.): a bottom
+// triangle (p0, p1, p2) on one layer, the top triangle (p3, p4, p5) above it on the next
+// (p3 above p0, and so on), and three side faces that are the ruled (bilinear) patches
+// between corresponding edges. Pure functions of the six positions.
+//
+// Volume, exactly: with X(u, v, w) = (1 - w) B(u, v) + w T(u, v) over the unit prism, det dX
+// is linear in (u, v) and quadratic in w, and X_w at the triangle's centroid is d, the vector
+// from the bottom centroid to the top one, so
+//     V = d . (N0 + 4 Nm + N1) / 12
+// with N0, Nm, N1 the doubled area vectors (q - p) x (r - p) of the bottom, mid-height and top
+// triangles (Simpson's rule, exact for the quadratic). Neighbouring prisms share their side
+// patches, so the volumes of a layer sum exactly to the volume it encloses.
+
+#include <array>
+
+#include "incise/core/types.hpp"
+
+namespace incise::planning {
+
+using PrismPoints = std::array<Vec3, 6>;
+
+/// Signed volume (m^3): positive when the top lies on the side of the bottom triangle's normal
+/// (p1 - p0) x (p2 - p0).
+[[nodiscard]] double prism_volume(const PrismPoints& p);
+
+/// dV/dp_i for the six points (m^2).
+[[nodiscard]] std::array<Vec3, 6> prism_volume_gradient(const PrismPoints& p);
+
+}  // namespace incise::planning

@@ -1,0 +1,193 @@
+#include "incise/planning/equilibrium.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "incise/core/error.hpp"
+#include "incise/planning/tissue_energy.hpp"
+#include "incise/solve/direct_factorization.hpp"
+
+namespace incise::planning {
+
+namespace {
+
+/// The shortest rest length the initialisation may give a spring, relative to its length.
+constexpr double kShortest = 0.05;
+constexpr const char* kSetNames[] = {"layer", "connecting", "diagonal"};
+/// Relative Levenberg-Marquardt damping of the Gauss-Newton steps.
+constexpr double kDamping = 1e-3;
+
+double largest_soft_force(const LayeredTissue& tissue, std::span<const Vec3> f) {
+  double largest = 0.0;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    if (tissue.kind[i] == PointKind::kSoft) {
+      largest = std::max(largest, f[i].norm());
+    }
+  }
+  return largest;
+}
+
+}  // namespace
+
+EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
+                                         double tolerance, int max_iterations) {
+  // Damped steps converge linearly: a few more of them than Gauss-Newton would need.
+  EquilibriumReport report;
+  const std::size_t n = tissue.point_count();
+  const std::span<const Vec3> x = tissue.rest;
+  std::vector<Vec3> f(n);
+  TissueEnergy energy(tissue, gravity);
+  energy.forces(x, f);
+  report.residual_before = largest_soft_force(tissue, f);
+  // Soft points are the rows; every spring but the skin layer's is an unknown.
+  std::vector<int> row(n, -1);
+  int rows = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (tissue.kind[i] == PointKind::kSoft) {
+      row[i] = rows;
+      rows += 3;
+    }
+  }
+  std::vector<double> scanned(tissue.springs.size());
+  for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
+    scanned[s] = (x[static_cast<std::size_t>(tissue.springs[s].a)] -
+                  x[static_cast<std::size_t>(tissue.springs[s].b)])
+                     .norm();
+  }
+  // Every spring is an unknown. The skin's too: on an irregular triangulation a uniform
+  // pre-strain leaves in-plane forces that only in-plane springs can balance (through the
+  // nearly radial springs below it would take huge changes); their mean pre-strain stays
+  // close to the given one (reported).
+  auto is_unknown = [&](const Spring&) { return true; };
+  const std::vector<double> original = [&] {
+    std::vector<double> lengths;
+    for (const Spring& s : tissue.springs) {
+      lengths.push_back(s.rest_length);
+    }
+    return lengths;
+  }();
+  DirectFactorization factorization;  // CHOLMOD where built with it; the pattern is kept
+  for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    energy.forces(x, f);
+    report.residual_after = largest_soft_force(tissue, f);
+    if (report.residual_after <= tolerance || rows == 0) {
+      break;
+    }
+    // df/dl0 of spring s: -t u at a, +t u at b (t = d tension / d rest length, u from b to a).
+    // Minimal relative change: dl0 = L^2 B^T y with (B L^2 B^T) y = -f.
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(tissue.springs.size() * 36);
+    std::vector<double> t(tissue.springs.size(), 0.0);
+    std::vector<Vec3> u(tissue.springs.size(), Vec3::Zero());
+    double largest_diagonal = 0.0;
+    for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
+      const Spring& spring = tissue.springs[s];
+      if (!is_unknown(spring) || !(scanned[s] > 0.0)) {
+        continue;
+      }
+      const auto a = static_cast<std::size_t>(spring.a);
+      const auto b = static_cast<std::size_t>(spring.b);
+      u[s] = (x[a] - x[b]) / scanned[s];
+      t[s] = tissue.law.tension_by_rest(scanned[s], spring.rest_length, spring.stiffness);
+      const double w = t[s] * t[s] * spring.rest_length * spring.rest_length;
+      const Mat3 block = w * u[s] * u[s].transpose();
+      largest_diagonal = std::max(largest_diagonal, w);
+      const int ends[2] = {row[a], row[b]};
+      const double signs[2] = {-1.0, 1.0};
+      for (int i = 0; i < 2; ++i) {
+        for (int j = 0; j < 2; ++j) {
+          if (ends[i] < 0 || ends[j] < 0) {
+            continue;
+          }
+          const double sign = signs[i] * signs[j];
+          for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c) {
+              triplets.emplace_back(ends[i] + r, ends[j] + c, sign * block(r, c));
+            }
+          }
+        }
+      }
+    }
+    DirectFactorization::SparseMatrix matrix(rows, rows);
+    matrix.setFromTriplets(triplets.begin(), triplets.end());
+    // Levenberg-Marquardt damping, scaled by each row's diagonal: a point whose springs are
+    // nearly coplanar (an oblique column in a concave fold) cannot be balanced across their
+    // plane without huge changes; damping leaves it a residual instead, and the next
+    // iterations reduce it as far as the springs allow.
+    for (int r = 0; r < rows; ++r) {
+      matrix.coeffRef(r, r) += kDamping * matrix.coeff(r, r) + 1e-12 * largest_diagonal;
+    }
+    Eigen::VectorXd rhs(rows);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (row[i] >= 0) {
+        rhs.segment<3>(row[i]) = -f[i];
+      }
+    }
+    if (!factorization.factorize(matrix)) {
+      throw InputError("equilibrium initialisation: the spring system could not be factorised");
+    }
+    const Eigen::VectorXd y = factorization.solve(rhs);
+    for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
+      Spring& spring = tissue.springs[s];
+      if (t[s] == 0.0) {
+        continue;
+      }
+      double bt = 0.0;
+      const int ra = row[static_cast<std::size_t>(spring.a)];
+      const int rb = row[static_cast<std::size_t>(spring.b)];
+      if (ra >= 0) {
+        bt -= t[s] * u[s].dot(Vec3(y.segment<3>(ra)));
+      }
+      if (rb >= 0) {
+        bt += t[s] * u[s].dot(Vec3(y.segment<3>(rb)));
+      }
+      // A step changes a rest length by at most half of it; the next step goes on from there.
+      const double change = std::clamp(spring.rest_length * spring.rest_length * bt,
+                                       -0.5 * spring.rest_length, 0.5 * spring.rest_length);
+      if (std::abs(change) == 0.5 * spring.rest_length) {
+        ++report.limited_changes;
+      }
+      spring.rest_length += change;
+      if (!(spring.rest_length > kShortest * scanned[s])) {
+        throw InputError(
+            fmt::format("equilibrium initialisation: the tissue cannot carry its load: the {} "
+                        "spring of layer {} between points {} and {} ({:.3g} mm long) would "
+                        "need a rest length below {} of its length; stiffen the layers, lower "
+                        "the skin pre-strain or the gravity",
+                        kSetNames[static_cast<int>(spring.set)], spring.layer, spring.a, spring.b,
+                        scanned[s] * 1e3, kShortest));
+      }
+    }
+    report.iterations = iteration + 1;
+  }
+  energy.forces(x, f);
+  report.residual_after = largest_soft_force(tissue, f);
+  for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
+    report.largest_relative_change =
+        std::max(report.largest_relative_change,
+                 std::abs(tissue.springs[s].rest_length - original[s]) / original[s]);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (tissue.kind[i] != PointKind::kSoft) {
+      report.load_on_fixed_points += f[i];
+    }
+  }
+  double strain_sum = 0.0;
+  int skin_springs = 0;
+  for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
+    const Spring& spring = tissue.springs[s];
+    if (spring.set == SpringSet::kLayer && spring.layer == 0) {
+      strain_sum += scanned[s] / spring.rest_length - 1.0;
+      ++skin_springs;
+    }
+  }
+  report.skin_prestrain_mean = skin_springs > 0 ? strain_sum / skin_springs : 0.0;
+  return report;
+}
+
+}  // namespace incise::planning

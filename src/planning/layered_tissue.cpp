@@ -1,0 +1,256 @@
+#include "incise/planning/layered_tissue.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <string>
+
+#include "incise/core/error.hpp"
+#include "incise/planning/prism.hpp"
+#include "nearest_triangle.hpp"
+
+namespace incise::planning {
+
+std::size_t LayeredTissue::count(PointKind k) const {
+  return static_cast<std::size_t>(std::count(kind.begin(), kind.end(), k));
+}
+
+namespace {
+
+void check_options(const LayeredTissueOptions& options) {
+  if (options.layers < 1 || options.layers > 64) {
+    throw InputError("layers must be between 1 and 64 (got " + std::to_string(options.layers) +
+                     ")");
+  }
+  if (options.materials.size() != 1 &&
+      options.materials.size() != static_cast<std::size_t>(options.layers)) {
+    throw InputError("give one material for all layers or one per layer (" +
+                     std::to_string(options.layers) + "), not " +
+                     std::to_string(options.materials.size()));
+  }
+  for (const LayerMaterial& m : options.materials) {
+    if (!(m.young_modulus > 0.0) || !(m.density > 0.0) || !std::isfinite(m.young_modulus) ||
+        !std::isfinite(m.density)) {
+      throw InputError("layer materials need a positive, finite young_modulus and density");
+    }
+  }
+  if (!(options.skin_prestrain > -0.5 && options.skin_prestrain < 1.0)) {
+    throw InputError("skin_prestrain must lie in (-0.5, 1)");
+  }
+  if (!(options.nonlinearity >= 0.0) || !(options.volume_weight >= 0.0) ||
+      !std::isfinite(options.nonlinearity) || !std::isfinite(options.volume_weight)) {
+    throw InputError("nonlinearity and volume_weight must be finite and not negative");
+  }
+  if (!(options.max_thickness > options.min_thickness) || !(options.min_thickness >= 0.0)) {
+    throw InputError("max_thickness must exceed min_thickness (>= 0)");
+  }
+}
+
+}  // namespace
+
+LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& bone,
+                                   const LayeredTissueOptions& options) {
+  check_options(options);
+  if (skin.triangles.empty() || bone.triangles.empty()) {
+    throw InputError("the layered tissue model needs a skin and a bone surface with triangles");
+  }
+  LayeredTissue tissue;
+  tissue.layers = options.layers;
+  // Tissue triangles: those without an over-long edge, over the vertices they use.
+  std::vector<double> edge_lengths;
+  edge_lengths.reserve(3 * skin.triangles.size());
+  auto edge_length = [&](const Triangle& t, int e) {
+    return (skin.points[static_cast<std::size_t>(t[static_cast<std::size_t>(e)])] -
+            skin.points[static_cast<std::size_t>(t[static_cast<std::size_t>((e + 1) % 3)])])
+        .norm();
+  };
+  for (const Triangle& t : skin.triangles) {
+    for (int e = 0; e < 3; ++e) {
+      edge_lengths.push_back(edge_length(t, e));
+    }
+  }
+  std::nth_element(edge_lengths.begin(),
+                   edge_lengths.begin() + static_cast<std::ptrdiff_t>(edge_lengths.size() / 2),
+                   edge_lengths.end());
+  const double max_edge =
+      options.max_edge > 0.0 ? options.max_edge : 5.0 * edge_lengths[edge_lengths.size() / 2];
+  std::vector<int> column_of_vertex(skin.points.size(), -1);
+  for (const Triangle& t : skin.triangles) {
+    if (edge_length(t, 0) > max_edge || edge_length(t, 1) > max_edge ||
+        edge_length(t, 2) > max_edge) {
+      ++tissue.skin_triangles_dropped;
+      continue;
+    }
+    Triangle out{};
+    for (int c = 0; c < 3; ++c) {
+      int& column = column_of_vertex[static_cast<std::size_t>(t[static_cast<std::size_t>(c)])];
+      if (column < 0) {
+        column = static_cast<int>(tissue.column_skin_vertex.size());
+        tissue.column_skin_vertex.push_back(t[static_cast<std::size_t>(c)]);
+      }
+      out[static_cast<std::size_t>(c)] = column;
+    }
+    tissue.skin_triangles.push_back(out);
+  }
+  if (tissue.skin_triangles.empty()) {
+    throw InputError("every skin triangle has an edge longer than max_edge");
+  }
+  tissue.columns = static_cast<int>(tissue.column_skin_vertex.size());
+  // Columns on the open border of the tissue triangles: the tissue leaves the scan there.
+  std::vector<char> on_border(static_cast<std::size_t>(tissue.columns), 0);
+  {
+    std::map<std::pair<int, int>, int> uses;
+    for (const Triangle& t : tissue.skin_triangles) {
+      for (int e = 0; e < 3; ++e) {
+        ++uses[std::minmax(t[static_cast<std::size_t>(e)],
+                           t[static_cast<std::size_t>((e + 1) % 3)])];
+      }
+    }
+    for (const auto& [edge, count] : uses) {
+      if (count == 1) {
+        on_border[static_cast<std::size_t>(edge.first)] = 1;
+        on_border[static_cast<std::size_t>(edge.second)] = 1;
+      }
+    }
+  }
+  tissue.law.nonlinearity = options.nonlinearity;
+  tissue.volume_weight = options.volume_weight;
+  tissue.skin_prestrain = options.skin_prestrain;
+  const int layers = options.layers;
+  const std::size_t points = static_cast<std::size_t>(tissue.columns) * (layers + 1);
+  tissue.rest.resize(points);
+  tissue.kind.assign(points, PointKind::kSoft);
+  tissue.mass.assign(points, 0.0);
+  tissue.column_bone_triangle.resize(static_cast<std::size_t>(tissue.columns));
+
+  // Columns: from each skin vertex to its nearest bone point, split evenly into layers.
+  const NearestTriangle nearest(bone.points, bone.triangles);
+  for (int c = 0; c < tissue.columns; ++c) {
+    const Vec3& top = skin.points[static_cast<std::size_t>(
+        tissue.column_skin_vertex[static_cast<std::size_t>(c)])];
+    const NearestTriangle::Hit hit = nearest.closest(top);
+    tissue.column_bone_triangle[static_cast<std::size_t>(c)] = hit.triangle;
+    const double thickness = (hit.point - top).norm();
+    PointKind column_kind = PointKind::kSoft;
+    if (thickness > options.max_thickness || on_border[static_cast<std::size_t>(c)] != 0) {
+      column_kind = PointKind::kBoundary;
+    } else if (thickness < options.min_thickness) {
+      column_kind = PointKind::kBone;
+    }
+    for (int k = 0; k <= layers; ++k) {
+      const auto p = static_cast<std::size_t>(tissue.point(c, k));
+      tissue.rest[p] = top + (static_cast<double>(k) / layers) * (hit.point - top);
+      tissue.kind[p] =
+          k == layers && column_kind == PointKind::kSoft ? PointKind::kBone : column_kind;
+    }
+  }
+
+  // Springs: found again by their end points when prisms hand out volume.
+  std::map<std::pair<int, int>, int> spring_of;
+  auto add_spring = [&](int a, int b, SpringSet set, int layer) {
+    const auto key = std::minmax(a, b);
+    if (spring_of.count(key) != 0) {
+      return;
+    }
+    spring_of[key] = static_cast<int>(tissue.springs.size());
+    Spring s;
+    s.a = a;
+    s.b = b;
+    s.set = set;
+    s.layer = layer;
+    s.rest_length =
+        (tissue.rest[static_cast<std::size_t>(a)] - tissue.rest[static_cast<std::size_t>(b)])
+            .norm();
+    tissue.springs.push_back(s);
+  };
+  for (const Triangle& t : tissue.skin_triangles) {
+    for (int k = 0; k < layers; ++k) {
+      for (int e = 0; e < 3; ++e) {
+        const int u = t[static_cast<std::size_t>(e)];
+        const int v = t[static_cast<std::size_t>((e + 1) % 3)];
+        add_spring(tissue.point(u, k), tissue.point(v, k), SpringSet::kLayer, k);
+        add_spring(tissue.point(u, k), tissue.point(u, k + 1), SpringSet::kConnecting, k);
+        add_spring(tissue.point(u, k), tissue.point(v, k + 1), SpringSet::kDiagonal, k);
+        add_spring(tissue.point(v, k), tissue.point(u, k + 1), SpringSet::kDiagonal, k);
+      }
+      Prism prism;
+      for (int i = 0; i < 3; ++i) {
+        prism.points[static_cast<std::size_t>(i)] = tissue.point(t[static_cast<std::size_t>(i)], k);
+        prism.points[static_cast<std::size_t>(i + 3)] =
+            tissue.point(t[static_cast<std::size_t>(i)], k + 1);
+      }
+      prism.layer = k;
+      PrismPoints corners;
+      for (int i = 0; i < 6; ++i) {
+        corners[static_cast<std::size_t>(i)] =
+            tissue.rest[static_cast<std::size_t>(prism.points[static_cast<std::size_t>(i)])];
+      }
+      prism.rest_volume = prism_volume(corners);
+      tissue.prisms.push_back(prism);
+    }
+  }
+
+  // Stiffness k = E V_s / l0^2 with V_s the volume a spring stands for: each prism gives a
+  // fifteenth of its volume to each of its 15 springs (6 layer, 3 connecting, 6 diagonal), so
+  // the springs share the body's volume (a spring stretched by e stores E V_s e^2 / 2). Point
+  // masses: a sixth of each prism's mass.
+  std::vector<double> spring_volume(tissue.springs.size(), 0.0);
+  for (const Prism& prism : tissue.prisms) {
+    const LayerMaterial& material = options.materials.size() == 1
+                                        ? options.materials[0]
+                                        : options.materials[static_cast<std::size_t>(prism.layer)];
+    const double volume = std::abs(prism.rest_volume);
+    for (int i = 0; i < 6; ++i) {
+      tissue.mass[static_cast<std::size_t>(prism.points[static_cast<std::size_t>(i)])] +=
+          material.density * volume / 6.0;
+    }
+    const auto& p = prism.points;
+    const std::array<std::pair<int, int>, 15> edges = {{{p[0], p[1]},
+                                                        {p[1], p[2]},
+                                                        {p[2], p[0]},
+                                                        {p[3], p[4]},
+                                                        {p[4], p[5]},
+                                                        {p[5], p[3]},
+                                                        {p[0], p[3]},
+                                                        {p[1], p[4]},
+                                                        {p[2], p[5]},
+                                                        {p[0], p[4]},
+                                                        {p[1], p[3]},
+                                                        {p[1], p[5]},
+                                                        {p[2], p[4]},
+                                                        {p[2], p[3]},
+                                                        {p[0], p[5]}}};
+    for (const auto& [a, b] : edges) {
+      const auto found = spring_of.find(std::minmax(a, b));
+      if (found != spring_of.end()) {
+        spring_volume[static_cast<std::size_t>(found->second)] += volume / 15.0;
+      }
+    }
+  }
+  for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
+    Spring& spring = tissue.springs[s];
+    const LayerMaterial& material = options.materials.size() == 1
+                                        ? options.materials[0]
+                                        : options.materials[static_cast<std::size_t>(spring.layer)];
+    const double length = std::max(spring.rest_length, options.min_thickness / layers);
+    spring.stiffness = material.young_modulus * spring_volume[s] / (length * length);
+    if (spring.set == SpringSet::kLayer && spring.layer == 0) {
+      // Skin pre-strain: the scanned length is the stretched one.
+      spring.rest_length /= 1.0 + options.skin_prestrain;
+    }
+  }
+  // Springs between two fixed points never act: dropped.
+  std::erase_if(tissue.springs, [&](const Spring& s) {
+    return tissue.kind[static_cast<std::size_t>(s.a)] != PointKind::kSoft &&
+           tissue.kind[static_cast<std::size_t>(s.b)] != PointKind::kSoft;
+  });
+  std::erase_if(tissue.springs, [](const Spring& s) { return !(s.rest_length > 0.0); });
+  std::erase_if(tissue.prisms, [&](const Prism& prism) {
+    return std::none_of(prism.points.begin(), prism.points.end(), [&](int p) {
+      return tissue.kind[static_cast<std::size_t>(p)] == PointKind::kSoft;
+    });
+  });
+  return tissue;
+}
+
+}  // namespace incise::planning

@@ -1,0 +1,229 @@
+// Plan files: JSON, millimetres for lengths (converted to metres here), SI for materials.
+
+#include <fstream>
+#include <sstream>
+
+#include "incise/core/error.hpp"
+#include "incise/core/json_reader.hpp"
+#include "incise/planning/plan.hpp"
+
+namespace incise::planning {
+
+namespace {
+
+using json::Context;
+using json::Json;
+using json::ObjectReader;
+
+constexpr double kMillimetre = 1e-3;  // m
+
+Vec3 millimetres(const ObjectReader& reader, const std::string& key, const Vec3& fallback) {
+  return reader.vec3(key, fallback / kMillimetre) * kMillimetre;
+}
+
+const Json& list_at(const Context& context, const ObjectReader& reader, const std::string& key) {
+  const Json& value = reader.at(key);
+  if (!value.is_array()) {
+    context.fail(reader.child(key), "must be a list");
+  }
+  return value;
+}
+
+CutPlane parse_plane(const Context& context, const Json& value, const std::string& path) {
+  const ObjectReader reader(context, value, path, {"point", "normal", "radius"});
+  if (!reader.has("point") || !reader.has("normal")) {
+    context.fail(path, "needs a 'point' and a 'normal'");
+  }
+  CutPlane plane;
+  plane.point = millimetres(reader, "point", Vec3::Zero());
+  plane.normal = reader.vec3("normal", Vec3::UnitZ());
+  if (!(plane.normal.norm() > 0.0)) {
+    context.fail(path + ".normal", "must not be zero");
+  }
+  plane.normal.normalize();
+  if (reader.has("radius")) {
+    plane.radius = reader.positive("radius", 1.0) * kMillimetre;
+  }
+  return plane;
+}
+
+LayerMaterial parse_material(const ObjectReader& reader) {
+  LayerMaterial material;
+  material.young_modulus = reader.positive("young_modulus", material.young_modulus);
+  material.density = reader.positive("density", material.density);
+  return material;
+}
+
+}  // namespace
+
+PlanDescription parse_plan(const std::string& text, const std::filesystem::path& file) {
+  const Context context(text, file, "plan");
+  Json root;
+  try {
+    root = Json::parse(text);
+  } catch (const Json::parse_error& error) {
+    // nlohmann reports the byte; turn it into a line.
+    const auto byte = std::min<std::size_t>(error.byte, text.size());
+    const auto line =
+        1 + static_cast<std::size_t>(
+                std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(byte), '\n'));
+    context.fail_line(line, std::string("not valid JSON: ") + error.what());
+  }
+  const ObjectReader top(
+      context, root, "",
+      {"description",      "image",       "iso",           "surfaces",       "decimation",
+       "skin_edge_length", "layers",      "materials",     "skin_prestrain", "nonlinear",
+       "volume_weight",    "gravity",     "max_thickness", "min_thickness",  "max_edge",
+       "equilibrium",      "osteotomies", "moves",         "instruments",    "cuts",
+       "method",           "solver"});
+  PlanDescription plan;
+  plan.file = file;
+  if (top.has("image") || top.has("iso")) {
+    context.fail(top.has("image") ? "image" : "iso",
+                 "reading CT images is not part of this build yet: give 'surfaces' "
+                 "({\"skin\": FILE, \"bone\": FILE})");
+  }
+  if (!top.has("surfaces")) {
+    context.fail("surfaces", "is required: {\"skin\": FILE, \"bone\": FILE} (millimetres)");
+  }
+  {
+    const ObjectReader surfaces(context, top.at("surfaces"), "surfaces", {"skin", "bone"});
+    if (!surfaces.has("skin") || !surfaces.has("bone")) {
+      context.fail("surfaces", "needs both 'skin' and 'bone'");
+    }
+    plan.skin = json::resolve(context, surfaces.string("skin", ""));
+    plan.bone = json::resolve(context, surfaces.string("bone", ""));
+  }
+  if (top.has("decimation")) {
+    const ObjectReader decimation(context, top.at("decimation"), "decimation", {"max_error"});
+    if (!decimation.has("max_error")) {
+      context.fail("decimation", "needs 'max_error' (mm)");
+    }
+    plan.decimation_max_error = decimation.positive("max_error", 1.0) * kMillimetre;
+  }
+  if (top.has("skin_edge_length")) {
+    plan.skin_edge_length = top.positive("skin_edge_length", 1.0) * kMillimetre;
+  }
+  plan.tissue.layers = top.integer("layers", plan.tissue.layers, 1, 64);
+  if (top.has("materials")) {
+    const Json& materials = top.at("materials");
+    plan.tissue.materials.clear();
+    if (materials.is_array()) {
+      for (std::size_t i = 0; i < materials.size(); ++i) {
+        const ObjectReader reader(context, materials[i], "materials[" + std::to_string(i) + "]",
+                                  {"young_modulus", "density"});
+        plan.tissue.materials.push_back(parse_material(reader));
+      }
+      if (plan.tissue.materials.size() != 1 &&
+          plan.tissue.materials.size() != static_cast<std::size_t>(plan.tissue.layers)) {
+        context.fail("materials", "give one material for all layers or one per layer (" +
+                                      std::to_string(plan.tissue.layers) + ")");
+      }
+    } else {
+      const ObjectReader reader(context, materials, "materials", {"young_modulus", "density"});
+      plan.tissue.materials.push_back(parse_material(reader));
+    }
+  }
+  plan.tissue.skin_prestrain = top.number("skin_prestrain", plan.tissue.skin_prestrain);
+  if (!(plan.tissue.skin_prestrain > -0.5 && plan.tissue.skin_prestrain < 1.0)) {
+    context.fail("skin_prestrain", "must lie in (-0.5, 1)");
+  }
+  plan.tissue.nonlinearity = top.non_negative("nonlinear", plan.tissue.nonlinearity);
+  plan.tissue.volume_weight = top.non_negative("volume_weight", plan.tissue.volume_weight);
+  plan.gravity = top.vec3("gravity", plan.gravity);
+  plan.tissue.max_thickness =
+      top.positive("max_thickness", plan.tissue.max_thickness / kMillimetre) * kMillimetre;
+  plan.tissue.min_thickness =
+      top.non_negative("min_thickness", plan.tissue.min_thickness / kMillimetre) * kMillimetre;
+  if (!(plan.tissue.max_thickness > plan.tissue.min_thickness)) {
+    context.fail("max_thickness", "must exceed min_thickness");
+  }
+  plan.tissue.max_edge = top.non_negative("max_edge", 0.0) * kMillimetre;
+  plan.equilibrium = top.boolean("equilibrium", plan.equilibrium);
+  if (top.has("osteotomies")) {
+    const Json& list = list_at(context, top, "osteotomies");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      plan.osteotomies.push_back(
+          parse_plane(context, list[i], "osteotomies[" + std::to_string(i) + "]"));
+    }
+  }
+  if (top.has("cuts")) {
+    const Json& list = list_at(context, top, "cuts");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      plan.cuts.push_back(parse_plane(context, list[i], "cuts[" + std::to_string(i) + "]"));
+    }
+  }
+  if (top.has("moves")) {
+    const Json& list = list_at(context, top, "moves");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const std::string path = "moves[" + std::to_string(i) + "]";
+      const ObjectReader reader(context, list[i], path, {"segment_near", "translate", "rotate"});
+      if (!reader.has("segment_near")) {
+        context.fail(path, "needs 'segment_near' (a point near the bone segment to move, mm)");
+      }
+      RigidMove move;
+      move.segment_near = millimetres(reader, "segment_near", Vec3::Zero());
+      move.translation = millimetres(reader, "translate", Vec3::Zero());
+      if (reader.has("rotate")) {
+        const ObjectReader rotate(context, reader.at("rotate"), path + ".rotate",
+                                  {"axis", "angle_deg", "center"});
+        move.axis = rotate.vec3("axis", Vec3::UnitZ());
+        if (!(move.axis.norm() > 0.0)) {
+          context.fail(path + ".rotate.axis", "must not be zero");
+        }
+        move.angle = rotate.number("angle_deg", 0.0) * 3.14159265358979323846 / 180.0;
+        move.center = millimetres(rotate, "center", move.segment_near);
+      }
+      plan.moves.push_back(move);
+    }
+  }
+  if (top.has("instruments")) {
+    const Json& list = list_at(context, top, "instruments");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const std::string path = "instruments[" + std::to_string(i) + "]";
+      const ObjectReader reader(context, list[i], path, {"near", "radius", "translate"});
+      if (!reader.has("near") || !reader.has("radius")) {
+        context.fail(path, "needs 'near' (mm) and 'radius' (mm)");
+      }
+      Instrument instrument;
+      instrument.near = millimetres(reader, "near", Vec3::Zero());
+      instrument.radius = reader.positive("radius", 1.0) * kMillimetre;
+      instrument.translation = millimetres(reader, "translate", Vec3::Zero());
+      plan.instruments.push_back(instrument);
+    }
+  }
+  const std::string method = top.string("method", "energy");
+  if (method == "energy") {
+    plan.method = PredictionMethod::kEnergy;
+  } else if (method == "force") {
+    plan.method = PredictionMethod::kForce;
+  } else {
+    context.fail("method", "unknown method '" + method + "' (known: energy, force)");
+  }
+  if (top.has("solver")) {
+    const ObjectReader solver(context, top.at("solver"), "solver",
+                              {"type", "tolerance", "max_iterations", "memory"});
+    try {
+      plan.solver.method = parse_minimizer(solver.string("type", "lbfgs"));
+    } catch (const InputError& error) {
+      context.fail("solver.type", error.what());
+    }
+    plan.relative_tolerance = solver.positive("tolerance", plan.relative_tolerance);
+    plan.solver.max_iterations =
+        solver.integer("max_iterations", plan.solver.max_iterations, 1, 10000000);
+    plan.solver.lbfgs_memory = solver.integer("memory", plan.solver.lbfgs_memory, 1, 100);
+  }
+  return plan;
+}
+
+PlanDescription load_plan(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    throw InputError(file.string() + ": cannot open the plan");
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_plan(text.str(), file);
+}
+
+}  // namespace incise::planning

@@ -1,0 +1,156 @@
+#include "incise/planning/tissue_energy.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "incise/planning/prism.hpp"
+
+namespace incise::planning {
+
+TissueEnergy::TissueEnergy(const LayeredTissue& tissue, const Vec3& gravity)
+    : tissue_(tissue), gravity_(gravity) {
+  double sum = 0.0;
+  for (const Spring& s : tissue.springs) {
+    sum += s.stiffness;
+  }
+  mean_stiffness_ = tissue.springs.empty() ? 0.0 : sum / static_cast<double>(tissue.springs.size());
+}
+
+double TissueEnergy::spring_energy(std::span<const Vec3> x) const {
+  double energy = 0.0;
+  for (const Spring& s : tissue_.springs) {
+    const double length =
+        (x[static_cast<std::size_t>(s.a)] - x[static_cast<std::size_t>(s.b)]).norm();
+    energy += tissue_.law.energy(length, s.rest_length, s.stiffness);
+  }
+  return energy;
+}
+
+double TissueEnergy::volume_energy(std::span<const Vec3> x) const {
+  double energy = 0.0;
+  add_volume(x, {}, 1.0, energy);
+  return energy;
+}
+
+void TissueEnergy::add_volume(std::span<const Vec3> x, std::span<Vec3> gradient, double scale,
+                              double& energy) const {
+  if (!(tissue_.volume_weight > 0.0)) {
+    return;
+  }
+  const double kappa = tissue_.volume_weight * scale;
+  for (const Prism& prism : tissue_.prisms) {
+    if (prism.rest_volume == 0.0) {
+      continue;
+    }
+    PrismPoints corners;
+    for (int i = 0; i < 6; ++i) {
+      corners[static_cast<std::size_t>(i)] =
+          x[static_cast<std::size_t>(prism.points[static_cast<std::size_t>(i)])];
+    }
+    const double change = prism_volume(corners) - prism.rest_volume;
+    const double magnitude = std::abs(prism.rest_volume);
+    energy += 0.5 * kappa * change * change / magnitude;
+    if (!gradient.empty()) {
+      const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
+      const double factor = kappa * change / magnitude;
+      for (int i = 0; i < 6; ++i) {
+        gradient[static_cast<std::size_t>(prism.points[static_cast<std::size_t>(i)])] +=
+            factor * dv[static_cast<std::size_t>(i)];
+      }
+    }
+  }
+}
+
+double TissueEnergy::energy(std::span<const Vec3> x, std::span<Vec3> gradient) const {
+  double energy = 0.0;
+  const bool with_gradient = !gradient.empty();
+  if (with_gradient) {
+    std::fill(gradient.begin(), gradient.end(), Vec3::Zero());
+  }
+  for (const Spring& s : tissue_.springs) {
+    const Vec3 d = x[static_cast<std::size_t>(s.a)] - x[static_cast<std::size_t>(s.b)];
+    const double length = d.norm();
+    energy += tissue_.law.energy(length, s.rest_length, s.stiffness);
+    if (with_gradient && length > 0.0) {
+      const Vec3 g = (tissue_.law.tension(length, s.rest_length, s.stiffness) / length) * d;
+      gradient[static_cast<std::size_t>(s.a)] += g;
+      gradient[static_cast<std::size_t>(s.b)] -= g;
+    }
+  }
+  // Gravity's potential relative to the rest state: the same gradient, and no large constant
+  // whose rounding would hide the small decreases a converging line search needs.
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    energy -= tissue_.mass[i] * gravity_.dot(x[i] - tissue_.rest[i]);
+    if (with_gradient) {
+      gradient[i] -= tissue_.mass[i] * gravity_;
+    }
+  }
+  add_volume(x, gradient, 1.0, energy);
+  return energy;
+}
+
+void TissueEnergy::forces(std::span<const Vec3> x, std::span<Vec3> f) const {
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    f[i] = tissue_.mass[i] * gravity_;
+  }
+  for (const Spring& s : tissue_.springs) {
+    const Vec3 d = x[static_cast<std::size_t>(s.a)] - x[static_cast<std::size_t>(s.b)];
+    const double length = d.norm();
+    if (length > 0.0) {
+      const Vec3 g = (tissue_.law.tension(length, s.rest_length, s.stiffness) / length) * d;
+      f[static_cast<std::size_t>(s.a)] -= g;
+      f[static_cast<std::size_t>(s.b)] += g;
+    }
+  }
+}
+
+double TissueEnergy::force_objective(std::span<const Vec3> x, std::span<const char> free,
+                                     std::span<Vec3> gradient) const {
+  std::vector<Vec3> f(x.size());
+  forces(x, f);
+  double objective = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (free[i] == 0) {
+      f[i].setZero();
+    }
+    objective += f[i].squaredNorm();
+  }
+  if (!gradient.empty()) {
+    // d|f|^2/dx = 2 (df/dx)^T f = -2 H f, H symmetric: per spring the block
+    // K = E'' u u^T + (E' / l) (I - u u^T) acting on f_a - f_b.
+    std::fill(gradient.begin(), gradient.end(), Vec3::Zero());
+    for (const Spring& s : tissue_.springs) {
+      const auto a = static_cast<std::size_t>(s.a);
+      const auto b = static_cast<std::size_t>(s.b);
+      const Vec3 d = x[a] - x[b];
+      const double length = d.norm();
+      if (!(length > 0.0)) {
+        continue;
+      }
+      const Vec3 u = d / length;
+      const Vec3 w = f[a] - f[b];
+      const double along = u.dot(w);
+      const double tension = tissue_.law.tension(length, s.rest_length, s.stiffness);
+      const double slope = tissue_.law.tension_derivative(length, s.rest_length, s.stiffness);
+      const Vec3 kw = slope * along * u + (tension / length) * (w - along * u);
+      gradient[a] -= 2.0 * kw;
+      gradient[b] += 2.0 * kw;
+    }
+  }
+  add_volume(x, gradient, mean_stiffness_, objective);
+  return objective;
+}
+
+double TissueEnergy::largest_free_force(std::span<const Vec3> x, std::span<const char> free) const {
+  std::vector<Vec3> gradient(x.size());
+  (void)energy(x, gradient);
+  double largest = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (free[i] != 0) {
+      largest = std::max(largest, gradient[i].norm());
+    }
+  }
+  return largest;
+}
+
+}  // namespace incise::planning

@@ -1,0 +1,530 @@
+// The planning module: the prism element, the spring law, the layered tissue model, the
+// equilibrium initialisation, the minimisers, bone segments and moves, decimation and plans,
+// on concentric spheres (skin over bone) generated here.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "incise/core/error.hpp"
+#include "incise/planning/decimate.hpp"
+#include "incise/planning/equilibrium.hpp"
+#include "incise/planning/layered_tissue.hpp"
+#include "incise/planning/minimize.hpp"
+#include "incise/planning/osteotomy.hpp"
+#include "incise/planning/plan.hpp"
+#include "incise/planning/prism.hpp"
+#include "incise/planning/tissue_energy.hpp"
+
+namespace {
+
+using namespace incise;
+using namespace incise::planning;
+
+/// An icosphere of `levels` subdivisions (outward triangles), radius r (m), centre c.
+SurfaceMesh sphere(double r, int levels, const Vec3& c = Vec3::Zero()) {
+  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+  SurfaceMesh s;
+  s.points = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+              {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+  s.triangles = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                 {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                 {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                 {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (int level = 0; level < levels; ++level) {
+    std::map<std::pair<int, int>, int> middle;
+    auto mid = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      const auto found = middle.find(key);
+      if (found != middle.end()) {
+        return found->second;
+      }
+      s.points.push_back(
+          0.5 * (s.points[static_cast<std::size_t>(a)] + s.points[static_cast<std::size_t>(b)]));
+      return middle[key] = static_cast<int>(s.points.size()) - 1;
+    };
+    std::vector<Triangle> finer;
+    for (const Triangle& tri : s.triangles) {
+      const int ab = mid(tri[0], tri[1]);
+      const int bc = mid(tri[1], tri[2]);
+      const int ca = mid(tri[2], tri[0]);
+      finer.push_back({tri[0], ab, ca});
+      finer.push_back({tri[1], bc, ab});
+      finer.push_back({tri[2], ca, bc});
+      finer.push_back({ab, bc, ca});
+    }
+    s.triangles = finer;
+  }
+  for (Vec3& p : s.points) {
+    p = c + r * p.normalized();
+  }
+  return s;
+}
+
+/// A 5 cm head: skin sphere over a 4 cm bone sphere.
+struct Head {
+  SurfaceMesh skin = sphere(0.05, 3);
+  SurfaceMesh bone = sphere(0.04, 3);
+};
+
+LayeredTissueOptions options(int layers = 2) {
+  LayeredTissueOptions o;
+  o.layers = layers;
+  o.materials = {LayerMaterial{2e4, 1050.0}};
+  o.skin_prestrain = 0.05;
+  o.volume_weight = 1e4;
+  o.max_thickness = 0.03;
+  return o;
+}
+
+std::vector<char> free_points(const LayeredTissue& tissue) {
+  std::vector<char> free(tissue.point_count(), 0);
+  for (std::size_t i = 0; i < free.size(); ++i) {
+    free[i] = tissue.kind[i] == PointKind::kSoft ? 1 : 0;
+  }
+  return free;
+}
+
+double largest_weight(const LayeredTissue& tissue, double g) {
+  double largest = 0.0;
+  for (double m : tissue.mass) {
+    largest = std::max(largest, m * g);
+  }
+  return largest;
+}
+
+TEST(Prism, VolumesTileABoxExactlyWhateverTheMiddleLayer) {
+  // Two layers of prisms over a triangulated unit square, the middle layer's points moved at
+  // random (boundary points only along their side faces): the ruled side faces are shared,
+  // so the volumes sum to the box's exactly.
+  const int n = 6;
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> shake(-0.3, 0.3);
+  auto index = [&](int i, int j) { return i * (n + 1) + j; };
+  std::vector<Vec3> bottom, middle, top;
+  for (int i = 0; i <= n; ++i) {
+    for (int j = 0; j <= n; ++j) {
+      const Vec3 p(static_cast<double>(i) / n, static_cast<double>(j) / n, 0.0);
+      bottom.push_back(p);
+      top.push_back(p + Vec3(0, 0, 1));
+      Vec3 q = p + Vec3(0, 0, 0.5 + shake(random));
+      if (i > 0 && i < n) {
+        q.x() += shake(random) / n;
+      }
+      if (j > 0 && j < n) {
+        q.y() += shake(random) / n;
+      }
+      middle.push_back(q);
+    }
+  }
+  double volume = 0.0;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const std::array<std::array<int, 3>, 2> triangles = {
+          {{index(i, j), index(i + 1, j), index(i + 1, j + 1)},
+           {index(i, j), index(i + 1, j + 1), index(i, j + 1)}}};
+      for (const auto& t : triangles) {
+        for (const auto* layer : {&bottom, &middle}) {
+          const auto& upper = layer == &bottom ? middle : top;
+          PrismPoints p;
+          for (int k = 0; k < 3; ++k) {
+            p[static_cast<std::size_t>(k)] =
+                (*layer)[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])];
+            p[static_cast<std::size_t>(k + 3)] =
+                upper[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])];
+          }
+          volume += prism_volume(p);
+        }
+      }
+    }
+  }
+  EXPECT_NEAR(volume, 1.0, 1e-13);
+}
+
+TEST(Prism, RightPrismAndGradient) {
+  PrismPoints p = {Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 3, 0),
+                   Vec3(0, 0, 5), Vec3(2, 0, 5), Vec3(0, 3, 5)};
+  EXPECT_NEAR(prism_volume(p), 15.0, 1e-12);  // area 3 x height 5
+  // A twisted, sheared prism: the gradient against central differences.
+  p = {Vec3(0.1, 0, 0),   Vec3(1, 0.2, 0.1),   Vec3(0, 1, -0.1),
+       Vec3(0.3, 0.1, 1), Vec3(1.2, 0.5, 1.3), Vec3(-0.2, 1.1, 0.8)};
+  const std::array<Vec3, 6> gradient = prism_volume_gradient(p);
+  for (int i = 0; i < 6; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      PrismPoints plus = p;
+      PrismPoints minus = p;
+      plus[static_cast<std::size_t>(i)][k] += 1e-6;
+      minus[static_cast<std::size_t>(i)][k] -= 1e-6;
+      const double numeric = (prism_volume(plus) - prism_volume(minus)) / 2e-6;
+      EXPECT_NEAR(gradient[static_cast<std::size_t>(i)][k], numeric, 1e-8) << i << " " << k;
+    }
+  }
+}
+
+TEST(SpringLaw, TensionIsTheEnergysSlopeAndHookeIsTheLinearCase) {
+  for (double a : {0.0, 5.0}) {
+    const SpringLaw law{a};
+    for (double length : {0.8, 1.0, 1.3}) {
+      const double numeric =
+          (law.energy(length + 1e-7, 1.0, 2.0) - law.energy(length - 1e-7, 1.0, 2.0)) / 2e-7;
+      EXPECT_NEAR(law.tension(length, 1.0, 2.0), numeric, 1e-6);
+      const double slope =
+          (law.tension(length + 1e-7, 1.0, 2.0) - law.tension(length - 1e-7, 1.0, 2.0)) / 2e-7;
+      EXPECT_NEAR(law.tension_derivative(length, 1.0, 2.0), slope, 1e-6);
+      const double by_rest =
+          (law.tension(length, 1.0 + 1e-7, 2.0) - law.tension(length, 1.0 - 1e-7, 2.0)) / 2e-7;
+      EXPECT_NEAR(law.tension_by_rest(length, 1.0, 2.0), by_rest, 1e-5);
+    }
+  }
+  EXPECT_DOUBLE_EQ(SpringLaw{}.tension(1.3, 1.0, 2.0), 2.0 * 0.3);
+}
+
+TEST(LayeredTissue, ColumnsLayersSetsAndMass) {
+  const Head head;
+  const LayeredTissue tissue = build_layered_tissue(head.skin, head.bone, options(3));
+  EXPECT_EQ(tissue.columns, static_cast<int>(head.skin.points.size()));
+  EXPECT_EQ(tissue.point_count(), head.skin.points.size() * 4);
+  EXPECT_EQ(tissue.prisms.size(), head.skin.triangles.size() * 3);
+  EXPECT_EQ(tissue.count(PointKind::kBone), head.skin.points.size());
+  EXPECT_EQ(tissue.count(PointKind::kBoundary), 0u);
+  // Mass: density times the shell's volume, to the polyhedral approximation (1 %).
+  double mass = 0.0;
+  for (double m : tissue.mass) {
+    mass += m;
+  }
+  const double shell = 4.0 / 3.0 * 3.14159265358979 * (std::pow(0.05, 3) - std::pow(0.04, 3));
+  EXPECT_NEAR(mass, 1050.0 * shell, 0.01 * 1050.0 * shell);
+  int layer_springs = 0;
+  int connecting = 0;
+  int diagonal = 0;
+  for (const Spring& s : tissue.springs) {
+    layer_springs += s.set == SpringSet::kLayer;
+    connecting += s.set == SpringSet::kConnecting;
+    diagonal += s.set == SpringSet::kDiagonal;
+    EXPECT_GT(s.stiffness, 0.0);
+  }
+  const int edges = static_cast<int>(head.skin.triangles.size() * 3 / 2);
+  EXPECT_EQ(layer_springs, 3 * edges);  // the bone layer's are between fixed points
+  EXPECT_EQ(connecting, 3 * static_cast<int>(head.skin.points.size()));
+  EXPECT_EQ(diagonal, 3 * 2 * edges);
+  // Every prism has the same orientation and its exact volume.
+  for (const Prism& prism : tissue.prisms) {
+    EXPECT_LT(prism.rest_volume, 0.0);  // outward skin normals point away from the bone
+  }
+}
+
+TEST(LayeredTissue, OpenSkinBordersAreBoundaryAndCapsAreLeftOut) {
+  Head head;
+  // A cap: one skin triangle stretched far out, and the skin opened by removing a triangle.
+  head.skin.triangles.erase(head.skin.triangles.begin());
+  const LayeredTissue tissue = build_layered_tissue(head.skin, head.bone, options(2));
+  EXPECT_EQ(tissue.count(PointKind::kBoundary), 3u * 3u);  // 3 border columns x 3 points
+  LayeredTissueOptions o = options(2);
+  o.max_edge = 1e-4;
+  EXPECT_THROW((void)build_layered_tissue(head.skin, head.bone, o), InputError);
+}
+
+TEST(Equilibrium, ScannedStateBalancesUnderGravityAndPrestrain) {
+  const Head head;
+  for (double nonlinear : {0.0, 10.0}) {
+    LayeredTissueOptions o = options(2);
+    o.nonlinearity = nonlinear;
+    LayeredTissue tissue = build_layered_tissue(head.skin, head.bone, o);
+    const Vec3 gravity(0, 0, -9.81);
+    const EquilibriumReport report = initialise_equilibrium(tissue, gravity, 1e-12);
+    EXPECT_GT(report.residual_before, 1e3 * largest_weight(tissue, 9.81) * 1e-6);
+    EXPECT_LT(report.residual_after, 1e-9 * largest_weight(tissue, 9.81) / 1e-3)
+        << "nonlinearity " << nonlinear;
+    // Diverted to the bone: the whole weight.
+    double mass = 0.0;
+    for (double m : tissue.mass) {
+      mass += m;
+    }
+    EXPECT_NEAR(report.load_on_fixed_points.z(), -9.81 * mass, 1e-9);
+    EXPECT_NEAR(report.skin_prestrain_mean, 0.05, 0.01);
+  }
+}
+
+struct Balanced {
+  Head head;
+  LayeredTissue tissue;
+  Vec3 gravity = Vec3(0, 0, -9.81);
+  explicit Balanced(int layers = 2)
+      : tissue(build_layered_tissue(head.skin, head.bone, options(layers))) {
+    (void)initialise_equilibrium(tissue, gravity, 1e-12);
+  }
+  /// Minimises with bone points moved by `move`.
+  std::vector<Vec3> predict(const RigidMove& move, Minimizer method, MinimizeResult& result,
+                            const Vec3& gravity_now) const {
+    std::vector<Vec3> x = tissue.rest;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      if (tissue.kind[i] != PointKind::kSoft) {
+        x[i] = move.apply(x[i]);
+      }
+    }
+    const TissueEnergy energy(tissue, gravity_now);
+    MinimizeOptions o;
+    o.method = method;
+    o.gradient_tolerance = 1e-4 * largest_weight(tissue, 9.81);
+    result =
+        minimize([&](std::span<const Vec3> at, std::span<Vec3> g) { return energy.energy(at, g); },
+                 x, free_points(tissue), o);
+    return x;
+  }
+};
+
+TEST(Prediction, NoMoveNoDisplacementAndTranslationIsRigid) {
+  const Balanced model;
+  MinimizeResult result;
+  const std::vector<Vec3> still =
+      model.predict(RigidMove{}, Minimizer::kLbfgs, result, model.gravity);
+  EXPECT_TRUE(result.converged);
+  for (std::size_t i = 0; i < still.size(); ++i) {
+    EXPECT_LT((still[i] - model.tissue.rest[i]).norm(), 1e-9);
+  }
+  RigidMove translate;
+  translate.translation = Vec3(0.002, -0.001, 0.003);  // m
+  for (Minimizer method : {Minimizer::kLbfgs, Minimizer::kNonlinearCG}) {
+    const std::vector<Vec3> moved = model.predict(translate, method, result, model.gravity);
+    EXPECT_TRUE(result.converged) << to_string(method) << ": " << result.message;
+    EXPECT_TRUE(result.monotone);
+    for (std::size_t i = 0; i < moved.size(); ++i) {
+      EXPECT_LT((moved[i] - model.tissue.rest[i] - translate.translation).norm(), 1e-7)
+          << to_string(method) << " point " << i;  // 0.1 micrometre
+    }
+  }
+  // A rotation of everything, without gravity (which does not turn with the head).
+  const Balanced weightless = [] {
+    Balanced b;
+    b.gravity = Vec3::Zero();
+    b.tissue = build_layered_tissue(b.head.skin, b.head.bone, options(2));
+    (void)initialise_equilibrium(b.tissue, b.gravity, 1e-12);
+    return b;
+  }();
+  RigidMove rotate;
+  rotate.axis = Vec3(1, 1, 0);
+  rotate.angle = 0.3;
+  rotate.center = Vec3(0.01, 0, 0);
+  const std::vector<Vec3> turned =
+      weightless.predict(rotate, Minimizer::kLbfgs, result, Vec3::Zero());
+  for (std::size_t i = 0; i < turned.size(); ++i) {
+    EXPECT_LT((turned[i] - rotate.apply(weightless.tissue.rest[i])).norm(), 1e-7) << i;
+  }
+}
+
+TEST(Prediction, EnergyDecreasesMonotonicallyAndBothMinimisersAgree) {
+  const Balanced model;
+  // Push the bone's upper half outwards: the skin above follows partly.
+  RigidMove push;
+  push.translation = Vec3(0, 0, 0.003);
+  MinimizeResult lbfgs;
+  MinimizeResult cg;
+  const std::vector<Vec3> a = model.predict(push, Minimizer::kLbfgs, lbfgs, model.gravity);
+  const std::vector<Vec3> b = model.predict(push, Minimizer::kNonlinearCG, cg, model.gravity);
+  EXPECT_TRUE(lbfgs.converged);
+  EXPECT_TRUE(cg.converged);
+  EXPECT_TRUE(lbfgs.monotone);
+  EXPECT_TRUE(cg.monotone);
+  EXPECT_LT(lbfgs.final_value, lbfgs.initial_value);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_LT((a[i] - b[i]).norm(), 1e-6) << i;  // a micrometre
+  }
+}
+
+TEST(Prediction, ForceMinimisationReachesTheSameRestState) {
+  // Without volume preservation both objectives have the same minimiser (zero forces); with
+  // it they differ (F_F + k F_V is not an energy).
+  Balanced model;
+  model.tissue = build_layered_tissue(model.head.skin, model.head.bone, [] {
+    LayeredTissueOptions o = options(2);
+    o.volume_weight = 0.0;
+    return o;
+  }());
+  (void)initialise_equilibrium(model.tissue, model.gravity, 1e-12);
+  std::vector<Vec3> x = model.tissue.rest;
+  // Hold one bone point column's skin with an instrument-like displacement of 2 mm inwards.
+  std::vector<char> free = free_points(model.tissue);
+  const int held = model.tissue.point(0, 0);
+  x[static_cast<std::size_t>(held)] *= 0.96;
+  free[static_cast<std::size_t>(held)] = 0;
+  const TissueEnergy energy(model.tissue, model.gravity);
+  MinimizeOptions o;
+  o.gradient_tolerance = 1e-4 * largest_weight(model.tissue, 9.81);
+  std::vector<Vec3> by_energy = x;
+  const MinimizeResult e =
+      minimize([&](std::span<const Vec3> at, std::span<Vec3> g) { return energy.energy(at, g); },
+               by_energy, free, o);
+  EXPECT_TRUE(e.converged);
+  std::vector<Vec3> by_force = x;
+  o.gradient_tolerance *= 1e-2 * energy.mean_stiffness();
+  o.max_iterations = 200000;
+  const MinimizeResult f =
+      minimize([&](std::span<const Vec3> at,
+                   std::span<Vec3> g) { return energy.force_objective(at, free, g); },
+               by_force, free, o);
+  double largest = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    largest = std::max(largest, (by_force[i] - by_energy[i]).norm());
+  }
+  // Force minimisation converges more slowly (the seed found so too).
+  EXPECT_LT(largest, 2e-5) << f.message;  // m: within 20 micrometres of 2 mm
+  EXPECT_LT(f.final_value, 1e-4 * f.initial_value);
+  std::printf("to the same tolerance: energy %d iterations, force %d iterations (%s)\n",
+              e.iterations, f.iterations, f.message.c_str());
+  // The gradient of the force objective against central differences.
+  std::vector<Vec3> g(x.size());
+  (void)energy.force_objective(by_energy, free, g);
+  for (int i : {held + 1, model.tissue.point(5, 1)}) {
+    for (int k = 0; k < 3; ++k) {
+      std::vector<Vec3> plus = by_energy;
+      std::vector<Vec3> minus = by_energy;
+      plus[static_cast<std::size_t>(i)][k] += 1e-8;
+      minus[static_cast<std::size_t>(i)][k] -= 1e-8;
+      const double numeric =
+          (energy.force_objective(plus, free) - energy.force_objective(minus, free)) / 2e-8;
+      EXPECT_NEAR(g[static_cast<std::size_t>(i)][k], numeric,
+                  1e-5 * std::max(1.0, std::abs(numeric)));
+    }
+  }
+}
+
+TEST(Decimation, TheDistanceBoundHolds) {
+  const SurfaceMesh fine = sphere(0.05, 4);
+  for (double bound : {2e-4, 1e-3}) {
+    const DecimationResult result = decimate_surface(fine, bound);
+    EXPECT_LT(result.triangles_after, result.triangles_before);
+    EXPECT_EQ(result.triangles_before, fine.triangles.size());
+    EXPECT_LE(result.hausdorff_to_input, 1.01 * bound) << "bound " << bound;
+    EXPECT_GT(result.hausdorff_from_input, 0.0);
+  }
+}
+
+TEST(Osteotomy, PlanesMakeSegmentsAndMovesIntoEachOtherAreRefused) {
+  const SurfaceMesh bone = sphere(0.04, 3);
+  const std::vector<CutPlane> planes = {{Vec3(0, 0, 0.01), Vec3(0, 0, 1)}};
+  const BoneSegments segments = segment_bone(bone, planes);
+  ASSERT_EQ(segments.count, 2);
+  const int cap = nearest_segment(bone, segments, Vec3(0, 0, 0.05));
+  std::vector<RigidMove> moves(2);
+  moves[static_cast<std::size_t>(cap)].translation = Vec3(0, 0, 0.004);  // lifted away
+  EXPECT_TRUE(find_interpenetrations(bone, segments, moves, planes).empty());
+  moves[static_cast<std::size_t>(cap)].translation = Vec3(0, 0, -0.006);  // pushed in
+  const std::vector<Interpenetration> found = find_interpenetrations(bone, segments, moves, planes);
+  ASSERT_EQ(found.size(), 1u);
+  // The cap sits inside the bowl below without crossing its surface: the depth beyond the
+  // cut plane tells.
+  EXPECT_GT(found[0].depth, 0.004);
+  EXPECT_LT(found[0].depth, 0.0061);
+  // A disc too small to reach across the bone cuts nothing off.
+  const std::vector<CutPlane> small = {{Vec3(0, 0, 0.01), Vec3(0, 0, 1), 0.01}};
+  EXPECT_EQ(segment_bone(bone, small).count, 1);
+}
+
+std::filesystem::path write_head(const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir);
+  const Head head;
+  auto in_mm = [](SurfaceMesh s) {
+    for (Vec3& p : s.points) {
+      p *= 1e3;
+    }
+    return s;
+  };
+  const SurfaceMesh skin = in_mm(head.skin);
+  const SurfaceMesh bone = in_mm(head.bone);
+  write_obj(dir / "skin.obj", skin.points, skin.triangles);
+  write_obj(dir / "bone.obj", bone.points, bone.triangles);
+  return dir;
+}
+
+std::string plan_error(const std::string& text) {
+  try {
+    (void)parse_plan(text, "plan.json");
+  } catch (const InputError& error) {
+    return error.what();
+  }
+  return "";
+}
+
+TEST(Plan, MalformedPlansNameTheKey) {
+  const std::string surfaces = R"("surfaces": {"skin": "s.obj", "bone": "b.obj"})";
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "layerz": 3})").find("layerz"), std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "layerz": 3})").find("did you mean 'layers'"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "layers": 0})").find("layers"), std::string::npos);
+  EXPECT_NE(plan_error(R"({"layers": 3})").find("surfaces"), std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "method": "magic"})").find("energy, force"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "solver": {"type": "newton"}})").find("cg, lbfgs"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "osteotomies": [{"point": [0, 0, 0]}]})")
+                .find("osteotomies[0]"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(,
+      "moves": [{"segment_near": [0, 0], "translate": [1, 0, 0]}]})")
+                .find("moves[0].segment_near"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "materials": [{"young_modulus": -1}]})")
+                .find("young_modulus"),
+            std::string::npos);
+  EXPECT_NE(plan_error(R"({"image": "ct.mhd"})").find("surfaces"), std::string::npos);
+  EXPECT_NE(plan_error("{\n" + surfaces + ",\n \"skin_prestrain\": 2}").find("plan.json:3"),
+            std::string::npos)
+      << "the line of the key";
+  EXPECT_NE(plan_error("{ nope").find("not valid JSON"), std::string::npos);
+}
+
+TEST(Plan, RunsFromSurfacesToAPrediction) {
+  const std::filesystem::path dir =
+      write_head(std::filesystem::temp_directory_path() / "incise_plan_test");
+  const std::string text = R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
+    "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
+    "skin_prestrain": 0.05, "volume_weight": 10000,
+    "osteotomies": [{"point": [0, 0, 10], "normal": [0, 0, 1]}],
+    "moves": [{"segment_near": [0, 0, 50], "translate": [0, 0, 3]}],
+    "instruments": [{"near": [50, 0, 0], "radius": 6, "translate": [-1, 0, 0]}],
+    "cuts": [{"point": [0, -50, 0], "normal": [1, 0, 0], "radius": 12}]
+  })";
+  { std::ofstream(dir / "plan.json") << text; }
+  const PlanDescription plan = load_plan(dir / "plan.json");
+  const PlanSummary summary = run_plan(plan, dir / "out");
+  EXPECT_TRUE(summary.prediction.converged) << summary.prediction.message;
+  EXPECT_EQ(summary.segments, 2);
+  EXPECT_EQ(summary.moved_segments, 1);
+  EXPECT_GT(summary.max_displacement, 1.0);  // mm: the skin over the lifted cap follows
+  EXPECT_LT(summary.max_displacement, 3.5);
+  for (const char* name : {"skin_before.vtp", "skin_after.vtp", "bone_before.vtp", "bone_after.vtp",
+                           "tissue.vtu", "report.json"}) {
+    EXPECT_TRUE(std::filesystem::exists(dir / "out" / name)) << name;
+  }
+  const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "out" / "report.json"));
+  for (const char* key :
+       {"units", "points", "springs", "prisms", "layers", "skin_triangles_full", "skin_triangles",
+        "bone_triangles_full", "bone_triangles", "hausdorff_skin", "hausdorff_bone", "segments",
+        "residual_force_before", "residual_force_after", "iterations", "seconds",
+        "max_displacement", "gap"}) {
+    EXPECT_TRUE(report.contains(key)) << key;
+  }
+  EXPECT_EQ(report["units"]["length"], "mm");
+  EXPECT_GT(report["gap"]["max"].get<double>(), 0.0) << "the pre-strained skin opens the cut";
+  EXPECT_GT(report["instrument_points"].get<int>(), 0);
+  // Pushing the cap into the rest of the skull is refused, naming the segments.
+  std::string pushed = text;
+  pushed.replace(pushed.find("[0, 0, 3]"), 9, "[0, 0, -6]");
+  { std::ofstream(dir / "pushed.json") << pushed; }
+  try {
+    (void)run_plan(load_plan(dir / "pushed.json"), dir / "out_pushed");
+    ADD_FAILURE() << "interpenetrating segments were accepted";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("interpenetrate"), std::string::npos);
+    EXPECT_NE(std::string(error.what()).find("mm deep"), std::string::npos);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
