@@ -17,7 +17,9 @@ std::vector<std::filesystem::path> example_scenes() {
   std::vector<std::filesystem::path> scenes;
   for (const auto& entry :
        std::filesystem::directory_iterator(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes")) {
-    if (entry.path().extension() == ".json") {
+    // plan_*.json are surgical plans, not scenes.
+    if (entry.path().extension() == ".json" &&
+        !entry.path().filename().string().starts_with("plan_")) {
       scenes.push_back(entry.path());
     }
   }

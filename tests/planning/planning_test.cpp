@@ -478,6 +478,20 @@ TEST(Plan, MalformedPlansNameTheKey) {
   EXPECT_NE(plan_error("{ nope").find("not valid JSON"), std::string::npos);
 }
 
+TEST(Plan, EveryExamplePlanParsesAndNamesExistingSurfaces) {
+  int plans = 0;
+  for (const auto& entry :
+       std::filesystem::directory_iterator(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes")) {
+    if (entry.path().filename().string().starts_with("plan_")) {
+      const PlanDescription plan = load_plan(entry.path());
+      EXPECT_TRUE(std::filesystem::exists(plan.skin)) << plan.skin;
+      EXPECT_TRUE(std::filesystem::exists(plan.bone)) << plan.bone;
+      ++plans;
+    }
+  }
+  EXPECT_GE(plans, 1);
+}
+
 TEST(Plan, RunsFromSurfacesToAPrediction) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_test");
