@@ -44,7 +44,10 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
   TissueEnergy energy(tissue, gravity);
   energy.forces(x, f);
   report.residual_before = largest_soft_force(tissue, f);
-  // Soft points are the rows; every spring but the skin layer's is an unknown.
+  // Soft points are the rows; every spring is an unknown. The skin's too: on an irregular
+  // triangulation a uniform pre-strain leaves in-plane forces that only in-plane springs can
+  // balance (through the nearly radial springs below it would take huge changes); their mean
+  // pre-strain stays close to the given one (reported).
   std::vector<int> row(n, -1);
   int rows = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -59,11 +62,6 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
                   x[static_cast<std::size_t>(tissue.springs[s].b)])
                      .norm();
   }
-  // Every spring is an unknown. The skin's too: on an irregular triangulation a uniform
-  // pre-strain leaves in-plane forces that only in-plane springs can balance (through the
-  // nearly radial springs below it would take huge changes); their mean pre-strain stays
-  // close to the given one (reported).
-  auto is_unknown = [&](const Spring&) { return true; };
   const std::vector<double> original = [&] {
     std::vector<double> lengths;
     for (const Spring& s : tissue.springs) {
@@ -72,8 +70,8 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
     return lengths;
   }();
   DirectFactorization factorization;  // CHOLMOD where built with it; the pattern is kept
+  // f holds the forces at the current rest lengths throughout.
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
-    energy.forces(x, f);
     report.residual_after = largest_soft_force(tissue, f);
     if (report.residual_after <= tolerance || rows == 0) {
       break;
@@ -87,7 +85,7 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
     double largest_diagonal = 0.0;
     for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
       const Spring& spring = tissue.springs[s];
-      if (!is_unknown(spring) || !(scanned[s] > 0.0)) {
+      if (!(scanned[s] > 0.0)) {
         continue;
       }
       const auto a = static_cast<std::size_t>(spring.a);
@@ -164,8 +162,8 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
       }
     }
     report.iterations = iteration + 1;
+    energy.forces(x, f);
   }
-  energy.forces(x, f);
   report.residual_after = largest_soft_force(tissue, f);
   for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
     report.largest_relative_change =

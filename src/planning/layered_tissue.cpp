@@ -194,11 +194,13 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
   // fifteenth of its volume to each of its 15 springs (6 layer, 3 connecting, 6 diagonal), so
   // the springs share the body's volume (a spring stretched by e stores E V_s e^2 / 2). Point
   // masses: a sixth of each prism's mass.
+  auto material_of = [&](int layer) -> const LayerMaterial& {
+    return options.materials.size() == 1 ? options.materials[0]
+                                         : options.materials[static_cast<std::size_t>(layer)];
+  };
   std::vector<double> spring_volume(tissue.springs.size(), 0.0);
   for (const Prism& prism : tissue.prisms) {
-    const LayerMaterial& material = options.materials.size() == 1
-                                        ? options.materials[0]
-                                        : options.materials[static_cast<std::size_t>(prism.layer)];
+    const LayerMaterial& material = material_of(prism.layer);
     const double volume = std::abs(prism.rest_volume);
     for (int i = 0; i < 6; ++i) {
       tissue.mass[static_cast<std::size_t>(prism.points[static_cast<std::size_t>(i)])] +=
@@ -229,9 +231,7 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
   }
   for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
     Spring& spring = tissue.springs[s];
-    const LayerMaterial& material = options.materials.size() == 1
-                                        ? options.materials[0]
-                                        : options.materials[static_cast<std::size_t>(spring.layer)];
+    const LayerMaterial& material = material_of(spring.layer);
     const double length = std::max(spring.rest_length, options.min_thickness / layers);
     spring.stiffness = material.young_modulus * spring_volume[s] / (length * length);
     if (spring.set == SpringSet::kLayer && spring.layer == 0) {
