@@ -9,8 +9,9 @@ packages=(
   build-essential clang cmake ninja-build pkg-config clang-format
   # core numerics and parallel loops; sparse direct solves (CHOLMOD) with an optimised BLAS
   libeigen3-dev libtbb-dev libsuitesparse-dev libopenblas0-pthread
-  # planning: L-BFGS minimisation
-  liblbfgs-dev
+  # planning: L-BFGS minimisation; CT volumes (MetaImage, DICOM through GDCM) read by ITK;
+  # pydicom writes the DICOM series the imaging tests read
+  liblbfgs-dev libinsighttoolkit5-dev python3-pydicom
   # robust geometry (CGAL is header-only in 5.x; GMP/MPFR back its exact kernel)
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev
   # tetrahedral meshing (TetGen's library)

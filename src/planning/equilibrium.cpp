@@ -11,6 +11,7 @@
 #include "incise/core/error.hpp"
 #include "incise/planning/tissue_energy.hpp"
 #include "incise/solve/direct_factorization.hpp"
+#include "point_block_matrix.hpp"
 
 namespace incise::planning {
 
@@ -19,8 +20,9 @@ namespace {
 /// The shortest rest length the initialisation may give a spring, relative to its length.
 constexpr double kShortest = 0.05;
 constexpr const char* kSetNames[] = {"layer", "connecting", "diagonal"};
-/// Relative Levenberg-Marquardt damping of the Gauss-Newton steps.
+/// Relative Levenberg-Marquardt damping of the first Gauss-Newton step, and the least.
 constexpr double kDamping = 1e-3;
+constexpr double kLeastDamping = 1e-9;
 
 double largest_soft_force(const LayeredTissue& tissue, std::span<const Vec3> f) {
   double largest = 0.0;
@@ -69,19 +71,36 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
     }
     return lengths;
   }();
+  // B L^2 B^T has a fixed pattern: built once, refilled in place each iteration.
+  std::vector<std::pair<int, int>> pairs;
+  pairs.reserve(tissue.springs.size());
+  for (const Spring& spring : tissue.springs) {
+    pairs.emplace_back(spring.a, spring.b);
+  }
+  PointBlockMatrix system(row, rows, pairs);
   DirectFactorization factorization;  // CHOLMOD where built with it; the pattern is kept
+  // Levenberg-Marquardt damping, relative to each row's diagonal: a point whose springs are
+  // nearly coplanar (an oblique column in a concave fold) cannot be balanced across their plane
+  // without huge changes; damping leaves it a residual at first. It shrinks tenfold per step
+  // that reduces the residual (and grows back otherwise), so the steps end as Gauss-Newton's.
+  double damping = kDamping;
+  double previous_residual = report.residual_before;
   // f holds the forces at the current rest lengths throughout.
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     report.residual_after = largest_soft_force(tissue, f);
     if (report.residual_after <= tolerance || rows == 0) {
       break;
     }
+    if (iteration > 0) {
+      damping = report.residual_after < previous_residual ? std::max(damping * 0.1, kLeastDamping)
+                                                          : std::min(damping * 10.0, 1.0);
+    }
+    previous_residual = report.residual_after;
     // df/dl0 of spring s: -t u at a, +t u at b (t = d tension / d rest length, u from b to a).
     // Minimal relative change: dl0 = L^2 B^T y with (B L^2 B^T) y = -f.
-    std::vector<Eigen::Triplet<double>> triplets;
-    triplets.reserve(tissue.springs.size() * 36);
     std::vector<double> t(tissue.springs.size(), 0.0);
     std::vector<Vec3> u(tissue.springs.size(), Vec3::Zero());
+    system.clear();
     double largest_diagonal = 0.0;
     for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
       const Spring& spring = tissue.springs[s];
@@ -95,38 +114,18 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
       const double w = t[s] * t[s] * spring.rest_length * spring.rest_length;
       const Mat3 block = w * u[s] * u[s].transpose();
       largest_diagonal = std::max(largest_diagonal, w);
-      const int ends[2] = {row[a], row[b]};
-      const double signs[2] = {-1.0, 1.0};
-      for (int i = 0; i < 2; ++i) {
-        for (int j = 0; j < 2; ++j) {
-          if (ends[i] < 0 || ends[j] < 0) {
-            continue;
-          }
-          const double sign = signs[i] * signs[j];
-          for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 3; ++c) {
-              triplets.emplace_back(ends[i] + r, ends[j] + c, sign * block(r, c));
-            }
-          }
-        }
-      }
+      system.add_diagonal(spring.a, block);
+      system.add_diagonal(spring.b, block);
+      system.add_coupling(s, -block);
     }
-    DirectFactorization::SparseMatrix matrix(rows, rows);
-    matrix.setFromTriplets(triplets.begin(), triplets.end());
-    // Levenberg-Marquardt damping, scaled by each row's diagonal: a point whose springs are
-    // nearly coplanar (an oblique column in a concave fold) cannot be balanced across their
-    // plane without huge changes; damping leaves it a residual instead, and the next
-    // iterations reduce it as far as the springs allow.
-    for (int r = 0; r < rows; ++r) {
-      matrix.coeffRef(r, r) += kDamping * matrix.coeff(r, r) + 1e-12 * largest_diagonal;
-    }
+    system.damp_diagonal(damping, 1e-12 * largest_diagonal);
     Eigen::VectorXd rhs(rows);
     for (std::size_t i = 0; i < n; ++i) {
       if (row[i] >= 0) {
         rhs.segment<3>(row[i]) = -f[i];
       }
     }
-    if (!factorization.factorize(matrix)) {
+    if (!factorization.factorize(system.matrix())) {
       throw InputError("equilibrium initialisation: the spring system could not be factorised");
     }
     const Eigen::VectorXd y = factorization.solve(rhs);

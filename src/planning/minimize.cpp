@@ -19,11 +19,22 @@ Minimizer parse_minimizer(const std::string& name) {
   if (name == "lbfgs") {
     return Minimizer::kLbfgs;
   }
-  throw InputError("unknown minimiser '" + name + "' (known: cg, lbfgs)");
+  if (name == "newton") {
+    return Minimizer::kNewton;
+  }
+  throw InputError("unknown minimiser '" + name + "' (known: newton, lbfgs, cg)");
 }
 
 std::string to_string(Minimizer minimizer) {
-  return minimizer == Minimizer::kNonlinearCG ? "cg" : "lbfgs";
+  switch (minimizer) {
+    case Minimizer::kNonlinearCG:
+      return "cg";
+    case Minimizer::kLbfgs:
+      return "lbfgs";
+    case Minimizer::kNewton:
+      return "newton";
+  }
+  return "?";
 }
 
 namespace {
@@ -373,6 +384,9 @@ MinimizeResult minimize(const Objective& objective, std::span<Vec3> x, std::span
                         const MinimizeOptions& options, const MinimizeProgress& progress) {
   if (x.size() != free.size()) {
     throw InputError("minimize: positions and free flags differ in size");
+  }
+  if (options.method == Minimizer::kNewton) {
+    throw InputError("minimize: Newton's method needs the tissue's Hessian (minimize_newton)");
   }
   MinimizeResult result;
   const auto start = Clock::now();

@@ -69,24 +69,68 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
                 std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(byte), '\n'));
     context.fail_line(line, std::string("not valid JSON: ") + error.what());
   }
-  const ObjectReader top(
-      context, root, "",
-      {"description",      "image",       "iso",           "surfaces",       "decimation",
-       "skin_edge_length", "layers",      "materials",     "skin_prestrain", "nonlinear",
-       "volume_weight",    "gravity",     "max_thickness", "min_thickness",  "max_edge",
-       "equilibrium",      "osteotomies", "moves",         "instruments",    "cuts",
-       "method",           "solver"});
+  const ObjectReader top(context, root, "",
+                         {"description",
+                          "image",
+                          "iso",
+                          "isosurface",
+                          "surfaces",
+                          "decimation",
+                          "skin_edge_length",
+                          "layers",
+                          "materials",
+                          "skin_prestrain",
+                          "nonlinear",
+                          "volume_weight",
+                          "gravity",
+                          "max_thickness",
+                          "min_thickness",
+                          "max_edge",
+                          "equilibrium",
+                          "osteotomies",
+                          "moves",
+                          "instruments",
+                          "cuts",
+                          "method",
+                          "solver"});
   PlanDescription plan;
   plan.file = file;
-  if (top.has("image") || top.has("iso")) {
-    context.fail(top.has("image") ? "image" : "iso",
-                 "reading CT images is not part of this build yet: give 'surfaces' "
-                 "({\"skin\": FILE, \"bone\": FILE})");
+  if (top.has("image") == top.has("surfaces")) {
+    context.fail(top.has("image") ? "image" : "surfaces",
+                 top.has("image")
+                     ? "give either 'image' or 'surfaces', not both"
+                     : "one of 'image' (a CT: .mhd, .mha, DICOM file or folder, with 'iso') or "
+                       "'surfaces' ({\"skin\": FILE, \"bone\": FILE}, millimetres) is required");
   }
-  if (!top.has("surfaces")) {
-    context.fail("surfaces", "is required: {\"skin\": FILE, \"bone\": FILE} (millimetres)");
-  }
-  {
+  if (top.has("image")) {
+    plan.image = json::resolve(context, top.string("image", ""));
+    if (!top.has("iso")) {
+      context.fail("iso", "is required with 'image': {\"skin\": S, \"bone\": B} in image values");
+    }
+    const ObjectReader iso(context, top.at("iso"), "iso", {"skin", "bone"});
+    if (!iso.has("skin") || !iso.has("bone")) {
+      context.fail("iso", "needs both 'skin' and 'bone' (image values, e.g. Hounsfield units)");
+    }
+    plan.skin_iso = iso.number("skin", 0.0);
+    plan.bone_iso = iso.number("bone", 0.0);
+    if (!(plan.bone_iso > plan.skin_iso)) {
+      context.fail("iso.bone", "must exceed iso.skin (bone is denser than soft tissue)");
+    }
+    if (top.has("isosurface")) {
+      const ObjectReader surface(context, top.at("isosurface"), "isosurface",
+                                 {"facet_size", "facet_distance"});
+      // mm, as the image's spacing; absent: chosen from the spacing.
+      if (surface.has("facet_size")) {
+        plan.isosurface.facet_size = surface.positive("facet_size", 1.0);
+      }
+      if (surface.has("facet_distance")) {
+        plan.isosurface.facet_distance = surface.positive("facet_distance", 1.0);
+      }
+    }
+  } else {
+    if (top.has("iso") || top.has("isosurface")) {
+      context.fail(top.has("iso") ? "iso" : "isosurface", "belongs with 'image'");
+    }
     const ObjectReader surfaces(context, top.at("surfaces"), "surfaces", {"skin", "bone"});
     if (!surfaces.has("skin") || !surfaces.has("bone")) {
       context.fail("surfaces", "needs both 'skin' and 'bone'");
@@ -207,6 +251,11 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
       plan.solver.method = parse_minimizer(solver.string("type", "lbfgs"));
     } catch (const InputError& error) {
       context.fail("solver.type", error.what());
+    }
+    if (plan.solver.method == Minimizer::kNewton && plan.method == PredictionMethod::kForce) {
+      context.fail("solver.type",
+                   "'newton' minimises the energy: use it with method 'energy', or give the "
+                   "force method 'lbfgs' or 'cg'");
     }
     plan.relative_tolerance = solver.positive("tolerance", plan.relative_tolerance);
     plan.solver.max_iterations =

@@ -9,9 +9,11 @@
 #include <nlohmann/json.hpp>
 
 #include "incise/core/error.hpp"
+#include "incise/imaging/read_volume.hpp"
 #include "incise/meshing/tetrahedralize.hpp"
 #include "incise/planning/decimate.hpp"
 #include "incise/planning/equilibrium.hpp"
+#include "incise/planning/newton.hpp"
 #include "incise/planning/plan.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/planning/tissue_energy.hpp"
@@ -28,8 +30,7 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-SurfaceMesh read_in_metres(const std::filesystem::path& path) {
-  SurfaceMesh surface = read_surface(path);
+SurfaceMesh in_metres(SurfaceMesh surface) {
   for (Vec3& p : surface.points) {
     p *= kMillimetre;
   }
@@ -43,9 +44,8 @@ struct PreparedSurface {
   double hausdorff_from_input = 0.0;
 };
 
-PreparedSurface prepare(const std::filesystem::path& path, const std::optional<double>& max_error) {
+PreparedSurface prepare(const SurfaceMesh& input, const std::optional<double>& max_error) {
   PreparedSurface prepared;
-  const SurfaceMesh input = read_in_metres(path);
   if (max_error) {
     DecimationResult decimated = decimate_surface(input, *max_error);
     prepared.triangles_full = decimated.triangles_before;
@@ -87,10 +87,44 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
                      {"young_modulus", "Pa"}, {"density", "kg/m^3"},  {"mass", "kg"},
                      {"gravity", "m/s^2"},    {"time", "s"}};
 
-  // Surfaces.
-  report_progress("reading and decimating surfaces", 0.0);
+  // Surfaces: read, or extracted from the CT.
   auto stage = Clock::now();
-  PreparedSurface skin = prepare(plan.skin, plan.decimation_max_error);
+  SurfaceMesh skin_input;
+  SurfaceMesh bone_input;
+  if (!plan.image.empty()) {
+    report_progress("reading the CT volume", 0.0);
+    const imaging::VolumeImage image = imaging::read_volume(plan.image);
+    seconds["image"] = seconds_since(stage);
+    report_progress("extracting skin and bone isosurfaces", 0.02);
+    stage = Clock::now();
+    imaging::Isosurface skin_surface = imaging::extract_isosurface(
+        image, plan.skin_iso, plan.isosurface, plan.file.string() + ": plan key 'iso.skin'");
+    imaging::Isosurface bone_surface = imaging::extract_isosurface(
+        image, plan.bone_iso, plan.isosurface, plan.file.string() + ": plan key 'iso.bone'");
+    seconds["isosurface"] = seconds_since(stage);
+    const auto [low, high] = imaging::value_range(image);
+    report["image"] = {
+        {"file", plan.image.string()},
+        {"read", image.description},
+        {"size", image.size},
+        {"spacing", {image.spacing.x(), image.spacing.y(), image.spacing.z()}},
+        {"origin", {image.origin.x(), image.origin.y(), image.origin.z()}},
+        {"value_range", {low, high}},
+        {"iso", {{"skin", plan.skin_iso}, {"bone", plan.bone_iso}}},
+        {"isosurface_triangles",
+         {{"skin", skin_surface.surface.triangles.size()},
+          {"bone", bone_surface.surface.triangles.size()}}},
+        {"scan_border_triangles_left_out",
+         {{"skin", skin_surface.border_triangles}, {"bone", bone_surface.border_triangles}}}};
+    skin_input = in_metres(std::move(skin_surface.surface));
+    bone_input = in_metres(std::move(bone_surface.surface));
+  } else {
+    report_progress("reading surfaces", 0.0);
+    skin_input = in_metres(read_surface(plan.skin));
+    bone_input = in_metres(read_surface(plan.bone));
+  }
+  report_progress("decimating surfaces", 0.05);
+  PreparedSurface skin = prepare(skin_input, plan.decimation_max_error);
   report["skin_triangles_decimated"] = skin.surface.triangles.size();
   if (plan.skin_edge_length) {
     report_progress("remeshing the skin", 0.05);
@@ -102,7 +136,7 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
     }
   }
   report_progress("reading and decimating surfaces", 0.1);
-  const PreparedSurface bone = prepare(plan.bone, plan.decimation_max_error);
+  const PreparedSurface bone = prepare(bone_input, plan.decimation_max_error);
   seconds["surfaces"] = seconds_since(stage);
   report["skin_triangles_full"] = skin.triangles_full;
   report["skin_triangles"] = skin.surface.triangles.size();
@@ -263,15 +297,19 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
       return energy.force_objective(at, free, gradient);
     };
   }
+  const int report_every = options.method == Minimizer::kNewton ? 1 : 25;
+  const MinimizeProgress minimize_progress = [&](int iteration, double gradient) {
+    if (iteration % report_every == 0) {
+      const double ratio = gradient > 0.0 ? options.gradient_tolerance / gradient : 1.0;
+      // Progress by orders of magnitude of the gradient still to go.
+      const double done = std::clamp(1.0 + std::log10(std::min(ratio, 1.0)) / 8.0, 0.0, 1.0);
+      report_progress(fmt::format("predicting (iteration {})", iteration), 0.5 + 0.4 * done);
+    }
+  };
   const MinimizeResult prediction =
-      minimize(objective, x, free, options, [&](int iteration, double gradient) {
-        if (iteration % 25 == 0) {
-          const double ratio = gradient > 0.0 ? options.gradient_tolerance / gradient : 1.0;
-          // Progress by orders of magnitude of the gradient still to go.
-          const double done = std::clamp(1.0 + std::log10(std::min(ratio, 1.0)) / 8.0, 0.0, 1.0);
-          report_progress(fmt::format("predicting (iteration {})", iteration), 0.5 + 0.4 * done);
-        }
-      });
+      options.method == Minimizer::kNewton
+          ? minimize_newton(energy, x, free, options, minimize_progress)
+          : minimize(objective, x, free, options, minimize_progress);
   seconds["predict"] = seconds_since(stage);
   for (const Vec3& p : x) {
     if (!p.allFinite()) {

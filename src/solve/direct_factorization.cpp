@@ -20,7 +20,13 @@ struct DirectFactorization::Backends {
   bool using_cholmod = false;
 };
 
-DirectFactorization::DirectFactorization() : backends_(std::make_unique<Backends>()) {}
+DirectFactorization::DirectFactorization() : backends_(std::make_unique<Backends>()) {
+#ifdef INCISE_HAVE_CHOLMOD
+  // A matrix that is not positive definite is an answer here (the caller falls back), not a
+  // warning for the terminal.
+  backends_->cholmod.cholmod().print = 0;
+#endif
+}
 DirectFactorization::~DirectFactorization() = default;
 
 void DirectFactorization::reset_pattern() {
@@ -52,6 +58,27 @@ bool DirectFactorization::factorize(const SparseMatrix& matrix) {
   }
   b.ldlt.factorize(matrix);
   return b.ldlt.info() == Eigen::Success;
+}
+
+bool DirectFactorization::factorize_positive_definite(const SparseMatrix& matrix) {
+  Backends& b = *backends_;
+#ifdef INCISE_HAVE_CHOLMOD
+  if (!b.cholmod_analyzed) {
+    b.cholmod.analyzePattern(matrix);
+    b.cholmod_analyzed = true;
+  }
+  b.cholmod.factorize(matrix);
+  b.using_cholmod = b.cholmod.info() == Eigen::Success;
+  return b.using_cholmod;
+#else
+  b.using_cholmod = false;
+  if (!b.ldlt_analyzed) {
+    b.ldlt.analyzePattern(matrix);
+    b.ldlt_analyzed = true;
+  }
+  b.ldlt.factorize(matrix);
+  return b.ldlt.info() == Eigen::Success && b.ldlt.vectorD().minCoeff() > 0.0;
+#endif
 }
 
 Eigen::VectorXd DirectFactorization::solve(const Eigen::VectorXd& rhs) const {

@@ -16,6 +16,7 @@
 #include "incise/planning/equilibrium.hpp"
 #include "incise/planning/layered_tissue.hpp"
 #include "incise/planning/minimize.hpp"
+#include "incise/planning/newton.hpp"
 #include "incise/planning/osteotomy.hpp"
 #include "incise/planning/plan.hpp"
 #include "incise/planning/prism.hpp"
@@ -271,6 +272,10 @@ struct Balanced {
     MinimizeOptions o;
     o.method = method;
     o.gradient_tolerance = 1e-4 * largest_weight(tissue, 9.81);
+    if (method == Minimizer::kNewton) {
+      result = minimize_newton(energy, x, free_points(tissue), o);
+      return x;
+    }
     result =
         minimize([&](std::span<const Vec3> at, std::span<Vec3> g) { return energy.energy(at, g); },
                  x, free_points(tissue), o);
@@ -289,7 +294,7 @@ TEST(Prediction, NoMoveNoDisplacementAndTranslationIsRigid) {
   }
   RigidMove translate;
   translate.translation = Vec3(0.002, -0.001, 0.003);  // m
-  for (Minimizer method : {Minimizer::kLbfgs, Minimizer::kNonlinearCG}) {
+  for (Minimizer method : {Minimizer::kLbfgs, Minimizer::kNonlinearCG, Minimizer::kNewton}) {
     const std::vector<Vec3> moved = model.predict(translate, method, result, model.gravity);
     EXPECT_TRUE(result.converged) << to_string(method) << ": " << result.message;
     EXPECT_TRUE(result.monotone);
@@ -324,15 +329,23 @@ TEST(Prediction, EnergyDecreasesMonotonicallyAndBothMinimisersAgree) {
   push.translation = Vec3(0, 0, 0.003);
   MinimizeResult lbfgs;
   MinimizeResult cg;
+  MinimizeResult newton;
   const std::vector<Vec3> a = model.predict(push, Minimizer::kLbfgs, lbfgs, model.gravity);
   const std::vector<Vec3> b = model.predict(push, Minimizer::kNonlinearCG, cg, model.gravity);
+  const std::vector<Vec3> c = model.predict(push, Minimizer::kNewton, newton, model.gravity);
   EXPECT_TRUE(lbfgs.converged);
   EXPECT_TRUE(cg.converged);
+  EXPECT_TRUE(newton.converged) << newton.message;
   EXPECT_TRUE(lbfgs.monotone);
   EXPECT_TRUE(cg.monotone);
+  EXPECT_TRUE(newton.monotone);
   EXPECT_LT(lbfgs.final_value, lbfgs.initial_value);
+  EXPECT_LT(newton.final_value, newton.initial_value);
+  // Newton needs tens of factorisations where the gradient methods take hundreds of steps.
+  EXPECT_LT(newton.iterations, lbfgs.iterations);
   for (std::size_t i = 0; i < a.size(); ++i) {
     EXPECT_LT((a[i] - b[i]).norm(), 1e-6) << i;  // a micrometre
+    EXPECT_LT((a[i] - c[i]).norm(), 1e-6) << i;
   }
 }
 
@@ -459,7 +472,25 @@ TEST(Plan, MalformedPlansNameTheKey) {
   EXPECT_NE(plan_error(R"({"layers": 3})").find("surfaces"), std::string::npos);
   EXPECT_NE(plan_error("{" + surfaces + R"(, "method": "magic"})").find("energy, force"),
             std::string::npos);
-  EXPECT_NE(plan_error("{" + surfaces + R"(, "solver": {"type": "newton"}})").find("cg, lbfgs"),
+  EXPECT_NE(
+      plan_error("{" + surfaces + R"(, "solver": {"type": "bfgs"}})").find("newton, lbfgs, cg"),
+      std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "method": "force", "solver": {"type": "newton"}})")
+                .find("solver.type"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "image": "ct.mhd", "iso": {"skin": 1, "bone": 2}})")
+                .find("not both"),
+            std::string::npos);
+  EXPECT_NE(plan_error(R"({"image": "ct.mhd", "iso": {"skin": 500}})").find("'iso'"),
+            std::string::npos);
+  EXPECT_NE(
+      plan_error(R"({"image": "ct.mhd", "iso": {"skin": 500, "bone": 400}})").find("iso.bone"),
+      std::string::npos);
+  EXPECT_NE(plan_error(R"({"image": "ct.mhd", "iso": {"skin": 1, "bone": 2},
+                           "isosurface": {"facet": 2}})")
+                .find("isosurface.facet"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "iso": {"skin": 1, "bone": 2}})").find("'image'"),
             std::string::npos);
   EXPECT_NE(plan_error("{" + surfaces + R"(, "osteotomies": [{"point": [0, 0, 0]}]})")
                 .find("osteotomies[0]"),
@@ -471,7 +502,8 @@ TEST(Plan, MalformedPlansNameTheKey) {
   EXPECT_NE(plan_error("{" + surfaces + R"(, "materials": [{"young_modulus": -1}]})")
                 .find("young_modulus"),
             std::string::npos);
-  EXPECT_NE(plan_error(R"({"image": "ct.mhd"})").find("surfaces"), std::string::npos);
+  EXPECT_NE(plan_error(R"({"image": "ct.mhd"})").find("iso"), std::string::npos);
+  EXPECT_NE(plan_error(R"({"layers": 2})").find("'image'"), std::string::npos);
   EXPECT_NE(plan_error("{\n" + surfaces + ",\n \"skin_prestrain\": 2}").find("plan.json:3"),
             std::string::npos)
       << "the line of the key";
@@ -484,12 +516,17 @@ TEST(Plan, EveryExamplePlanParsesAndNamesExistingSurfaces) {
        std::filesystem::directory_iterator(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes")) {
     if (entry.path().filename().string().starts_with("plan_")) {
       const PlanDescription plan = load_plan(entry.path());
+      if (!plan.image.empty()) {
+        EXPECT_TRUE(std::filesystem::exists(plan.image)) << plan.image;
+        ++plans;
+        continue;
+      }
       EXPECT_TRUE(std::filesystem::exists(plan.skin)) << plan.skin;
       EXPECT_TRUE(std::filesystem::exists(plan.bone)) << plan.bone;
       ++plans;
     }
   }
-  EXPECT_GE(plans, 1);
+  EXPECT_GE(plans, 2);
 }
 
 TEST(Plan, RunsFromSurfacesToAPrediction) {

@@ -13,9 +13,10 @@
 
 namespace incise::planning {
 
-enum class Minimizer { kNonlinearCG, kLbfgs };
+/// kNewton (newton.hpp) minimises the tissue's energy with its Hessian; the others any Objective.
+enum class Minimizer { kNonlinearCG, kLbfgs, kNewton };
 
-/// "cg" / "lbfgs"; throws InputError naming the known ones.
+/// "cg" / "lbfgs" / "newton"; throws InputError naming the known ones.
 [[nodiscard]] Minimizer parse_minimizer(const std::string& name);
 [[nodiscard]] std::string to_string(Minimizer minimizer);
 
@@ -36,7 +37,8 @@ struct MinimizeResult {
   double final_value = 0.0;
   double initial_gradient = 0.0;  ///< largest free gradient entry at the start
   double final_gradient = 0.0;
-  bool monotone = true;  ///< every accepted iterate decreased the value
+  bool monotone = true;       ///< every accepted iterate decreased the value
+  int convexified_steps = 0;  ///< Newton: steps on the convexified Hessian (indefinite exact one)
   double seconds = 0.0;
   std::string message;  ///< why it stopped
 };

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "incise/imaging/isosurface.hpp"
 #include "incise/planning/layered_tissue.hpp"
 #include "incise/planning/minimize.hpp"
 #include "incise/planning/osteotomy.hpp"
@@ -27,7 +28,13 @@ enum class PredictionMethod { kEnergy, kForce };
 
 struct PlanDescription {
   std::filesystem::path file;  ///< the plan (outputs and messages name it)
-  std::filesystem::path skin;  ///< surface files, resolved against the plan's folder
+  /// A CT volume (MetaImage, DICOM file or folder) whose isosurfaces give skin and bone, or...
+  std::filesystem::path image;
+  double skin_iso = 0.0;  ///< image values (Hounsfield units for a DICOM CT)
+  double bone_iso = 0.0;
+  imaging::IsosurfaceOptions isosurface;  ///< mm
+  /// ...surface files (mm), resolved against the plan's folder.
+  std::filesystem::path skin;
   std::filesystem::path bone;
   std::optional<double> decimation_max_error;  ///< m
   /// m: the skin remeshed isotropically to this edge length before the model is built

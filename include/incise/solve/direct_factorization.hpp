@@ -25,6 +25,9 @@ class DirectFactorization {
   void reset_pattern();
   /// Factorises the matrix (lower triangle read); false when neither backend can.
   [[nodiscard]] bool factorize(const SparseMatrix& matrix);
+  /// Factorises the matrix only if it is positive definite (no indefinite fallback): false
+  /// otherwise, quickly, so that a caller can fall back to a convexified matrix.
+  [[nodiscard]] bool factorize_positive_definite(const SparseMatrix& matrix);
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const;
   /// "cholmod-supernodal" or "simplicial-ldlt": which backend factorised last.
   [[nodiscard]] std::string backend() const;

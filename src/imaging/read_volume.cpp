@@ -1,0 +1,214 @@
+#include "incise/imaging/read_volume.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "incise/core/error.hpp"
+
+#ifdef INCISE_HAVE_ITK
+#include <itkGDCMImageIO.h>
+#include <itkGDCMSeriesFileNames.h>
+#include <itkImage.h>
+#include <itkImageSeriesReader.h>
+#include <itkMetaImageIO.h>
+#include <metaImage.h>
+#endif
+
+namespace incise::imaging {
+
+#ifdef INCISE_HAVE_ITK
+
+namespace {
+
+using ItkVolume = itk::Image<float, 3>;
+
+// More voxels than this are refused from the header: 8 GiB of floats is beyond any CT this
+// planner is meant for, and a corrupt header must not drive an allocation.
+constexpr double kMaxVoxels = 2147483648.0;
+
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension;
+}
+
+/// Reads the header, checks what it claims, then the voxels (as float; ITK converts every
+/// element type and byte order).
+VolumeImage read_with(itk::ImageIOBase* io, const std::vector<std::string>& files,
+                      const std::filesystem::path& shown, const std::string& format) {
+  io->SetFileName(files.front());
+  io->ReadImageInformation();
+  const unsigned dimensions = io->GetNumberOfDimensions();
+  if (dimensions < 2 || dimensions > 3) {
+    throw InputError(
+        shown.string(), 0,
+        fmt::format("a {}-dimensional image; a CT volume has 3 (or 2 per slice)", dimensions));
+  }
+  if (io->GetNumberOfComponents() != 1) {
+    throw InputError(shown.string(), 0,
+                     fmt::format("voxels of {} components (colour?); a CT volume has one scalar "
+                                 "value per voxel",
+                                 io->GetNumberOfComponents()));
+  }
+  double claimed = static_cast<double>(files.size());
+  for (unsigned d = 0; d < dimensions; ++d) {
+    claimed *= static_cast<double>(io->GetDimensions(d));
+  }
+  if (!(claimed >= 1.0) || claimed > kMaxVoxels) {
+    throw InputError(shown.string(), 0,
+                     fmt::format("the header claims {:.0f} voxels (at most {:.0f} are read)",
+                                 claimed, kMaxVoxels));
+  }
+  const std::string voxel_type = itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType());
+
+  auto reader = itk::ImageSeriesReader<ItkVolume>::New();
+  reader->SetImageIO(io);
+  reader->SetFileNames(files);
+  reader->Update();
+  const ItkVolume* volume = reader->GetOutput();
+
+  VolumeImage image;
+  const auto size = volume->GetLargestPossibleRegion().GetSize();
+  for (int axis = 0; axis < 3; ++axis) {
+    image.size[static_cast<std::size_t>(axis)] = size[static_cast<unsigned>(axis)];
+    image.spacing[axis] = volume->GetSpacing()[static_cast<unsigned>(axis)];
+    image.origin[axis] = volume->GetOrigin()[static_cast<unsigned>(axis)];
+    for (int row = 0; row < 3; ++row) {
+      image.direction(row, axis) =
+          volume->GetDirection()(static_cast<unsigned>(row), static_cast<unsigned>(axis));
+    }
+  }
+  const float* values = volume->GetBufferPointer();
+  image.values.assign(values, values + image.voxel_count());
+  image.description = fmt::format("{} ({}), {} x {} x {} voxels", format, voxel_type, image.size[0],
+                                  image.size[1], image.size[2]);
+  check_volume(image, shown.string());
+  return image;
+}
+
+/// MetaIO reports raw data shorter than its header claims on stderr only and returns what it
+/// read: the sizes are checked here first, for a single raw file and for data inside the header
+/// file (LOCAL). Compressed, ASCII, LIST and slice-pattern data are left to MetaIO.
+void check_metaimage_data(itk::MetaImageIO* io, const std::filesystem::path& header) {
+  io->SetFileName(header.string());
+  io->ReadImageInformation();
+  const MetaImage* meta = io->GetMetaImagePointer();
+  if (meta->CompressedData() || !meta->BinaryData()) {
+    return;
+  }
+  double needed = static_cast<double>(io->GetComponentSize());
+  for (unsigned d = 0; d < io->GetNumberOfDimensions(); ++d) {
+    needed *= static_cast<double>(io->GetDimensions(d));
+  }
+  const std::string data = meta->ElementDataFileName();
+  std::error_code error;
+  if (data == "LOCAL") {
+    const auto size = std::filesystem::file_size(header, error);
+    if (!error && static_cast<double>(size) < needed) {
+      throw InputError(header.string(), 0,
+                       fmt::format("holds {} bytes, fewer than the {:.0f} bytes of voxels its "
+                                   "header claims",
+                                   size, needed));
+    }
+    return;
+  }
+  if (data == "LIST" || data.find('%') != std::string::npos ||
+      data.find(' ') != std::string::npos) {
+    return;
+  }
+  std::filesystem::path file(data);
+  if (file.is_relative()) {
+    file = header.parent_path() / file;
+  }
+  const auto size = std::filesystem::file_size(file, error);
+  if (error) {
+    throw InputError(header.string(), 0,
+                     fmt::format("its data file '{}' cannot be read", file.string()));
+  }
+  if (static_cast<double>(size) < needed) {
+    throw InputError(header.string(), 0,
+                     fmt::format("its data file '{}' holds {} bytes, fewer than the {:.0f} bytes "
+                                 "of voxels the header claims",
+                                 file.string(), size, needed));
+  }
+}
+
+VolumeImage read_dicom_folder(const std::filesystem::path& folder) {
+  auto names = itk::GDCMSeriesFileNames::New();
+  names->SetDirectory(folder.string());
+  const std::vector<std::string> series = names->GetSeriesUIDs();
+  if (series.empty()) {
+    throw InputError(folder.string(), 0, "the folder holds no DICOM series");
+  }
+  // Several series (a scout, a contrast phase): the one with the most slices.
+  std::vector<std::string> files;
+  for (const std::string& uid : series) {
+    std::vector<std::string> candidate = names->GetFileNames(uid);
+    if (candidate.size() > files.size()) {
+      files = std::move(candidate);
+    }
+  }
+  auto io = itk::GDCMImageIO::New();
+  return read_with(io, files, folder,
+                   fmt::format("DICOM series of {} slices ({} series in the folder)", files.size(),
+                               series.size()));
+}
+
+}  // namespace
+
+bool can_read_volumes() {
+  return true;
+}
+
+VolumeImage read_volume(const std::filesystem::path& path) {
+  std::error_code error;
+  if (!std::filesystem::exists(path, error)) {
+    throw InputError(path.string(), 0, "no such file or folder");
+  }
+  // ITK reports through exceptions; its warnings would only repeat them on stderr.
+  itk::Object::GlobalWarningDisplayOff();
+  try {
+    if (std::filesystem::is_directory(path, error)) {
+      return read_dicom_folder(path);
+    }
+    const std::string extension = lower_extension(path);
+    if (extension == ".mhd" || extension == ".mha") {
+      auto io = itk::MetaImageIO::New();
+      check_metaimage_data(io, path);
+      return read_with(io, {path.string()}, path, "MetaImage");
+    }
+    auto dicom = itk::GDCMImageIO::New();
+    if (dicom->CanReadFile(path.string().c_str())) {
+      return read_with(dicom, {path.string()}, path, "DICOM file");
+    }
+    throw InputError(path.string(), 0,
+                     "not a volume incise reads: give a MetaImage (.mhd, .mha), a DICOM file or "
+                     "a folder holding a DICOM series");
+  } catch (const itk::ExceptionObject& failure) {
+    throw InputError(path.string(), 0,
+                     std::string("cannot read the volume: ") + failure.GetDescription());
+  } catch (const std::bad_alloc&) {
+    throw InputError(path.string(), 0, "not enough memory to read the volume");
+  }
+}
+
+#else
+
+bool can_read_volumes() {
+  return false;
+}
+
+VolumeImage read_volume(const std::filesystem::path& path) {
+  throw InputError(path.string(), 0,
+                   "reading CT volumes needs ITK: rebuild with -DINCISE_WITH_ITK=ON "
+                   "(Debian: libinsighttoolkit5-dev), or give the plan 'surfaces'");
+}
+
+#endif
+
+}  // namespace incise::imaging

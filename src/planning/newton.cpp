@@ -1,0 +1,252 @@
+#include "incise/planning/newton.hpp"
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "incise/core/error.hpp"
+#include "incise/planning/prism.hpp"
+#include "incise/solve/direct_factorization.hpp"
+#include "point_block_matrix.hpp"
+
+namespace incise::planning {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// Armijo's sufficient-decrease constant and the most halvings of a step.
+constexpr double kArmijo = 1e-4;
+constexpr int kMaxHalvings = 40;
+
+double largest_free(std::span<const Vec3> g, std::span<const char> free) {
+  double largest = 0.0;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    if (free[i] != 0) {
+      largest = std::max(largest, g[i].norm());
+    }
+  }
+  return largest;
+}
+
+std::uint64_t pair_key(int a, int b) {
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(std::min(a, b))) << 32U) |
+         static_cast<std::uint32_t>(std::max(a, b));
+}
+
+/// The point pairs the Hessian couples: every spring (pair s = spring s), then the prisms'
+/// corner pairs that no spring joins (after a soft-tissue cut, say). Per prism, the pair of
+/// each of its 15 corner pairs.
+struct CouplingPattern {
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<std::size_t> prism_pairs;  ///< 15 per prism, (i, j) with i < j in row order
+};
+
+CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
+  CouplingPattern pattern;
+  std::unordered_map<std::uint64_t, std::size_t> index;
+  index.reserve(tissue.springs.size() * 2);
+  for (const Spring& spring : tissue.springs) {
+    index.emplace(pair_key(spring.a, spring.b), pattern.pairs.size());
+    pattern.pairs.emplace_back(spring.a, spring.b);
+  }
+  pattern.prism_pairs.reserve(tissue.prisms.size() * 15);
+  for (const Prism& prism : tissue.prisms) {
+    for (std::size_t i = 0; i < 6; ++i) {
+      for (std::size_t j = i + 1; j < 6; ++j) {
+        const int a = prism.points[i];
+        const int b = prism.points[j];
+        const auto [it, added] = index.emplace(pair_key(a, b), pattern.pairs.size());
+        if (added) {
+          pattern.pairs.emplace_back(a, b);
+        }
+        pattern.prism_pairs.push_back(it->second);
+      }
+    }
+  }
+  return pattern;
+}
+
+/// The Hessian of the energy over the free points, the volume term's curvature left out; with
+/// `convex`, also the transverse term of compressed springs (negative: they buckle), which makes
+/// it positive semi-definite by construction.
+void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& pattern,
+                      std::span<const Vec3> x, bool convex, PointBlockMatrix& hessian) {
+  hessian.clear();
+  for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
+    const Spring& spring = tissue.springs[s];
+    const Vec3 d = x[static_cast<std::size_t>(spring.a)] - x[static_cast<std::size_t>(spring.b)];
+    const double length = d.norm();
+    if (!(length > 0.0)) {
+      continue;
+    }
+    const Vec3 u = d / length;
+    const double along =
+        tissue.law.tension_derivative(length, spring.rest_length, spring.stiffness);
+    double across = tissue.law.tension(length, spring.rest_length, spring.stiffness) / length;
+    if (convex) {
+      across = std::max(across, 0.0);
+    }
+    const Mat3 block = (along - across) * u * u.transpose() + across * Mat3::Identity();
+    hessian.add_diagonal(spring.a, block);
+    hessian.add_diagonal(spring.b, block);
+    hessian.add_coupling(s, -block);
+  }
+  if (!(tissue.volume_weight > 0.0)) {
+    return;
+  }
+  for (std::size_t p = 0; p < tissue.prisms.size(); ++p) {
+    const Prism& prism = tissue.prisms[p];
+    if (prism.rest_volume == 0.0) {
+      continue;
+    }
+    PrismPoints corners;
+    for (std::size_t i = 0; i < 6; ++i) {
+      corners[i] = x[static_cast<std::size_t>(prism.points[i])];
+    }
+    const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
+    const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
+    for (std::size_t i = 0, k = 0; i < 6; ++i) {
+      hessian.add_diagonal(prism.points[i], weight * dv[i] * dv[i].transpose());
+      for (std::size_t j = i + 1; j < 6; ++j, ++k) {
+        const std::size_t pair = pattern.prism_pairs[p * 15 + k];
+        // The block at (first, second) of the pair as stored.
+        const bool same_order = pattern.pairs[pair].first == prism.points[i];
+        hessian.add_coupling(pair, same_order ? Mat3(weight * dv[i] * dv[j].transpose())
+                                              : Mat3(weight * dv[j] * dv[i].transpose()));
+      }
+    }
+  }
+}
+
+}  // namespace
+
+MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
+                               std::span<const char> free, const MinimizeOptions& options,
+                               const MinimizeProgress& progress) {
+  const auto start = Clock::now();
+  const LayeredTissue& tissue = energy.tissue();
+  const std::size_t n = x.size();
+  if (n != free.size() || n != tissue.point_count()) {
+    throw InputError("minimize_newton: positions, free flags and the tissue differ in size");
+  }
+  MinimizeResult result;
+  std::vector<int> row(n, -1);
+  int rows = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (free[i] != 0) {
+      row[i] = rows;
+      rows += 3;
+    }
+  }
+  std::vector<Vec3> g(n);
+  double value = energy.energy(x, g);
+  result.evaluations = 1;
+  result.initial_value = value;
+  result.initial_gradient = largest_free(g, free);
+  double gradient = result.initial_gradient;
+  if (rows == 0 || gradient <= options.gradient_tolerance) {
+    result.converged = true;
+    result.final_value = value;
+    result.final_gradient = gradient;
+    result.message = rows == 0 ? "no free points" : "converged";
+    result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    return result;
+  }
+
+  const CouplingPattern pattern = coupling_pattern(tissue);
+  PointBlockMatrix hessian(row, rows, pattern.pairs);
+  DirectFactorization factorization;  // analysed on the first step, refactorised after
+  double damping = 0.0;               // relative, grown only when a step fails
+  std::vector<Vec3> trial(x.begin(), x.end());
+  std::vector<Vec3> trial_gradient(n);
+  Eigen::VectorXd rhs(rows);
+  result.message = "iteration limit";
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (row[i] >= 0) {
+        rhs.segment<3>(row[i]) = -g[i];
+      }
+    }
+    // The exact spring Hessian where it is positive definite (fast convergence near the
+    // minimum); else its convex part, which always gives a descent direction.
+    assemble_hessian(tissue, pattern, x, false, hessian);
+    hessian.damp_diagonal(damping, 0.0);
+    bool factorized = factorization.factorize_positive_definite(hessian.matrix());
+    if (!factorized) {
+      ++result.convexified_steps;
+      assemble_hessian(tissue, pattern, x, true, hessian);
+      hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
+      factorized = factorization.factorize(hessian.matrix());
+    }
+    if (!factorized) {
+      if (damping >= 1.0) {
+        throw InputError(
+            "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
+            "(a free point held by no spring?)");
+      }
+      damping = std::max(1e-6, damping * 10.0);
+      continue;
+    }
+    const Eigen::VectorXd step = factorization.solve(rhs);
+    const double slope = -rhs.dot(step);  // g . p
+    if (!(slope < 0.0)) {
+      damping = std::max(1e-6, damping * 10.0);
+      continue;
+    }
+    // Backtracking on the energy. Near the minimum the energy's decrease falls below its
+    // rounding; a step that still reduces the gradient is then taken.
+    double alpha = 1.0;
+    bool accepted = false;
+    for (int halving = 0; halving < kMaxHalvings && !accepted; ++halving, alpha *= 0.5) {
+      for (std::size_t i = 0; i < n; ++i) {
+        if (row[i] >= 0) {
+          trial[i] = x[i] + alpha * Vec3(step.segment<3>(row[i]));
+        }
+      }
+      const double trial_value = energy.energy(trial, trial_gradient);
+      ++result.evaluations;
+      if (!std::isfinite(trial_value)) {
+        continue;
+      }
+      const bool sufficient = trial_value <= value + kArmijo * alpha * slope;
+      const bool at_rounding =
+          trial_value <= value && largest_free(trial_gradient, free) < gradient;
+      if (sufficient || at_rounding) {
+        accepted = true;
+        value = trial_value;
+        std::copy(trial.begin(), trial.end(), x.begin());
+        std::swap(g, trial_gradient);
+      }
+    }
+    if (!accepted) {
+      result.message = "line search found no decrease (the rounding floor)";
+      result.converged = gradient <= 1e3 * options.gradient_tolerance;
+      break;
+    }
+    damping *= 0.1;
+    if (damping < 1e-9) {
+      damping = 0.0;
+    }
+    result.iterations = iteration + 1;
+    gradient = largest_free(g, free);
+    if (progress) {
+      progress(result.iterations, gradient);
+    }
+    if (gradient <= options.gradient_tolerance) {
+      result.converged = true;
+      result.message = "converged";
+      break;
+    }
+  }
+  result.final_value = value;
+  result.final_gradient = gradient;
+  result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return result;
+}
+
+}  // namespace incise::planning
