@@ -10,12 +10,7 @@
 #include "incise/core/error.hpp"
 
 #ifdef INCISE_HAVE_ITK
-#include <itkGDCMImageIO.h>
-#include <itkGDCMSeriesFileNames.h>
-#include <itkImage.h>
-#include <itkImageSeriesReader.h>
-#include <itkMetaImageIO.h>
-#include <metaImage.h>
+#include "itk_headers.hpp"
 #endif
 
 namespace incise::imaging {

@@ -22,6 +22,9 @@ using Clock = std::chrono::steady_clock;
 /// Armijo's sufficient-decrease constant and the most halvings of a step.
 constexpr double kArmijo = 1e-4;
 constexpr int kMaxHalvings = 40;
+/// The first relative diagonal shift after an indefinite exact Hessian (ten times larger per
+/// further indefinite one, shrunk by 0.3 per accepted step).
+constexpr double kFirstShift = 1e-3;
 
 double largest_free(std::span<const Vec3> g, std::span<const char> free) {
   double largest = 0.0;
@@ -110,14 +113,28 @@ void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& patter
     }
     const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
     const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
+    // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form keeps the first.
+    PrismHessian block;
+    for (std::size_t i = 0; i < 6; ++i) {
+      for (std::size_t j = 0; j < 6; ++j) {
+        block.block<3, 3>(static_cast<Eigen::Index>(3 * i), static_cast<Eigen::Index>(3 * j)) =
+            weight * dv[i] * dv[j].transpose();
+      }
+    }
+    if (!convex) {
+      block +=
+          (weight * (prism_volume(corners) - prism.rest_volume)) * prism_volume_hessian(corners);
+    }
     for (std::size_t i = 0, k = 0; i < 6; ++i) {
-      hessian.add_diagonal(prism.points[i], weight * dv[i] * dv[i].transpose());
+      const auto bi = static_cast<Eigen::Index>(3 * i);
+      hessian.add_diagonal(prism.points[i], block.block<3, 3>(bi, bi));
       for (std::size_t j = i + 1; j < 6; ++j, ++k) {
+        const auto bj = static_cast<Eigen::Index>(3 * j);
         const std::size_t pair = pattern.prism_pairs[p * 15 + k];
         // The block at (first, second) of the pair as stored.
         const bool same_order = pattern.pairs[pair].first == prism.points[i];
-        hessian.add_coupling(pair, same_order ? Mat3(weight * dv[i] * dv[j].transpose())
-                                              : Mat3(weight * dv[j] * dv[i].transpose()));
+        hessian.add_coupling(
+            pair, same_order ? Mat3(block.block<3, 3>(bi, bj)) : Mat3(block.block<3, 3>(bj, bi)));
       }
     }
   }
@@ -162,6 +179,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
   PointBlockMatrix hessian(row, rows, pattern.pairs);
   DirectFactorization factorization;  // analysed on the first step, refactorised after
   double damping = 0.0;               // relative, grown only when a step fails
+  double shift = 0.0;                 // relative, after an indefinite exact Hessian
   std::vector<Vec3> trial(x.begin(), x.end());
   std::vector<Vec3> trial_gradient(n);
   Eigen::VectorXd rhs(rows);
@@ -172,11 +190,16 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
         rhs.segment<3>(row[i]) = -g[i];
       }
     }
-    // The exact spring Hessian where it is positive definite (fast convergence near the
-    // minimum); else its convex part, which always gives a descent direction.
+    // The exact Hessian, shifted by a multiple of its diagonal after indefinite ones
+    // (Levenberg-Marquardt; the shift decays as steps succeed), where it is positive definite:
+    // fast convergence near the minimum. Else its convex part, which always gives a descent
+    // direction.
     assemble_hessian(tissue, pattern, x, false, hessian);
-    hessian.damp_diagonal(damping, 0.0);
+    hessian.damp_diagonal(damping + shift, 0.0);
     bool factorized = factorization.factorize_positive_definite(hessian.matrix());
+    if (!factorized) {
+      shift = shift == 0.0 ? kFirstShift : shift * 10.0;
+    }
     if (!factorized) {
       ++result.convexified_steps;
       assemble_hessian(tissue, pattern, x, true, hessian);
@@ -231,6 +254,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     damping *= 0.1;
     if (damping < 1e-9) {
       damping = 0.0;
+    }
+    shift *= 0.3;
+    if (shift < 1e-6) {
+      shift = 0.0;
     }
     result.iterations = iteration + 1;
     gradient = largest_free(g, free);

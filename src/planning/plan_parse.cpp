@@ -244,11 +244,14 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
   } else {
     context.fail("method", "unknown method '" + method + "' (known: energy, force)");
   }
+  // Newton's method where it applies (the energy), L-BFGS for the force objective.
+  plan.solver.method =
+      plan.method == PredictionMethod::kEnergy ? Minimizer::kNewton : Minimizer::kLbfgs;
   if (top.has("solver")) {
     const ObjectReader solver(context, top.at("solver"), "solver",
                               {"type", "tolerance", "max_iterations", "memory"});
     try {
-      plan.solver.method = parse_minimizer(solver.string("type", "lbfgs"));
+      plan.solver.method = parse_minimizer(solver.string("type", to_string(plan.solver.method)));
     } catch (const InputError& error) {
       context.fail("solver.type", error.what());
     }

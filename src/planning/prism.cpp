@@ -1,5 +1,7 @@
 #include "incise/planning/prism.hpp"
 
+#include <algorithm>
+
 namespace incise::planning {
 
 namespace {
@@ -46,6 +48,27 @@ std::array<Vec3, 6> prism_volume_gradient(const PrismPoints& p) {
     g /= 12.0;
   }
   return gradient;
+}
+
+PrismHessian prism_volume_hessian(const PrismPoints& p) {
+  double size = 0.0;
+  for (std::size_t i = 1; i < 6; ++i) {
+    size = std::max(size, (p[i] - p[0]).norm());
+  }
+  const double h = size > 0.0 ? size : 1.0;
+  PrismHessian hessian;
+  for (int column = 0; column < 18; ++column) {
+    PrismPoints plus = p;
+    PrismPoints minus = p;
+    plus[static_cast<std::size_t>(column / 3)][column % 3] += h;
+    minus[static_cast<std::size_t>(column / 3)][column % 3] -= h;
+    const std::array<Vec3, 6> gp = prism_volume_gradient(plus);
+    const std::array<Vec3, 6> gm = prism_volume_gradient(minus);
+    for (std::size_t i = 0; i < 6; ++i) {
+      hessian.block<3, 1>(static_cast<Eigen::Index>(3 * i), column) = (gp[i] - gm[i]) / (2.0 * h);
+    }
+  }
+  return 0.5 * (hessian + hessian.transpose());
 }
 
 }  // namespace incise::planning

@@ -167,6 +167,37 @@ TEST(Prism, RightPrismAndGradient) {
   }
 }
 
+TEST(Prism, HessianIsExactForFiniteSteps) {
+  // The volume is cubic, so grad V(p + d) - grad V(p - d) = 2 H(p) d for any d, not only small.
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
+  PrismPoints p = {Vec3(0, 0, 0), Vec3(1, 0, 0),   Vec3(0, 1, 0),
+                   Vec3(0, 0, 1), Vec3(1, 0, 1.2), Vec3(0, 1, 0.8)};
+  for (Vec3& corner : p) {
+    corner += 0.2 * Vec3(coordinate(random), coordinate(random), coordinate(random));
+  }
+  const PrismHessian hessian = prism_volume_hessian(p);
+  EXPECT_LT((hessian - hessian.transpose()).norm(), 1e-12);
+  Eigen::Matrix<double, 18, 1> d;
+  for (int k = 0; k < 18; ++k) {
+    d[k] = 0.5 * coordinate(random);
+  }
+  PrismPoints plus = p;
+  PrismPoints minus = p;
+  for (std::size_t i = 0; i < 6; ++i) {
+    plus[i] += d.segment<3>(static_cast<Eigen::Index>(3 * i));
+    minus[i] -= d.segment<3>(static_cast<Eigen::Index>(3 * i));
+  }
+  const std::array<Vec3, 6> gp = prism_volume_gradient(plus);
+  const std::array<Vec3, 6> gm = prism_volume_gradient(minus);
+  const Eigen::Matrix<double, 18, 1> hd = hessian * d;
+  for (std::size_t i = 0; i < 6; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(gp[i][k] - gm[i][k], 2.0 * hd[static_cast<Eigen::Index>(3 * i) + k], 1e-12);
+    }
+  }
+}
+
 TEST(SpringLaw, TensionIsTheEnergysSlopeAndHookeIsTheLinearCase) {
   for (double a : {0.0, 5.0}) {
     const SpringLaw law{a};

@@ -2,12 +2,12 @@
 // Newton's method for the prediction's energy F_E + F_V + F_G (which the seed did not have):
 // each step solves H p = -g over the free points with a sparse Cholesky factorisation (CHOLMOD
 // where built with it; the pattern is analysed once), then a backtracking line search on the
-// energy. H is kept positive definite by construction: per spring the stiffness along it plus
-// the tension's transverse part only when the spring is stretched; per prism the Gauss-Newton
-// part of the volume term, kappa / |V0| (grad V)(grad V)^T (the dropped curvature term is
-// proportional to the volume change, which the volume term keeps small). Where the projection
-// costs quadratic convergence, the steps still converge fast, in tens of factorisations where
-// L-BFGS takes thousands of iterations.
+// energy. H is the exact Hessian (springs, and the volume term with its curvature: the prism
+// volume is cubic, so its Hessian comes exactly from central differences of the gradient),
+// shifted by a decaying multiple of its diagonal after an indefinite one (Levenberg-Marquardt);
+// when it is still not positive definite (compressed springs buckle), its convex form is used:
+// per spring the transverse term only when stretched, per prism the Gauss-Newton part. Near the
+// minimum the steps are exact Newton steps and converge quadratically.
 
 #include <span>
 

@@ -12,6 +12,7 @@
 // triangles (Simpson's rule, exact for the quadratic). Neighbouring prisms share their side
 // patches, so the volumes of a layer sum exactly to the volume it encloses.
 
+#include <Eigen/Core>
 #include <array>
 
 #include "incise/core/types.hpp"
@@ -26,5 +27,11 @@ using PrismPoints = std::array<Vec3, 6>;
 
 /// dV/dp_i for the six points (m^2).
 [[nodiscard]] std::array<Vec3, 6> prism_volume_gradient(const PrismPoints& p);
+
+using PrismHessian = Eigen::Matrix<double, 18, 18>;
+/// d^2 V / dp dp (m), rows and columns ordered p0.x, p0.y, p0.z, p1.x, ... The volume is cubic
+/// in the positions, so its gradient is quadratic and central differences of the gradient are
+/// exact (up to rounding) for any step: they are taken at the prism's own size.
+[[nodiscard]] PrismHessian prism_volume_hessian(const PrismPoints& p);
 
 }  // namespace incise::planning
