@@ -25,6 +25,10 @@ constexpr int kMaxHalvings = 40;
 /// The first relative diagonal shift after an indefinite exact Hessian (ten times larger per
 /// further indefinite one, shrunk by 0.3 per accepted step).
 constexpr double kFirstShift = 1e-3;
+/// A lagged factorisation's conjugate gradients: at most this many, to this relative residual
+/// (an inexact Newton step: the line search and the next step correct the rest).
+constexpr int kLaggedIterations = 6;
+constexpr double kLaggedTolerance = 1e-2;
 
 double largest_free(std::span<const Vec3> g, std::span<const char> free) {
   double largest = 0.0;
@@ -140,6 +144,42 @@ void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& patter
   }
 }
 
+/// Conjugate gradients on `matrix` (lower triangle stored) preconditioned by `factor` (of an
+/// earlier, nearby matrix). False, leaving `x` unusable, on negative curvature or when the
+/// relative residual is not below kLaggedTolerance within kLaggedIterations: then the matrix
+/// has moved too far from the factorised one and is factorised itself.
+bool lagged_solve(const DirectFactorization::SparseMatrix& matrix,
+                  const DirectFactorization& factor, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  const auto a = matrix.selfadjointView<Eigen::Lower>();
+  x = factor.solve(b);
+  Eigen::VectorXd r = b - a * x;
+  const double b_norm = b.norm();
+  if (!(b_norm > 0.0)) {
+    return false;
+  }
+  Eigen::VectorXd z = factor.solve(r);
+  Eigen::VectorXd p = z;
+  double rz = r.dot(z);
+  for (int iteration = 0; iteration < kLaggedIterations; ++iteration) {
+    if (r.norm() <= kLaggedTolerance * b_norm) {
+      return x.allFinite();
+    }
+    const Eigen::VectorXd ap = a * p;
+    const double curvature = p.dot(ap);
+    if (!(curvature > 0.0)) {
+      return false;
+    }
+    const double step = rz / curvature;
+    x += step * p;
+    r -= step * ap;
+    z = factor.solve(r);
+    const double rz_next = r.dot(z);
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+  return r.norm() <= kLaggedTolerance * b_norm && x.allFinite();
+}
+
 }  // namespace
 
 MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
@@ -180,6 +220,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
   DirectFactorization factorization;  // analysed on the first step, refactorised after
   double damping = 0.0;               // relative, grown only when a step fails
   double shift = 0.0;                 // relative, after an indefinite exact Hessian
+  bool have_factor = false;
+  int non_descent_steps = 0;
+  double best_gradient = gradient;
+  int steps_since_best = 0;
   std::vector<Vec3> trial(x.begin(), x.end());
   std::vector<Vec3> trial_gradient(n);
   Eigen::VectorXd rhs(rows);
@@ -191,33 +235,50 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       }
     }
     // The exact Hessian, shifted by a multiple of its diagonal after indefinite ones
-    // (Levenberg-Marquardt; the shift decays as steps succeed), where it is positive definite:
-    // fast convergence near the minimum. Else its convex part, which always gives a descent
-    // direction.
+    // (Levenberg-Marquardt; the shift decays as steps succeed).
     assemble_hessian(tissue, pattern, x, false, hessian);
     hessian.damp_diagonal(damping + shift, 0.0);
-    bool factorized = factorization.factorize_positive_definite(hessian.matrix());
-    if (!factorized) {
-      shift = shift == 0.0 ? kFirstShift : shift * 10.0;
-    }
-    if (!factorized) {
-      ++result.convexified_steps;
-      assemble_hessian(tissue, pattern, x, true, hessian);
-      hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
-      factorized = factorization.factorize(hessian.matrix());
-    }
-    if (!factorized) {
-      if (damping >= 1.0) {
-        throw InputError(
-            "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
-            "(a free point held by no spring?)");
+    Eigen::VectorXd step;
+    // First, conjugate gradients on it preconditioned by the last factorisation: a few solves
+    // with a factor already paid for, instead of a new factorisation, while the Hessian has not
+    // moved far from the one factorised.
+    bool lagged = have_factor && lagged_solve(hessian.matrix(), factorization, rhs, step) &&
+                  rhs.dot(step) > 0.0;  // a descent direction
+    if (lagged) {
+      ++result.lagged_steps;
+    } else {
+      // A factorisation of the exact Hessian where it is positive definite: fast convergence
+      // near the minimum. Else of its convex part, which always gives a descent direction.
+      bool factorized = factorization.factorize_positive_definite(hessian.matrix());
+      if (!factorized) {
+        shift = shift == 0.0 ? kFirstShift : shift * 10.0;
+        ++result.convexified_steps;
+        assemble_hessian(tissue, pattern, x, true, hessian);
+        hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
+        factorized = factorization.factorize(hessian.matrix());
       }
-      damping = std::max(1e-6, damping * 10.0);
-      continue;
+      have_factor = factorized;
+      if (!factorized) {
+        if (damping >= 1.0) {
+          throw InputError(
+              "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
+              "(a free point held by no spring?)");
+        }
+        damping = std::max(1e-6, damping * 10.0);
+        continue;
+      }
+      ++result.factorizations;
+      step = factorization.solve(rhs);
     }
-    const Eigen::VectorXd step = factorization.solve(rhs);
     const double slope = -rhs.dot(step);  // g . p
     if (!(slope < 0.0)) {
+      // A factorised matrix that gave no descent direction (rounding in a nearly singular
+      // one): damp it more. Never more than ten times: then the gradient is at its floor.
+      if (++non_descent_steps > 10) {
+        result.message = "no descent direction (the rounding floor)";
+        result.converged = gradient <= 1e3 * options.gradient_tolerance;
+        break;
+      }
       damping = std::max(1e-6, damping * 10.0);
       continue;
     }
@@ -261,6 +322,16 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     }
     result.iterations = iteration + 1;
     gradient = largest_free(g, free);
+    // Newton halves the gradient within a few steps until rounding stops it: twenty steps
+    // without halving the best so far mean the floor.
+    if (gradient < 0.5 * best_gradient) {
+      best_gradient = gradient;
+      steps_since_best = 0;
+    } else if (++steps_since_best >= 20 && gradient > options.gradient_tolerance) {
+      result.message = "the gradient stopped decreasing (the rounding floor)";
+      result.converged = gradient <= 1e3 * options.gradient_tolerance;
+      break;
+    }
     if (progress) {
       progress(result.iterations, gradient);
     }

@@ -390,6 +390,11 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
   report["solver"] = to_string(plan.solver.method);
   report["iterations"] = prediction.iterations;
   report["evaluations"] = prediction.evaluations;
+  if (plan.solver.method == Minimizer::kNewton) {
+    report["newton"] = {{"factorizations", prediction.factorizations},
+                        {"lagged_steps", prediction.lagged_steps},
+                        {"convexified_steps", prediction.convexified_steps}};
+  }
   report["converged"] = prediction.converged;
   report["stopped"] = prediction.message;
   report["objective_monotone"] = prediction.monotone;

@@ -5,7 +5,11 @@
 #include "incise/solve/linear_solvers.hpp"
 
 #ifdef INCISE_HAVE_CHOLMOD
+#include <dlfcn.h>
+
 #include <Eigen/CholmodSupport>
+#include <cstdlib>
+#include <mutex>
 #endif
 
 namespace incise {
@@ -20,8 +24,33 @@ struct DirectFactorization::Backends {
   bool using_cholmod = false;
 };
 
+#ifdef INCISE_HAVE_CHOLMOD
+namespace {
+
+/// OpenBLAS (behind CHOLMOD's supernodal updates) starts a thread per core that spins while
+/// waiting: on a loaded 2-core machine beside incise's own TBB workers a factorisation took 10x
+/// longer (system time) than on one thread, and never less than 0.95x of it unloaded. One thread
+/// unless the user chose otherwise through OPENBLAS_NUM_THREADS; looked up at run time because
+/// the BLAS behind CHOLMOD may be another one (Debian's alternatives).
+void use_one_blas_thread_unless_chosen() {
+  static std::once_flag once;  // a process-wide library setting, made once
+  std::call_once(once, [] {
+    if (std::getenv("OPENBLAS_NUM_THREADS") != nullptr) {
+      return;
+    }
+    using SetThreads = void (*)(int);
+    if (void* symbol = dlsym(RTLD_DEFAULT, "openblas_set_num_threads")) {
+      reinterpret_cast<SetThreads>(symbol)(1);
+    }
+  });
+}
+
+}  // namespace
+#endif
+
 DirectFactorization::DirectFactorization() : backends_(std::make_unique<Backends>()) {
 #ifdef INCISE_HAVE_CHOLMOD
+  use_one_blas_thread_unless_chosen();
   // A matrix that is not positive definite is an answer here (the caller falls back), not a
   // warning for the terminal.
   backends_->cholmod.cholmod().print = 0;

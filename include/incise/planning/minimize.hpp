@@ -38,6 +38,8 @@ struct MinimizeResult {
   double initial_gradient = 0.0;  ///< largest free gradient entry at the start
   double final_gradient = 0.0;
   bool monotone = true;       ///< every accepted iterate decreased the value
+  int factorizations = 0;     ///< Newton: sparse Cholesky factorisations
+  int lagged_steps = 0;       ///< Newton: steps solved with an earlier factorisation (and CG)
   int convexified_steps = 0;  ///< Newton: steps on the convexified Hessian (indefinite exact one)
   double seconds = 0.0;
   std::string message;  ///< why it stopped
