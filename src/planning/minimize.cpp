@@ -37,10 +37,6 @@ std::string to_string(Minimizer minimizer) {
   return "?";
 }
 
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
 double largest_free(std::span<const Vec3> g, std::span<const char> free) {
   double largest = 0.0;
   for (std::size_t i = 0; i < g.size(); ++i) {
@@ -50,6 +46,10 @@ double largest_free(std::span<const Vec3> g, std::span<const char> free) {
   }
   return largest;
 }
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
 
 double free_dot(std::span<const Vec3> a, std::span<const Vec3> b, std::span<const char> free) {
   double sum = 0.0;

@@ -30,16 +30,6 @@ constexpr double kFirstShift = 1e-3;
 constexpr int kLaggedIterations = 6;
 constexpr double kLaggedTolerance = 1e-2;
 
-double largest_free(std::span<const Vec3> g, std::span<const char> free) {
-  double largest = 0.0;
-  for (std::size_t i = 0; i < g.size(); ++i) {
-    if (free[i] != 0) {
-      largest = std::max(largest, g[i].norm());
-    }
-  }
-  return largest;
-}
-
 std::uint64_t pair_key(int a, int b) {
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(std::min(a, b))) << 32U) |
          static_cast<std::uint32_t>(std::max(a, b));

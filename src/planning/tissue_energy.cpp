@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "incise/planning/minimize.hpp"
 #include "incise/planning/prism.hpp"
 
 namespace incise::planning {
@@ -144,13 +145,7 @@ double TissueEnergy::force_objective(std::span<const Vec3> x, std::span<const ch
 double TissueEnergy::largest_free_force(std::span<const Vec3> x, std::span<const char> free) const {
   std::vector<Vec3> gradient(x.size());
   (void)energy(x, gradient);
-  double largest = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    if (free[i] != 0) {
-      largest = std::max(largest, gradient[i].norm());
-    }
-  }
-  return largest;
+  return largest_free(gradient, free);
 }
 
 }  // namespace incise::planning

@@ -22,6 +22,30 @@ struct DirectFactorization::Backends {
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt;
   bool ldlt_analyzed = false;
   bool using_cholmod = false;
+
+#ifdef INCISE_HAVE_CHOLMOD
+  /// CHOLMOD's supernodal Cholesky (the pattern analysed once); false when not positive definite.
+  bool factorize_cholmod(const SparseMatrix& matrix) {
+    if (!cholmod_analyzed) {
+      cholmod.analyzePattern(matrix);
+      cholmod_analyzed = true;
+    }
+    cholmod.factorize(matrix);
+    using_cholmod = cholmod.info() == Eigen::Success;
+    return using_cholmod;
+  }
+#endif
+  /// LDL^T (the pattern analysed once): takes symmetric indefinite matrices whose pivots stay
+  /// nonzero.
+  bool factorize_ldlt(const SparseMatrix& matrix) {
+    using_cholmod = false;
+    if (!ldlt_analyzed) {
+      ldlt.analyzePattern(matrix);
+      ldlt_analyzed = true;
+    }
+    ldlt.factorize(matrix);
+    return ldlt.info() == Eigen::Success;
+  }
 };
 
 #ifdef INCISE_HAVE_CHOLMOD
@@ -66,47 +90,20 @@ void DirectFactorization::reset_pattern() {
 }
 
 bool DirectFactorization::factorize(const SparseMatrix& matrix) {
-  Backends& b = *backends_;
 #ifdef INCISE_HAVE_CHOLMOD
-  if (!b.cholmod_analyzed) {
-    b.cholmod.analyzePattern(matrix);
-    b.cholmod_analyzed = true;
-  }
-  b.cholmod.factorize(matrix);
-  if (b.cholmod.info() == Eigen::Success) {
-    b.using_cholmod = true;
+  if (backends_->factorize_cholmod(matrix)) {
     return true;
   }
 #endif
-  // Not positive definite (or no CHOLMOD): LDL^T takes symmetric indefinite matrices whose
-  // pivots stay nonzero.
-  b.using_cholmod = false;
-  if (!b.ldlt_analyzed) {
-    b.ldlt.analyzePattern(matrix);
-    b.ldlt_analyzed = true;
-  }
-  b.ldlt.factorize(matrix);
-  return b.ldlt.info() == Eigen::Success;
+  // Not positive definite (or no CHOLMOD): LDL^T.
+  return backends_->factorize_ldlt(matrix);
 }
 
 bool DirectFactorization::factorize_positive_definite(const SparseMatrix& matrix) {
-  Backends& b = *backends_;
 #ifdef INCISE_HAVE_CHOLMOD
-  if (!b.cholmod_analyzed) {
-    b.cholmod.analyzePattern(matrix);
-    b.cholmod_analyzed = true;
-  }
-  b.cholmod.factorize(matrix);
-  b.using_cholmod = b.cholmod.info() == Eigen::Success;
-  return b.using_cholmod;
+  return backends_->factorize_cholmod(matrix);
 #else
-  b.using_cholmod = false;
-  if (!b.ldlt_analyzed) {
-    b.ldlt.analyzePattern(matrix);
-    b.ldlt_analyzed = true;
-  }
-  b.ldlt.factorize(matrix);
-  return b.ldlt.info() == Eigen::Success && b.ldlt.vectorD().minCoeff() > 0.0;
+  return backends_->factorize_ldlt(matrix) && backends_->ldlt.vectorD().minCoeff() > 0.0;
 #endif
 }
 

@@ -45,6 +45,10 @@ struct MinimizeResult {
   std::string message;  ///< why it stopped
 };
 
+/// The largest Euclidean norm of a point's entry over the points marked free: the measure of
+/// convergence of every minimiser here (and the largest free force, for a force field).
+[[nodiscard]] double largest_free(std::span<const Vec3> g, std::span<const char> free);
+
 /// Value and, into `gradient` (every point; entries of fixed points are ignored), gradient.
 using Objective = std::function<double(std::span<const Vec3> x, std::span<Vec3> gradient)>;
 /// Called after each iteration with its number and the largest free gradient entry.
