@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Installs dependencies, builds with warnings as errors (g++ and clang), runs the whole test
-# suite under both, checks formatting, and proves the installed package works with
-# find_package(incise).
+# suite under g++ and again under clang with AddressSanitizer + UBSan (leaving out, by the
+# ci-clang test preset's filter, the long numeric tests that run 30-70 times slower there;
+# the g++ run has them), replays every fuzz corpus in both, runs the threaded parts (parallel
+# element loops, engine snapshots, haptic loop, device server) under ThreadSanitizer, checks
+# formatting, and proves the installed package works with find_package(incise).
 # Usage (as root on Debian 12): bash scripts/test.sh
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -22,10 +25,15 @@ export INCISE_REQUIRE_GL=1
 echo "== tests"
 ctest --preset ci
 
-echo "== the same with clang (-Werror)"
+echo "== the same with clang (-Werror), under AddressSanitizer and UBSan"
 cmake --preset ci-clang >/dev/null
 cmake --build --preset ci-clang
 ctest --preset ci-clang
+
+echo "== the threaded parts with clang under ThreadSanitizer"
+cmake --preset tsan >/dev/null
+cmake --build --preset tsan
+ctest --preset tsan
 
 echo "== installed package: find_package(incise) from a consumer project"
 prefix=$(mktemp -d)

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "incise/cut/blade.hpp"
+#include "incise/cut/blade_walk.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/tet_mesh.hpp"
@@ -45,21 +46,9 @@ inline const std::vector<std::string>& data_meshes() {
   return all;
 }
 
-/// A vertical blade (from `margin` of the z-extent below the body to as far above it) swept
-/// along x at `y_fraction` of the y-extent, from `margin` of the x-extent before the body to
-/// `end_fraction` of its x-extent, in `poses` moves `dt` s apart.
 inline std::vector<BladePose> sweep_along_x(const Box& box, double y_fraction, double end_fraction,
                                             int poses, double margin = 0.1, double dt = 0.01) {
-  const Vec3 size = box.high - box.low;
-  const double y = box.low.y() + y_fraction * size.y();
-  std::vector<BladePose> path;
-  for (int i = 0; i <= poses; ++i) {
-    const double x =
-        box.low.x() - margin * size.x() + (end_fraction + margin) * size.x() * i / poses;
-    path.push_back({dt * i, Vec3(x, y, box.low.z() - margin * size.z()),
-                    Vec3(x, y, box.high.z() + margin * size.z())});
-  }
-  return path;
+  return incise::sweep_along_x(box.low, box.high, y_fraction, end_fraction, poses, margin, dt);
 }
 
 /// Starts `cutter` at the path's first pose and moves it through the others, calling
@@ -73,38 +62,9 @@ void play(Cutter& cutter, const std::vector<BladePose>& path, AfterPose after_po
   }
 }
 
-/// A seeded random blade walk in normalised coordinates of the box: reversals, tremor, stops,
-/// leaving and re-entering the body, curves; the blade tilts as it goes.
+/// A seeded random blade walk (incise::random_blade_walk) over the box.
 inline std::vector<BladePose> random_walk(const Box& box, std::mt19937& rng, int poses) {
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::normal_distribution<double> tremor(0.0, 0.004);
-  const Vec3 size = box.high - box.low;
-  Vec3 at(unit(rng), unit(rng), 0.5);
-  double heading = 6.283 * unit(rng);
-  double turn = 0.0;
-  double tilt = 0.3 * (unit(rng) - 0.5);
-  std::vector<BladePose> path;
-  for (int i = 0; i < poses; ++i) {
-    const double event = unit(rng);
-    double step = 0.03;
-    if (event < 0.08) {
-      heading += 3.14159;  // reversal: saw back
-    } else if (event < 0.14) {
-      step = 0.0;  // stop
-    } else if (event < 0.18) {
-      at = Vec3(unit(rng), unit(rng), 0.5);  // lift out and re-enter elsewhere
-    } else if (event < 0.3) {
-      turn = 0.6 * (unit(rng) - 0.5);  // start a curve
-    }
-    heading += turn;
-    at += Vec3(step * std::cos(heading) + tremor(rng), step * std::sin(heading) + tremor(rng), 0);
-    at = at.cwiseMax(Vec3(-0.2, -0.2, 0.0)).cwiseMin(Vec3(1.2, 1.2, 1.0));
-    tilt += tremor(rng);
-    const Vec3 tip = box.low + Vec3(at.x() - tilt, at.y(), -0.1).cwiseProduct(size);
-    const Vec3 base = box.low + Vec3(at.x() + tilt, at.y() + 0.5 * tilt, 1.1).cwiseProduct(size);
-    path.push_back({0.01 * i, tip, base});
-  }
-  return path;
+  return random_blade_walk(box.low, box.high, rng, poses);
 }
 
 /// A 5 x 4 x 3 cm grid of 5 x 4 x 3 cells (5 or 6 tetrahedra each) whose interior vertices are

@@ -13,6 +13,20 @@
 
 namespace incise::test {
 
+/// Built with AddressSanitizer (the clang CI build): physics runs some 10-20 times slower, so
+/// tests that need it to keep up with the wall clock (a device streaming in real time) skip.
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+inline constexpr bool kSanitized = true;
+#else
+inline constexpr bool kSanitized = false;
+#endif
+#else
+inline constexpr bool kSanitized = false;
+#endif
+
 /// A scene that diverges: symplectic Euler at 20 times its stability limit on a small block.
 inline constexpr const char* kDivergingScene = R"({
     "mesh": {"box": {"cells": [2, 2, 2], "size": [0.01, 0.01, 0.01]}},

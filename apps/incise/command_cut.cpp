@@ -167,11 +167,7 @@ Runner add_cut_command(CLI::App& app) {
                                 {"neighbor", stats.point_neighbor},
                                 {"global", stats.point_global},
                                 {"outside", stats.point_outside}};
-      std::ofstream stream(*report_path);
-      if (!stream) {
-        throw InputError(*report_path, 0, "cannot write the report");
-      }
-      stream << json.dump(2) << "\n";
+      write_file_atomically(*report_path, json.dump(2) + "\n");
     }
     if (invalid_frames > 0) {
       std::cerr << "error: the cut left an invalid mesh " << first_problem << "\n";

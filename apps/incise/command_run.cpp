@@ -327,11 +327,7 @@ Runner add_run_command(CLI::App& app) {
                              {"written", record.written}});
       }
       report["per_frame_ms"] = per_frame;
-      std::ofstream stream(*report_path);
-      if (!stream) {
-        throw InputError(*report_path, 0, "cannot write the report");
-      }
-      stream << report.dump(2) << "\n";
+      write_file_atomically(*report_path, report.dump(2) + "\n");
     }
     if (result.diverged) {
       std::cerr << "error: " << result.divergence << "\n";

@@ -25,5 +25,6 @@ Runner add_view_command(CLI::App& app);
 Runner add_serve_command(CLI::App& app);
 Runner add_device_command(CLI::App& app);
 Runner add_plan_command(CLI::App& app);
+Runner add_soak_command(CLI::App& app);
 
 }  // namespace incise::app

@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
   add(incise::app::add_cut_command);
   add(incise::app::add_view_command);
   add(incise::app::add_plan_command);
+  add(incise::app::add_soak_command);
 #ifdef INCISE_HAVE_OPENIGTLINK
   add(incise::app::add_serve_command);
   add(incise::app::add_device_command);

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "incise/core/atomic_file.hpp"
 #include "incise/core/error.hpp"
 
 namespace incise {
@@ -122,15 +123,12 @@ std::vector<BladePose> read_blade_path(const std::filesystem::path& path) {
 }
 
 void write_blade_path(const std::filesystem::path& path, const std::vector<BladePose>& poses) {
-  std::ofstream stream(path);
-  if (!stream) {
-    throw InputError(path.string(), 0, "cannot write the blade path");
-  }
-  stream << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n";
+  std::string text = "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n";
   for (const BladePose& pose : poses) {
-    stream << fmt::format("{},{},{},{},{},{},{}\n", pose.time, pose.tip.x(), pose.tip.y(),
-                          pose.tip.z(), pose.base.x(), pose.base.y(), pose.base.z());
+    text += fmt::format("{},{},{},{},{},{},{}\n", pose.time, pose.tip.x(), pose.tip.y(),
+                        pose.tip.z(), pose.base.x(), pose.base.y(), pose.base.z());
   }
+  write_file_atomically(path, text);
 }
 
 }  // namespace incise

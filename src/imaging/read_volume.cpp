@@ -3,11 +3,14 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cstdlib>
 #include <new>
 #include <string>
 #include <vector>
 
 #include "incise/core/error.hpp"
+#include "isolated_read.hpp"
 
 #ifdef INCISE_HAVE_ITK
 #include "itk_headers.hpp"
@@ -86,6 +89,77 @@ VolumeImage read_with(itk::ImageIOBase* io, const std::vector<std::string>& file
   return image;
 }
 
+/// MetaIO's slice pattern, "name.%03d first last step" (or the name alone: slices 1 to n).
+/// Checked here because MetaIO hands the name to sprintf (a %s or %n in it would read or write
+/// memory) and divides by a step it derives from a partial list (a crash, found by fuzzing).
+void check_slice_pattern(const std::string& data, const std::filesystem::path& header) {
+  std::vector<std::string> words;
+  for (std::size_t at = 0; at < data.size();) {
+    const std::size_t start = data.find_first_not_of(" \t", at);
+    if (start == std::string::npos) {
+      break;
+    }
+    const std::size_t end = std::min(data.find_first_of(" \t", start), data.size());
+    words.push_back(data.substr(start, end - start));
+    at = end;
+  }
+  const auto fail = [&](const std::string& why) {
+    throw InputError(
+        header.string(), 0,
+        fmt::format("ElementDataFile '{}': {} (expected 'name.%03d first last step')", data, why));
+  };
+  if (words.empty()) {
+    fail("no file name");
+  }
+  // Exactly one integer conversion (%d, %3d, %03d); any other % must be %%.
+  int conversions = 0;
+  const std::string& name = words[0];
+  for (std::size_t i = 0; i < name.size(); ++i) {
+    if (name[i] != '%') {
+      continue;
+    }
+    if (i + 1 < name.size() && name[i + 1] == '%') {
+      ++i;
+      continue;
+    }
+    std::size_t j = i + 1;
+    while (j < name.size() && j - i <= 3 &&
+           std::isdigit(static_cast<unsigned char>(name[j])) != 0) {
+      ++j;
+    }
+    if (j >= name.size() || name[j] != 'd') {
+      fail("the slice pattern may hold only an integer field such as %03d");
+    }
+    ++conversions;
+    i = j;
+  }
+  if (conversions != 1) {
+    fail("the slice pattern needs exactly one integer field such as %03d");
+  }
+  if (words.size() == 1) {
+    return;
+  }
+  if (words.size() != 4) {
+    fail("give the first and last slice numbers and the step");
+  }
+  long long numbers[3] = {0, 0, 0};
+  for (int k = 0; k < 3; ++k) {
+    const std::string& word = words[static_cast<std::size_t>(k) + 1];
+    std::size_t used = 0;
+    try {
+      numbers[k] = std::stoll(word, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != word.size() || std::llabs(numbers[k]) > 1000000000LL) {
+      fail("'" + word + "' is not a slice number");
+    }
+  }
+  if (numbers[2] == 0 || (numbers[1] - numbers[0]) / numbers[2] < 0) {
+    fail("the step must be nonzero and lead from the first slice to the last");
+  }
+}
+
 /// MetaIO reports raw data shorter than its header claims on stderr only and returns what it
 /// read: the sizes are checked here first, for a single raw file and for data inside the header
 /// file (LOCAL). Compressed, ASCII, LIST and slice-pattern data are left to MetaIO.
@@ -93,9 +167,10 @@ void check_metaimage_data(itk::MetaImageIO* io, const std::filesystem::path& hea
   io->SetFileName(header.string());
   io->ReadImageInformation();
   const MetaImage* meta = io->GetMetaImagePointer();
-  if (meta->CompressedData() || !meta->BinaryData()) {
-    return;
-  }
+  // Only uncompressed binary data has a size known from the header; but a data file that does
+  // not exist is refused here whatever the encoding (ITK 5.2's MetaIO leaks a stream when it
+  // finds none).
+  const bool sized = !meta->CompressedData() && meta->BinaryData();
   double needed = static_cast<double>(io->GetComponentSize());
   for (unsigned d = 0; d < io->GetNumberOfDimensions(); ++d) {
     needed *= static_cast<double>(io->GetDimensions(d));
@@ -103,6 +178,9 @@ void check_metaimage_data(itk::MetaImageIO* io, const std::filesystem::path& hea
   const std::string data = meta->ElementDataFileName();
   std::error_code error;
   if (data == "LOCAL") {
+    if (!sized) {
+      return;
+    }
     const auto size = std::filesystem::file_size(header, error);
     if (!error && static_cast<double>(size) < needed) {
       throw InputError(header.string(), 0,
@@ -112,8 +190,11 @@ void check_metaimage_data(itk::MetaImageIO* io, const std::filesystem::path& hea
     }
     return;
   }
-  if (data == "LIST" || data.find('%') != std::string::npos ||
-      data.find(' ') != std::string::npos) {
+  if (data.find('%') != std::string::npos) {
+    check_slice_pattern(data, header);
+    return;
+  }
+  if (data.rfind("LIST", 0) == 0) {
     return;
   }
   std::filesystem::path file(data);
@@ -125,7 +206,7 @@ void check_metaimage_data(itk::MetaImageIO* io, const std::filesystem::path& hea
     throw InputError(header.string(), 0,
                      fmt::format("its data file '{}' cannot be read", file.string()));
   }
-  if (static_cast<double>(size) < needed) {
+  if (sized && static_cast<double>(size) < needed) {
     throw InputError(header.string(), 0,
                      fmt::format("its data file '{}' holds {} bytes, fewer than the {:.0f} bytes "
                                  "of voxels the header claims",
@@ -154,6 +235,31 @@ VolumeImage read_dicom_folder(const std::filesystem::path& folder) {
                                series.size()));
 }
 
+/// ITK reports through exceptions (its warnings would only repeat them on stderr): they become
+/// InputErrors naming the file, as does running out of memory.
+template <typename Read>
+VolumeImage with_itk_errors(const std::filesystem::path& path, const Read& read) {
+  itk::Object::GlobalWarningDisplayOff();
+  try {
+    return read();
+  } catch (const itk::ExceptionObject& failure) {
+    throw InputError(path.string(), 0,
+                     std::string("cannot read the volume: ") + failure.GetDescription());
+  } catch (const std::bad_alloc&) {
+    throw InputError(path.string(), 0, "not enough memory to read the volume");
+  }
+}
+
+VolumeImage read_dicom_file(const std::filesystem::path& path) {
+  auto dicom = itk::GDCMImageIO::New();
+  if (!dicom->CanReadFile(path.string().c_str())) {
+    throw InputError(path.string(), 0,
+                     "not a volume incise reads: give a MetaImage (.mhd, .mha), a DICOM file or "
+                     "a folder holding a DICOM series");
+  }
+  return read_with(dicom, {path.string()}, path, "DICOM file");
+}
+
 }  // namespace
 
 bool can_read_volumes() {
@@ -165,31 +271,23 @@ VolumeImage read_volume(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path, error)) {
     throw InputError(path.string(), 0, "no such file or folder");
   }
-  // ITK reports through exceptions; its warnings would only repeat them on stderr.
-  itk::Object::GlobalWarningDisplayOff();
-  try {
-    if (std::filesystem::is_directory(path, error)) {
-      return read_dicom_folder(path);
-    }
-    const std::string extension = lower_extension(path);
-    if (extension == ".mhd" || extension == ".mha") {
+  const std::string extension = lower_extension(path);
+  if (!std::filesystem::is_directory(path, error) && (extension == ".mhd" || extension == ".mha")) {
+    return with_itk_errors(path, [&] {
       auto io = itk::MetaImageIO::New();
       check_metaimage_data(io, path);
       return read_with(io, {path.string()}, path, "MetaImage");
-    }
-    auto dicom = itk::GDCMImageIO::New();
-    if (dicom->CanReadFile(path.string().c_str())) {
-      return read_with(dicom, {path.string()}, path, "DICOM file");
-    }
-    throw InputError(path.string(), 0,
-                     "not a volume incise reads: give a MetaImage (.mhd, .mha), a DICOM file or "
-                     "a folder holding a DICOM series");
-  } catch (const itk::ExceptionObject& failure) {
-    throw InputError(path.string(), 0,
-                     std::string("cannot read the volume: ") + failure.GetDescription());
-  } catch (const std::bad_alloc&) {
-    throw InputError(path.string(), 0, "not enough memory to read the volume");
+    });
   }
+  // DICOM goes through GDCM, whose assertions abort the process: in a child process.
+  constexpr const char* kGdcm = "GDCM (the DICOM library ITK reads through)";
+  if (std::filesystem::is_directory(path, error)) {
+    return read_in_child(
+        [&] { return with_itk_errors(path, [&] { return read_dicom_folder(path); }); }, path,
+        kGdcm);
+  }
+  return read_in_child([&] { return with_itk_errors(path, [&] { return read_dicom_file(path); }); },
+                       path, kGdcm);
 }
 
 #else

@@ -1,3 +1,5 @@
+#include <fmt/format.h>
+
 #include <limits>
 
 #include "readers.hpp"
@@ -7,6 +9,14 @@ namespace incise::io_detail {
 void MeshBuilder::add_point(long long tag, const Vec3& point) {
   if (!point.allFinite()) {
     source_->fail("point " + std::to_string(tag) + " has a NaN or infinite coordinate");
+  }
+  // Nothing simulated is 10^30 m (or mm) across; beyond it, volumes (cubes of lengths) and
+  // squared lengths overflow to infinity and NaN, so such a point is refused here.
+  constexpr double kLargestCoordinate = 1e30;
+  if (point.cwiseAbs().maxCoeff() > kLargestCoordinate) {
+    source_->fail("point " + std::to_string(tag) + " has a coordinate of magnitude " +
+                  fmt::format("{:g}", point.cwiseAbs().maxCoeff()) + ", beyond " +
+                  fmt::format("{:g}", kLargestCoordinate));
   }
   const auto index = static_cast<VertexId>(mesh_.points.size());
   if (implicit_first_ < 0) {

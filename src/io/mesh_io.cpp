@@ -281,63 +281,6 @@ SurfaceMesh read_surface(const std::filesystem::path& path) {
 
 namespace {
 
-/// Writes to a temporary file beside the target and renames it into place, so a failed or
-/// interrupted write never leaves a truncated file (or destroys the input of a conversion).
-class AtomicFile {
- public:
-  explicit AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
-    std::random_device entropy;
-    temporary_ = path_;
-    temporary_ += fmt::format(".tmp{:08x}", entropy());
-    stream_.open(temporary_, std::ios::binary | std::ios::trunc);
-    if (!stream_) {
-      throw InputError(path_.string(), 0, "cannot open for writing");
-    }
-  }
-  AtomicFile(const AtomicFile&) = delete;
-  AtomicFile& operator=(const AtomicFile&) = delete;
-  ~AtomicFile() {
-    if (!committed_) {
-      stream_.close();
-      std::error_code ignored;
-      std::filesystem::remove(temporary_, ignored);
-    }
-  }
-  std::ofstream& stream() { return stream_; }
-  void write(std::string_view text) {
-    stream_.write(text.data(), static_cast<std::streamsize>(text.size()));
-  }
-  void commit() {
-    stream_.close();
-    if (!stream_) {
-      throw InputError(path_.string(), 0, "write failed (disk full?)");
-    }
-    std::error_code error;
-    std::filesystem::rename(temporary_, path_, error);
-    if (error) {
-      throw InputError(path_.string(), 0,
-                       "cannot move the written file into place: " + error.message());
-    }
-    committed_ = true;
-  }
-
- private:
-  std::filesystem::path path_;
-  std::filesystem::path temporary_;
-  std::ofstream stream_;
-  bool committed_ = false;
-};
-
-}  // namespace
-
-void write_file_atomically(const std::filesystem::path& path, std::string_view bytes) {
-  AtomicFile file(path);
-  file.write(bytes);
-  file.commit();
-}
-
-namespace {
-
 void check_finite_positions(const std::filesystem::path& path, std::span<const Vec3> positions) {
   for (std::size_t v = 0; v < positions.size(); ++v) {
     if (!positions[v].allFinite()) {

@@ -328,6 +328,7 @@ struct GmshReader {
         source.fail("node blocks hold more nodes than the " + std::to_string(total) + " announced");
       }
       const long long extra = parametric != 0 ? dimension : 0;
+      source.require_room(in_block, binary ? 8 : 0, "nodes in block");
       tags.resize(in_block);
       if (v41) {
         for (auto& tag : tags) {

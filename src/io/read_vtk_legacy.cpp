@@ -299,11 +299,15 @@ class VtkLegacyReader {
         source_.fail_without_line("no one-component cell array named '" + label_array_ +
                                   "' for region labels");
       }
-      for (double label : labels) {
-        if (std::abs(label) > 2e9 || label != std::floor(label)) {
-          source_.fail_without_line("region label " + std::to_string(label) + " in '" +
-                                    label_array_ + "' is not a whole number");
+    }
+    for (double label : labels) {
+      if (std::abs(label) > 2e9 || label != std::floor(label)) {
+        if (label_array_.empty()) {
+          builder_.skip("region labels that are not whole numbers (tetrahedra left unlabelled)");
+          return {};
         }
+        source_.fail_without_line("region label " + std::to_string(label) + " in '" + label_array_ +
+                                  "' is not a whole number");
       }
     }
     return labels;
@@ -402,10 +406,8 @@ class VtkLegacyReader {
     if (type_size(type) == 0) {
       source_.fail("unknown data type '" + type + "'");
     }
+    source_.require_room(count, binary_ ? static_cast<std::size_t>(type_size(type)) : 0, what);
     std::vector<double> values(count);
-    if (binary_ && source_.remaining() < count * static_cast<std::size_t>(type_size(type))) {
-      source_.fail_without_line(std::string("file ends inside ") + what);
-    }
     for (double& value : values) {
       value = binary_ ? binary_value(type, what) : source_.real(what);
       if (!std::isfinite(value)) {
@@ -420,10 +422,8 @@ class VtkLegacyReader {
     if (type_size(type) == 0 || type == "float" || type == "double") {
       source_.fail("'" + type + "' is not an integer type for " + what);
     }
+    source_.require_room(count, binary_ ? static_cast<std::size_t>(type_size(type)) : 0, what);
     std::vector<long long> values(count);
-    if (binary_ && source_.remaining() < count * static_cast<std::size_t>(type_size(type))) {
-      source_.fail_without_line(std::string("file ends inside ") + what);
-    }
     for (long long& value : values) {
       value = binary_ ? static_cast<long long>(binary_value(type, what)) : source_.integer(what);
     }

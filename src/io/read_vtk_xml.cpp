@@ -3,6 +3,7 @@
 // pugixml parses the XML; zlib inflates. The binary layout handling is ours because neither
 // library knows VTK's block headers.
 
+#include <fmt/format.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -226,6 +227,10 @@ class VtkXmlReader {
     for (std::size_t c = 0; c < cell_count; ++c) {
       const std::size_t begin = c == 0 ? 0 : static_cast<std::size_t>(offsets[c - 1]);
       const std::size_t size = static_cast<std::size_t>(offsets[c]) - begin;
+      if (types[c] < 0.0 || types[c] > 255.0 || types[c] != std::floor(types[c])) {
+        fail_at(types_node, "cell " + std::to_string(c) + " has no VTK cell type (" +
+                                fmt::format("{}", types[c]) + ")");
+      }
       const auto type = static_cast<int>(types[c]);
       auto id = [&](std::size_t k) {
         return first_point + static_cast<long long>(connectivity[begin + k]);
@@ -301,8 +306,19 @@ class VtkXmlReader {
       }
       previous = offsets[c];
     }
+    if (previous > static_cast<double>(kMaxCount)) {
+      fail_at(offsets_node, "the last offset " + fmt::format("{}", previous) + " is out of range");
+    }
     const auto connectivity_size = static_cast<std::size_t>(previous);
     std::vector<double> connectivity = values(connectivity_node, connectivity_size, "connectivity");
+    for (std::size_t i = 0; i < connectivity.size(); ++i) {
+      // Point ids become integers below; a float array may hold anything.
+      if (connectivity[i] < 0.0 || connectivity[i] > static_cast<double>(kMaxCount) ||
+          connectivity[i] != std::floor(connectivity[i])) {
+        fail_at(connectivity_node, "connectivity value " + std::to_string(i) + " (" +
+                                       fmt::format("{}", connectivity[i]) + ") is not a point id");
+      }
+    }
     return {std::move(connectivity), std::move(offsets)};
   }
 
@@ -361,6 +377,12 @@ class VtkXmlReader {
       const std::uint64_t expected = (b + 1 == blocks && last_size != 0) ? last_size : block_size;
       if (position + compressed > data.size()) {
         fail_at(node, "compressed data shorter than its header says");
+      }
+      // zlib cannot inflate beyond about 1032:1, so a header claiming more is refused before
+      // anything is allocated for it (a 1 KB file must not make us allocate 2 GB).
+      if (expected > 1032 * compressed + 64) {
+        fail_at(node, "zlib block " + std::to_string(b) + " claims " + std::to_string(expected) +
+                          " bytes from " + std::to_string(compressed) + " compressed bytes");
       }
       std::string block(expected, '\0');
       uLongf produced = static_cast<uLongf>(expected);
@@ -445,9 +467,14 @@ class VtkXmlReader {
     }
     const std::string format = node.attribute("format").as_string("ascii");
     std::vector<double> out;
-    out.reserve(count);
     if (format == "ascii") {
       Source text(source_.name(), node.text().as_string());
+      if (!Source::text_can_hold(count, text.remaining())) {
+        fail_at(node, std::string(what) + ": " + std::to_string(count) +
+                          " values needed, but the array's text holds at most " +
+                          std::to_string((text.remaining() + 1) / 2));
+      }
+      out.reserve(count);
       const bool integral = type.find("Int") != std::string::npos;
       for (std::size_t i = 0; i < count; ++i) {
         const std::string_view token = text.next_token();
@@ -487,6 +514,7 @@ class VtkXmlReader {
       fail_at(node, std::string(what) + ": " + std::to_string(payload.size() / size) +
                         " values where " + std::to_string(count) + " are needed");
     }
+    out.reserve(count);
     for (std::size_t i = 0; i < count; ++i) {
       const char* p = payload.data() + i * size;
       double value = 0.0;

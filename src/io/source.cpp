@@ -189,6 +189,20 @@ void Source::read_bytes(void* destination, std::size_t n, const char* what) {
   offset_ += n;
 }
 
+void Source::require_room(std::size_t values, std::size_t bytes_per_value, const char* what) const {
+  if (values == 0) {
+    return;
+  }
+  const std::size_t left = remaining();
+  // Counts come from a header (at most 2^31 by every reader), so the products cannot wrap.
+  const bool fits =
+      bytes_per_value == 0 ? text_can_hold(values, left) : values * bytes_per_value <= left;
+  if (!fits) {
+    fail(std::string(what) + ": " + std::to_string(values) + " values declared, but only " +
+         std::to_string(left) + " bytes are left in the file");
+  }
+}
+
 void Source::fail(const std::string& message) const {
   throw InputError(name_, line_numbers_ ? line_ : 0, message);
 }

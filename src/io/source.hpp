@@ -48,6 +48,16 @@ class Source {
   std::size_t count(const char* what, std::size_t limit);
   void expect(std::string_view keyword);
 
+  /// Refuses, before anything is sized by it, a declared count of `values` that the bytes
+  /// left cannot hold: in text each value takes a character and a separator, in binary
+  /// `bytes_per_value` (0: text). A header claiming 10^9 values in a 1 KB file fails here.
+  void require_room(std::size_t values, std::size_t bytes_per_value, const char* what) const;
+  /// Whether `bytes` of text can hold `values` whitespace-separated values (a character and a
+  /// separator each): the bound require_room applies to text.
+  static bool text_can_hold(std::size_t values, std::size_t bytes) {
+    return values == 0 || 2 * values - 1 <= bytes;
+  }
+
   /// Reads `n` raw bytes; throws if the file ends first.
   void read_bytes(void* destination, std::size_t n, const char* what);
   template <typename T>

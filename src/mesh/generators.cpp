@@ -1,9 +1,11 @@
 #include "incise/mesh/generators.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <string>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/boundary.hpp"
 
 namespace incise {
 
@@ -91,6 +93,54 @@ TetMesh make_box_grid(const BoxGridOptions& options) {
     }
   }
   return TetMesh(std::move(positions), std::move(tets));
+}
+
+TetMesh perturb_interior(const TetMesh& mesh, double fraction, std::mt19937& rng) {
+  std::vector<bool> on_boundary(mesh.vertex_count(), false);
+  for (const BoundaryFace& face : boundary_faces(mesh)) {
+    for (VertexId v : face.vertices) {
+      on_boundary[v] = true;
+    }
+  }
+  std::vector<Vec3> points(mesh.rest_positions().begin(), mesh.rest_positions().end());
+  const std::vector<Tet> tets(mesh.tets().begin(), mesh.tets().end());
+  const auto volume = [&](TetId t) {
+    const Tet& v = tets[t];
+    return signed_volume(points[v[0]], points[v[1]], points[v[2]], points[v[3]]);
+  };
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (std::size_t v = 0; v < points.size(); ++v) {
+    const auto vertex = static_cast<VertexId>(v);
+    if (on_boundary[v] || mesh.vertex_tets(vertex).empty()) {
+      continue;
+    }
+    double shortest = std::numeric_limits<double>::infinity();
+    for (TetId t : mesh.vertex_tets(vertex)) {
+      for (VertexId other : tets[t]) {
+        if (other != vertex) {
+          shortest = std::min(shortest, (points[other] - points[v]).norm());
+        }
+      }
+    }
+    // Drawn one after the other: the same mesh from the same seed with any compiler.
+    const double dx = unit(rng);
+    const double dy = unit(rng);
+    const double dz = unit(rng);
+    const Vec3 before = points[v];
+    std::vector<double> volumes_before;
+    for (TetId t : mesh.vertex_tets(vertex)) {
+      volumes_before.push_back(volume(t));
+    }
+    points[v] += fraction * shortest * Vec3(dx, dy, dz);
+    std::size_t k = 0;
+    for (TetId t : mesh.vertex_tets(vertex)) {
+      if (volume(t) < 0.2 * volumes_before[k++]) {
+        points[v] = before;
+        break;
+      }
+    }
+  }
+  return TetMesh(points, tets);
 }
 
 }  // namespace incise

@@ -1,8 +1,5 @@
 #include "incise/physics/block_sparse.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -10,6 +7,7 @@
 #endif
 
 #include "incise/core/error.hpp"
+#include "incise/core/parallel_for.hpp"
 #include "incise/mesh/vertex_graph.hpp"
 
 namespace incise {
@@ -164,17 +162,16 @@ void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::s
 
 template <typename Store>
 void BlockSparseMatrix::for_each_row_product(std::span<const Vec3> p, const Store& store) const {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows(), 512),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      Vec3 sums[512];
-                      for (std::size_t begin = range.begin(); begin < range.end(); begin += 512) {
-                        const std::size_t end = std::min(range.end(), begin + 512);
-                        multiply_rows(begin, end, p, sums);
-                        for (std::size_t i = begin; i < end; ++i) {
-                          store(i, sums[i - begin]);
-                        }
-                      }
-                    });
+  parallel_for(0, rows(), 512, [&](std::size_t first, std::size_t last) {
+    Vec3 sums[512];
+    for (std::size_t begin = first; begin < last; begin += 512) {
+      const std::size_t end = std::min(last, begin + 512);
+      multiply_rows(begin, end, p, sums);
+      for (std::size_t i = begin; i < end; ++i) {
+        store(i, sums[i - begin]);
+      }
+    }
+  });
 }
 
 void BlockSparseMatrix::multiply(std::span<const Vec3> p, std::span<Vec3> y) const {

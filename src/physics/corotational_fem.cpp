@@ -1,14 +1,12 @@
 #include "incise/physics/corotational_fem.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <bit>
 #include <chrono>
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/core/parallel_for.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/physics/lumped_mass.hpp"
 
@@ -225,27 +223,25 @@ void CorotationalFemModel::for_each_element(const Body& body) const {
       }
       continue;
     }
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(begin, end, 64),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                        for (std::size_t k = range.begin(); k != range.end(); ++k) {
-                          visit(k);
-                        }
-                      });
+    parallel_for(begin, end, 64, [&](std::size_t first, std::size_t last) {
+      for (std::size_t k = first; k != last; ++k) {
+        visit(k);
+      }
+    });
   }
 }
 
 template <typename Body>
 void CorotationalFemModel::for_each_valid_element_in_order(const Body& body) const {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh_->tet_count(), 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                        const auto tet = static_cast<TetId>(t);
-                        const FemElement& element = elements_[tet];
-                        if (element.valid) {
-                          body(tet, element);
-                        }
-                      }
-                    });
+  parallel_for(0, mesh_->tet_count(), 256, [&](std::size_t first, std::size_t last) {
+    for (std::size_t t = first; t != last; ++t) {
+      const auto tet = static_cast<TetId>(t);
+      const FemElement& element = elements_[tet];
+      if (element.valid) {
+        body(tet, element);
+      }
+    }
+  });
 }
 
 Corners CorotationalFemModel::corners(TetId tet, std::span<const Vec3> x) const {
@@ -274,49 +270,45 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
   const double beta = parameters_.rayleigh_stiffness;
   // Pass 1, elements in memory order: -w V P per element (and the tangent data).
   scaled_stress_.resize(mesh.tet_count());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.tet_count(), 256),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t t = range.begin(); t != range.end(); ++t) {
-                        const auto tet = static_cast<TetId>(t);
-                        const FemElement& element = elements_[tet];
-                        const double weight = mesh_->material_fraction(tet);
-                        if (!element.valid || weight == 0.0) {
-                          scaled_stress_[t].setZero();
-                          continue;
-                        }
-                        const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
-                        const Mat3 R = polar_rotation(F, rotations_[tet]);
-                        Mat3 P = corotated_stress(F, R, lame(tet));
-                        if (beta > 0.0) {
-                          // Stiffness-proportional damping with the element's current rotation.
-                          P += beta * warped_stress_differential(
-                                          R, lame(tet),
-                                          deformation_gradient(corners(tet, v), element.shape));
-                        }
-                        scaled_stress_[t] = (-weight * element.shape.volume) * P;
-                        if (linearize) {
-                          store_linearization(tet, F, R);
-                        }
-                      }
-                    });
+  parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
+    for (std::size_t t = first; t != last; ++t) {
+      const auto tet = static_cast<TetId>(t);
+      const FemElement& element = elements_[tet];
+      const double weight = mesh_->material_fraction(tet);
+      if (!element.valid || weight == 0.0) {
+        scaled_stress_[t].setZero();
+        continue;
+      }
+      const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
+      const Mat3 R = polar_rotation(F, rotations_[tet]);
+      Mat3 P = corotated_stress(F, R, lame(tet));
+      if (beta > 0.0) {
+        // Stiffness-proportional damping with the element's current rotation.
+        P += beta * warped_stress_differential(
+                        R, lame(tet), deformation_gradient(corners(tet, v), element.shape));
+      }
+      scaled_stress_[t] = (-weight * element.shape.volume) * P;
+      if (linearize) {
+        store_linearization(tet, F, R);
+      }
+    }
+  });
   // Pass 2, vertices: gather f_i = sum over incident elements of (-w V P) grad N_corner, in
   // a fixed order per vertex, so the sum does not depend on the thread count.
-  tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, mesh.vertex_count(), 256),
-      [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
-          Vec3 sum = Vec3::Zero();
-          for (std::size_t k = incidence_start_[i]; k < incidence_start_[i + 1]; ++k) {
-            const auto [tet, corner] = incidences_[k];
-            sum.noalias() += scaled_stress_[static_cast<std::size_t>(tet)] *
-                             elements_[tet].shape.gradients[corner];
-          }
-          f[i] += sum;
-          if (parameters_.rayleigh_mass > 0.0) {
-            f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
-          }
-        }
-      });
+  parallel_for(0, mesh.vertex_count(), 256, [&](std::size_t first, std::size_t last) {
+    for (std::size_t i = first; i != last; ++i) {
+      Vec3 sum = Vec3::Zero();
+      for (std::size_t k = incidence_start_[i]; k < incidence_start_[i + 1]; ++k) {
+        const auto [tet, corner] = incidences_[k];
+        sum.noalias() +=
+            scaled_stress_[static_cast<std::size_t>(tet)] * elements_[tet].shape.gradients[corner];
+      }
+      f[i] += sum;
+      if (parameters_.rayleigh_mass > 0.0) {
+        f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
+      }
+    }
+  });
 }
 
 void CorotationalFemModel::store_linearization(TetId tet, const Mat3& F, const Mat3& R) const {
@@ -467,12 +459,11 @@ bool CorotationalFemModel::assemble_linearization(double a, double b,
   auto out = matrix.values();
   if (assembled_) {
     const auto values = stiffness_.values();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values.size(), 4096),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                        for (std::size_t k = range.begin(); k != range.end(); ++k) {
-                          out[k] = stiffness_scale * values[k];
-                        }
-                      });
+    parallel_for(0, values.size(), 4096, [&](std::size_t first, std::size_t last) {
+      for (std::size_t k = first; k != last; ++k) {
+        out[k] = stiffness_scale * values[k];
+      }
+    });
   } else {
     const auto start = Clock::now();
     assemble_rows(out, stiffness_scale);
@@ -493,42 +484,40 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
   // block is fixed (deterministic); every element's blocks are computed once in all.
   const auto row_start = stiffness_.row_start();
   const bool warped = parameters_.tangent == TangentKind::kWarped;
-  tbb::parallel_for(
-      tbb::blocked_range<std::size_t>(0, incidence_start_.size() - 1, 128),
-      [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t row = range.begin(); row != range.end(); ++row) {
-          for (std::size_t k = row_start[row]; k < row_start[row + 1]; ++k) {
-            out[k].setZero();
-          }
-          for (std::size_t k = incidence_start_[row]; k < incidence_start_[row + 1]; ++k) {
-            const auto [tet, a] = incidences_[k];
-            const FemElement& element = elements_[tet];
-            const double weight = mesh_->material_fraction(tet);
-            if (!element.valid || weight == 0.0) {
-              continue;
-            }
-            const auto& slot = slots_[static_cast<std::size_t>(tet)];
-            if (warped) {
-              const auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
-              const double factor = scale * weight * element.shape.volume;
-              const Vec3 lambda_a = (factor * lame(tet).lambda) * rotated[a];
-              const Vec3 mu_a = (factor * lame(tet).mu) * rotated[a];
-              const Vec3& gradient_a = element.shape.gradients[a];
-              for (int b = 0; b < 4; ++b) {
-                add_warped_stiffness_block(
-                    out[slot[4 * a + b]], lambda_a, mu_a, rotated[b],
-                    factor * lame(tet).mu * gradient_a.dot(element.shape.gradients[b]));
-              }
-              continue;
-            }
-            const CorotatedLinearization& linearization = linearization_[tet];
-            for (int b = 0; b < 4; ++b) {
-              out[slot[4 * a + b]] +=
-                  stiffness_block(linearization, lame(tet), element.shape, scale * weight, a, b);
-            }
-          }
+  parallel_for(0, incidence_start_.size() - 1, 128, [&](std::size_t first, std::size_t last) {
+    for (std::size_t row = first; row != last; ++row) {
+      for (std::size_t k = row_start[row]; k < row_start[row + 1]; ++k) {
+        out[k].setZero();
+      }
+      for (std::size_t k = incidence_start_[row]; k < incidence_start_[row + 1]; ++k) {
+        const auto [tet, a] = incidences_[k];
+        const FemElement& element = elements_[tet];
+        const double weight = mesh_->material_fraction(tet);
+        if (!element.valid || weight == 0.0) {
+          continue;
         }
-      });
+        const auto& slot = slots_[static_cast<std::size_t>(tet)];
+        if (warped) {
+          const auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
+          const double factor = scale * weight * element.shape.volume;
+          const Vec3 lambda_a = (factor * lame(tet).lambda) * rotated[a];
+          const Vec3 mu_a = (factor * lame(tet).mu) * rotated[a];
+          const Vec3& gradient_a = element.shape.gradients[a];
+          for (int b = 0; b < 4; ++b) {
+            add_warped_stiffness_block(
+                out[slot[4 * a + b]], lambda_a, mu_a, rotated[b],
+                factor * lame(tet).mu * gradient_a.dot(element.shape.gradients[b]));
+          }
+          continue;
+        }
+        const CorotatedLinearization& linearization = linearization_[tet];
+        for (int b = 0; b < 4; ++b) {
+          out[slot[4 * a + b]] +=
+              stiffness_block(linearization, lame(tet), element.shape, scale * weight, a, b);
+        }
+      }
+    }
+  });
 }
 
 double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {

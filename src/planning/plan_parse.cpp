@@ -58,17 +58,7 @@ LayerMaterial parse_material(const ObjectReader& reader) {
 
 PlanDescription parse_plan(const std::string& text, const std::filesystem::path& file) {
   const Context context(text, file, "plan");
-  Json root;
-  try {
-    root = Json::parse(text);
-  } catch (const Json::parse_error& error) {
-    // nlohmann reports the byte; turn it into a line.
-    const auto byte = std::min<std::size_t>(error.byte, text.size());
-    const auto line =
-        1 + static_cast<std::size_t>(
-                std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(byte), '\n'));
-    context.fail_line(line, std::string("not valid JSON: ") + error.what());
-  }
+  const Json root = context.parse();
   const ObjectReader top(context, root, "",
                          {"description",
                           "image",

@@ -186,19 +186,7 @@ HapticSpec parse_haptics(const Context& context, const Json& json) {
 
 SceneDescription parse_scene(const std::string& json_text, const std::filesystem::path& file) {
   const Context context(json_text, file);
-  Json root;
-  try {
-    root = Json::parse(json_text);
-  } catch (const Json::parse_error& error) {
-    const auto byte = std::min<std::size_t>(error.byte, json_text.size());
-    const auto line =
-        1 + static_cast<std::size_t>(std::count(
-                json_text.begin(),
-                json_text.begin() + static_cast<std::ptrdiff_t>(byte > 0 ? byte - 1 : 0), '\n'));
-    std::string what = error.what();
-    what = what.substr(what.find(':') == std::string::npos ? 0 : what.rfind(": ") + 2);
-    context.fail_line(line, "malformed JSON: " + what);
-  }
+  const Json root = context.parse();
   const ObjectReader top(context, root, "",
                          {"description", "mesh", "material", "materials", "model", "damping",
                           "integrator", "fixed", "displacements", "forces", "gravity", "frames",

@@ -1,8 +1,5 @@
 #include "incise/solve/linear_solvers.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <Eigen/Eigenvalues>
 #include <Eigen/IterativeLinearSolvers>
 #include <array>
@@ -10,6 +7,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/core/parallel_for.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/solve/direct_factorization.hpp"
 
@@ -24,12 +22,11 @@ constexpr std::size_t kFusedChunk = 1024;
 
 template <typename Body>
 void parallel_vertices(std::size_t n, const Body& body) {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kChunk),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                        body(i);
-                      }
-                    });
+  parallel_for(0, n, kChunk, [&](std::size_t first, std::size_t last) {
+    for (std::size_t i = first; i != last; ++i) {
+      body(i);
+    }
+  });
 }
 
 /// `count` sums over i < n at once, deterministic: body(begin, end, sums) sets sums[0..count)
@@ -41,12 +38,11 @@ std::vector<double> chunked_sums(std::size_t n, std::size_t chunk, std::size_t c
                                  const Body& body) {
   const std::size_t chunks = (n + chunk - 1) / chunk;
   std::vector<double> partial(chunks * count, 0.0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t c = range.begin(); c != range.end(); ++c) {
-                        body(c * chunk, std::min(n, (c + 1) * chunk), &partial[c * count]);
-                      }
-                    });
+  parallel_for(0, chunks, 1, [&](std::size_t first, std::size_t last) {
+    for (std::size_t c = first; c != last; ++c) {
+      body(c * chunk, std::min(n, (c + 1) * chunk), &partial[c * count]);
+    }
+  });
   std::vector<double> total(count, 0.0);
   for (std::size_t c = 0; c < chunks; ++c) {
     for (std::size_t m = 0; m < count; ++m) {
@@ -229,12 +225,11 @@ void LinearizedSystemSolver::fill_scalar_values() {
   // Block (i, j) column-major: value (r, c) at offset 3 c + r. Column `component` of the
   // scalar matrix inside block row i holds A(i_r, i_component)... symmetric, so read (r, c)
   // of block (i, j) as (c, r) of block (j, i): offsets were stored to match.
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scalar_source_.size(), 1 << 14),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t s = range.begin(); s != range.end(); ++s) {
-                        target[s] = source[scalar_source_[s]];
-                      }
-                    });
+  parallel_for(0, scalar_source_.size(), 1 << 14, [&](std::size_t first, std::size_t last) {
+    for (std::size_t s = first; s != last; ++s) {
+      target[s] = source[scalar_source_[s]];
+    }
+  });
 }
 
 Mat3 LinearizedSystemSolver::preconditioner_block(const Mat3& diagonal_block) const {

@@ -234,6 +234,26 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000040.vtu"));
 }
 
+TEST(Cli, SoakCutsWithEveryCutterAndModelAndFindsNoViolation) {
+  // The short seeded soak CI runs: seeds 1-6 draw grids (regular and perturbed) and, with the
+  // data, a real mesh; subdivision with mass-spring and with FEM, XFEM; random walks and a full
+  // sweep that must separate. Every frame is checked (see command_soak.cpp).
+  const auto dir = test::scratch_dir("cli-soak");
+  const CommandResult run =
+      incise("soak --seed 1 --cuts 6 --poses 20 --out " + (dir / "soak").string() + " --data " +
+             test::data_dir().string());
+  ASSERT_EQ(run.code, 0) << run.out << run.err;
+  for (const char* kind : {"subdivision + mass-spring", "subdivision + corotational-fem",
+                           "xfem + corotational-fem", "full sweep", "random walk"}) {
+    EXPECT_NE(run.out.find(kind), std::string::npos) << kind << " never drawn:\n" << run.out;
+  }
+  const auto report = nlohmann::json::parse(slurp(dir / "soak" / "soak.json"));
+  EXPECT_EQ(report["cuts"], 6);
+  EXPECT_EQ(report["frames"], 6 * 20);
+  EXPECT_EQ(report["violations"], 0);
+  EXPECT_FALSE(std::filesystem::exists(dir / "soak" / "failures"));
+}
+
 TEST(Cli, RunResumesFromACheckpointIntoTheSameSeries) {
   // 40 frames straight, against 27 frames with a checkpoint and 13 more resumed from it (the
   // blade is in the block at frame 27): the same .vtu files, one .pvd listing them all.
@@ -582,6 +602,11 @@ TEST(Cli, ServeAndDeviceCutTheDefaultBlockOverLoopback) {
 TEST(Cli, ServeAnXfemSceneTheTissueFeelsTheDevicesReaction) {
   if (incise("serve --help").code != 0) {
     GTEST_SKIP() << "built without OpenIGTLink";
+  }
+  if (test::kSanitized) {
+    // A 4,500-tet XFEM frame takes about 2 s under ASan: the 1 s stroke is over before the
+    // first frame ends. The unsanitized build runs this test.
+    GTEST_SKIP() << "real time: not under a sanitizer";
   }
   const auto dir = test::scratch_dir("serve-xfem");
   // The skin patch's stroke: 5 mm deep along y across it, played by the device in 1 s.

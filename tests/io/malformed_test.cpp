@@ -47,6 +47,22 @@ std::string truncated_binary_msh() {
   return bytes;
 }
 
+/// A zlib-compressed .vtu whose connectivity header claims a 2 GB block from 10 bytes.
+std::string zlib_bomb_vtu() {
+  std::string header;
+  for (std::uint32_t value : {1U, 1U << 31U, 1U << 31U, 10U}) {
+    test::put<std::uint32_t>(header, value);
+  }
+  std::string text = vtu_with("<DataArray type=\"Int32\" Name=\"connectivity\" format=\"binary\">" +
+                              test::base64(header) + test::base64(std::string(10, 'x')) +
+                              "</DataArray>\n"
+                              "<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</"
+                              "DataArray>\n" +
+                              kVtuTypes);
+  text.insert(text.find("type=\"UnstructuredGrid\"") + 23, " compressor=\"vtkZLibDataCompressor\"");
+  return text;
+}
+
 const Malformed kCases[] = {
     // Gmsh
     {"truncated.msh", kMshHeader + "$Nodes\n4\n1 0 0 0\n2 1 0 0\n",
@@ -71,6 +87,12 @@ const Malformed kCases[] = {
     {"v4-block-overflow.msh",
      "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2 1 2\n3 1 0 3\n1\n2\n3\n",
      "hold more nodes than the 2 announced", 6},
+    {"huge-coordinate.msh", kMshHeader + "$Nodes\n1\n1 0 0 1e308\n$EndNodes\n",
+     "coordinate of magnitude 1e+308, beyond 1e+30", 6},
+    {"huge-block.msh",
+     "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2000000000 1 2000000000\n"
+     "3 1 0 2000000000\n1\n",
+     "nodes in block: 2000000000 values declared, but only 3 bytes are left", 6},
     // TetGen
     {"bad.node", "4 2 0 0\n", "only 3-D .node files", 1},
     {"short.node", "4 3 0 0\n0 0 0 0\n1 1 0 0\n",
@@ -97,6 +119,16 @@ const Malformed kCases[] = {
      "unexpected keyword 'WHATEVER'", 7},
     {"dataset.vtk", "# vtk DataFile Version 3.0\nt\nASCII\nDATASET STRUCTURED_POINTS\n",
      "only UNSTRUCTURED_GRID and POLYDATA", 4},
+    // Counts no file of this size can hold are refused before anything is allocated.
+    {"huge-points.vtk", kVtkHead + "POINTS 2147483647 float\n0 0 0 1 0 0 0 1 0 0 0 1\n",
+     "point coordinates: 6442450941 values declared, but only 25 bytes are left", 5},
+    {"huge-cells.vtk",
+     kVtkHead + "POINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 2000000000\n4 0 1 2 3\n",
+     "CELLS: 2000000000 values declared", 7},
+    {"huge-binary.vtk",
+     "# vtk DataFile Version 3.0\nt\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 1000000 "
+     "float\n\x01\x02\x03\x04",
+     "point coordinates: 3000000 values declared, but only 4 bytes are left", 6},
     // VTK XML
     {"xml.vtu", "<VTKFile type=\"UnstructuredGrid\">\n<UnstructuredGrid>\n<Piece>\n</VTKFile>\n",
      "malformed XML", 4},
@@ -107,7 +139,7 @@ const Malformed kCases[] = {
      vtu_with("<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0 1 2</DataArray>\n"
               "<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</DataArray>\n" +
               kVtuTypes),
-     "connectivity: value 3 of 4 is missing", 8},
+     "connectivity: 4 values needed, but the array's text holds at most 3", 8},
     {"range.vtu",
      vtu_with(
          "<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0 1 2 4</DataArray>\n"
@@ -120,6 +152,19 @@ const Malformed kCases[] = {
          "<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</DataArray>\n" +
          kVtuTypes),
      "invalid base64 character '*'", 8},
+    {"huge-connectivity.vtu",
+     vtu_with(
+         "<DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">0 1 2 3</DataArray>\n"
+         "<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">1000000000</DataArray>\n" +
+         kVtuTypes),
+     "connectivity: 1000000000 values needed, but the array's text holds at most 4", 8},
+    {"zlib-bomb.vtu", zlib_bomb_vtu(), "claims 2147483648 bytes from 10 compressed bytes", 8},
+    {"float-ids.vtu",
+     vtu_with("<DataArray type=\"Float32\" Name=\"connectivity\" format=\"ascii\">0 1 2 "
+              "3e30</DataArray>\n"
+              "<DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</DataArray>\n" +
+              kVtuTypes),
+     "connectivity value 3 (3e+30) is not a point id", 8},
     {"compressor.vtu", "<VTKFile type=\"UnstructuredGrid\" compressor=\"vtkLZ4DataCompressor\"/>",
      "unsupported compressor", 1},
     {"offset.vtu",

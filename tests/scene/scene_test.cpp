@@ -259,6 +259,12 @@ TEST(SceneParsing, MalformedJsonNamesTheLine) {
       error_of("{\n  \"mesh\": {\"box\": {\"cells\": [2, 2, 2]}},\n  \"frames\": 10,\n}\n");
   EXPECT_NE(message.find("malformed JSON"), std::string::npos) << message;
   EXPECT_NE(message.find("scene.json:4"), std::string::npos) << message;
+  // A number beyond a double (found by fuzzing: it escaped as nlohmann's out_of_range, naming
+  // no file).
+  const std::string overflow = error_of("{\n  \"frames\": 22E22200\n}\n");
+  EXPECT_NE(overflow.find("scene.json:2: malformed JSON: number overflow parsing '22E22200'"),
+            std::string::npos)
+      << overflow;
 }
 
 TEST(SceneParsing, RelativePathsResolveAgainstTheSceneFile) {

@@ -73,6 +73,29 @@ class Context {
   }
   [[nodiscard]] const std::filesystem::path& file() const { return file_; }
 
+  /// The text parsed as JSON. Any failure of the parser (bad syntax, and also a number too
+  /// large for a double, which nlohmann reports as out_of_range) is an InputError naming the
+  /// file and, where it can be found, the line.
+  [[nodiscard]] Json parse() const {
+    try {
+      return Json::parse(text_);
+    } catch (const Json::parse_error& error) {
+      const auto byte = std::min<std::size_t>(error.byte, text_.size());
+      fail_line(line_at(byte > 0 ? byte - 1 : 0), "malformed JSON: " + reason(error));
+    } catch (const Json::exception& error) {
+      // No byte offset: find the quoted token the message names ("... parsing '1E999'").
+      const std::string message = error.what();
+      const std::size_t open = message.find('\'');
+      const std::size_t close = message.rfind('\'');
+      std::size_t line = 0;
+      if (open != std::string::npos && close > open + 1) {
+        const std::size_t at = text_.find(message.substr(open + 1, close - open - 1));
+        line = at == std::string::npos ? 0 : line_at(at);
+      }
+      fail_line(line, "malformed JSON: " + reason(error));
+    }
+  }
+
   /// Line of the first occurrence of the last key of `path` in the text (best effort).
   [[nodiscard]] std::size_t line_of(const std::string& path) const {
     std::string key = path.substr(path.find_last_of('.') + 1);
@@ -81,11 +104,22 @@ class Context {
     if (at == std::string::npos) {
       return 0;
     }
-    return 1 + static_cast<std::size_t>(std::count(
-                   text_.begin(), text_.begin() + static_cast<std::ptrdiff_t>(at), '\n'));
+    return line_at(at);
   }
 
  private:
+  [[nodiscard]] std::size_t line_at(std::size_t byte) const {
+    byte = std::min(byte, text_.size());
+    return 1 + static_cast<std::size_t>(std::count(
+                   text_.begin(), text_.begin() + static_cast<std::ptrdiff_t>(byte), '\n'));
+  }
+  /// nlohmann's message without its "[json.exception...] " prefix.
+  static std::string reason(const Json::exception& error) {
+    std::string what = error.what();
+    const std::size_t end = what.find("] ");
+    return end == std::string::npos ? what : what.substr(end + 2);
+  }
+
   std::string text_;
   std::filesystem::path file_;
   std::string what_;

@@ -18,6 +18,7 @@
 #include <variant>
 #include <vector>
 
+#include "incise/core/atomic_file.hpp"  // write_file_atomically, used by every writer
 #include "incise/mesh/tet_mesh.hpp"
 
 namespace incise {
@@ -108,9 +109,6 @@ class PvdSeries {
   std::filesystem::path path_;
   std::vector<std::pair<double, std::string>> entries_;
 };
-
-/// Writes a whole file or nothing: a temporary beside it, renamed over it once complete.
-void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
 
 /// Gmsh 4.1 ASCII.
 void write_msh(const std::filesystem::path& path, const TetMesh& mesh);

@@ -2,6 +2,7 @@
 // Structured tetrahedral meshes.
 
 #include <array>
+#include <random>
 
 #include "incise/mesh/tet_mesh.hpp"
 
@@ -18,5 +19,10 @@ struct BoxGridOptions {
 /// cell is split around its (0,0,0)-(1,1,1) diagonal; with 5, cells alternate between the two
 /// mirror-image 5-tet splits so that face diagonals match. Throws InputError on bad options.
 [[nodiscard]] TetMesh make_box_grid(const BoxGridOptions& options);
+
+/// The mesh with every vertex off its boundary moved at random, along each axis by up to
+/// `fraction` of its shortest edge: an irregular mesh with the same boundary and volume. A
+/// move that would leave a tetrahedron with less than a fifth of its volume is not made.
+[[nodiscard]] TetMesh perturb_interior(const TetMesh& mesh, double fraction, std::mt19937& rng);
 
 }  // namespace incise
