@@ -1,18 +1,13 @@
 #include "isolated_read.hpp"
 
 #include <fmt/format.h>
-#include <poll.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <cerrno>
-#include <chrono>
 #include <csignal>
 #include <cstring>
 #include <exception>
-#include <iostream>
 #include <string>
 
+#include "incise/core/child_process.hpp"
 #include "incise/core/error.hpp"
 
 namespace incise::imaging {
@@ -66,21 +61,7 @@ class Received {
   std::size_t at_ = 0;
 };
 
-void write_all(int fd, const std::string& bytes) {
-  std::size_t sent = 0;
-  while (sent < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + sent, bytes.size() - sent);
-    if (n < 0 && errno == EINTR) {
-      continue;
-    }
-    if (n <= 0) {
-      return;
-    }
-    sent += static_cast<std::size_t>(n);
-  }
-}
-
-[[noreturn]] void child(const std::function<VolumeImage()>& read, int fd) {
+void child(const std::function<VolumeImage()>& read, int fd) {
   std::string out;
   try {
     const VolumeImage image = read();
@@ -106,9 +87,7 @@ void write_all(int fd, const std::string& bytes) {
     out.assign(1, kOtherError);
     put_text(out, "an unknown exception");
   }
-  write_all(fd, out);
-  ::close(fd);
-  std::_Exit(0);  // no destructors or exit handlers of the parent's state in the child
+  (void)write_all(fd, out.data(), out.size());
 }
 
 /// The message of an InputError's what() without the "file:line: " its constructor adds.
@@ -129,68 +108,20 @@ VolumeImage read_in_child(const std::function<VolumeImage()>& read,
   const auto fail = [&](const std::string& why) -> InputError {
     return InputError(shown.string(), 0, fmt::format("{} {}; nothing was read", library, why));
   };
-  int fds[2];
-  if (::pipe(fds) != 0) {
-    throw fail(std::string("could not be started (pipe: ") + std::strerror(errno) + ")");
+  const ChildOutcome outcome = run_in_child([&](int fd) { child(read, fd); }, timeout_seconds);
+  if (!outcome.start_error.empty()) {
+    throw fail("could not be started (" + outcome.start_error + ")");
   }
-  std::cout.flush();
-  std::cerr.flush();
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    ::close(fds[0]);
-    ::close(fds[1]);
-    throw fail(std::string("could not be started (fork: ") + std::strerror(errno) + ")");
-  }
-  if (pid == 0) {
-    ::close(fds[0]);
-    child(read, fds[1]);
-  }
-  ::close(fds[1]);
-  std::string received;
-  bool timed_out = false;
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_seconds);
-  char buffer[1 << 16];
-  for (;;) {
-    const double left =
-        std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
-    if (left <= 0.0) {
-      ::kill(pid, SIGKILL);
-      timed_out = true;
-      break;
-    }
-    pollfd poll_fd{fds[0], POLLIN, 0};
-    const int ready = ::poll(&poll_fd, 1, static_cast<int>(std::min(left * 1000.0, 1000.0)) + 1);
-    if (ready < 0 && errno != EINTR) {
-      ::kill(pid, SIGKILL);
-      break;
-    }
-    if (ready <= 0) {
-      continue;
-    }
-    const ssize_t got = ::read(fds[0], buffer, sizeof(buffer));
-    if (got < 0 && errno == EINTR) {
-      continue;
-    }
-    if (got <= 0) {
-      break;
-    }
-    received.append(buffer, static_cast<std::size_t>(got));
-  }
-  ::close(fds[0]);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (timed_out) {
+  if (outcome.timed_out) {
     throw fail(fmt::format("gave no answer within {:g} s", timeout_seconds));
   }
-  if (WIFSIGNALED(status)) {
-    const int signal = WTERMSIG(status);
+  if (outcome.signal != 0) {
     throw fail(
         fmt::format("stopped on this file ({}{}: the library's own check failed or it "
                     "crashed)",
-                    signal == SIGABRT ? "an assertion, " : "", strsignal(signal)));
+                    outcome.signal == SIGABRT ? "an assertion, " : "", strsignal(outcome.signal)));
   }
+  const std::string& received = outcome.output;
   Received in(received);
   char tag = 0;
   if (!in.take(tag)) {

@@ -10,13 +10,8 @@
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 #include <fmt/format.h>
-#include <poll.h>
-#include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <cerrno>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <iostream>
@@ -25,6 +20,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "incise/core/child_process.hpp"
 #include "incise/core/error.hpp"
 #include "incise/mesh/boundary.hpp"
 
@@ -143,22 +139,6 @@ std::string tetgen_error(int code) {
   }
 }
 
-bool write_all(int fd, const void* data, std::size_t size) {
-  const auto* bytes = static_cast<const char*>(data);
-  while (size > 0) {
-    const ssize_t written = ::write(fd, bytes, size);
-    if (written <= 0) {
-      if (written < 0 && errno == EINTR) {
-        continue;
-      }
-      return false;
-    }
-    bytes += written;
-    size -= static_cast<std::size_t>(written);
-  }
-  return true;
-}
-
 /// Runs TetGen in the child process: writes [status, point count, tet count, points, tets].
 [[noreturn]] void tetgen_child(const SurfaceMesh& surface, std::string switches, int fd) {
   std::int64_t header[3] = {0, 0, 0};
@@ -225,73 +205,28 @@ bool write_all(int fd, const void* data, std::size_t size) {
 TetgenOutcome run_tetgen_isolated(const SurfaceMesh& surface, const std::string& switches,
                                   double timeout_seconds) {
   TetgenOutcome outcome;
-  int fds[2];
-  if (::pipe(fds) != 0) {
-    outcome.error = "cannot create a pipe for TetGen";
+  const ChildOutcome child =
+      run_in_child([&](int fd) { tetgen_child(surface, switches, fd); }, timeout_seconds);
+  if (!child.start_error.empty()) {
+    outcome.error = "cannot start TetGen (" + child.start_error + ")";
     return outcome;
   }
-  std::cout.flush();
-  std::cerr.flush();
-  const pid_t child = ::fork();
-  if (child < 0) {
-    ::close(fds[0]);
-    ::close(fds[1]);
-    outcome.error = "cannot start TetGen (fork failed)";
-    return outcome;
-  }
-  if (child == 0) {
-    ::close(fds[0]);
-    tetgen_child(surface, switches, fds[1]);
-  }
-  ::close(fds[1]);
-  std::string received;
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_seconds);
-  char buffer[1 << 16];
-  for (;;) {
-    const double left =
-        std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
-    if (left <= 0.0) {
-      ::kill(child, SIGKILL);
-      outcome.timed_out = true;
-      break;
-    }
-    pollfd poll_fd{fds[0], POLLIN, 0};
-    const int ready = ::poll(&poll_fd, 1, static_cast<int>(std::min(left * 1000.0, 1000.0)) + 1);
-    if (ready < 0 && errno != EINTR) {
-      ::kill(child, SIGKILL);
-      break;
-    }
-    if (ready <= 0) {
-      continue;
-    }
-    const ssize_t got = ::read(fds[0], buffer, sizeof(buffer));
-    if (got < 0 && errno == EINTR) {
-      continue;
-    }
-    if (got <= 0) {
-      break;  // end of data
-    }
-    received.append(buffer, static_cast<std::size_t>(got));
-  }
-  ::close(fds[0]);
-  int status = 0;
-  while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (outcome.timed_out) {
+  if (child.timed_out) {
+    outcome.timed_out = true;
     outcome.error = fmt::format(
         "TetGen did not finish within {} s; the surface is probably "
         "self-intersecting or too finely detailed",
         timeout_seconds);
     return outcome;
   }
+  const std::string& received = child.output;
   std::int64_t header[3] = {0, 0, 0};
   if (received.size() < sizeof(header)) {
-    outcome.error = WIFSIGNALED(status)
+    outcome.error = child.signal != 0
                         ? fmt::format(
                               "TetGen crashed (signal {}) on this surface: it could not "
                               "recover the boundary",
-                              WTERMSIG(status))
+                              child.signal)
                         : "TetGen stopped without a result";
     return outcome;
   }
@@ -305,7 +240,7 @@ TetgenOutcome run_tetgen_isolated(const SurfaceMesh& surface, const std::string&
   const auto tet_count = static_cast<std::size_t>(header[2]);
   const std::size_t expected =
       sizeof(header) + point_count * 3 * sizeof(double) + tet_count * 4 * sizeof(std::int32_t);
-  if (received.size() != expected || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+  if (received.size() != expected || !child.exited_cleanly()) {
     outcome.error = "TetGen's result arrived incomplete";
     return outcome;
   }

@@ -1,0 +1,34 @@
+#pragma once
+// Work done in a forked child process, for third-party code that can take the process down
+// with it: TetGen double-frees after its own errors, Debian's GDCM aborts on assert(). The
+// child writes its answer to a pipe; a crash, an abort or a hang becomes something the
+// parent can report, and incise goes on. POSIX only.
+
+#include <cstddef>
+#include <functional>
+#include <string>
+
+namespace incise {
+
+struct ChildOutcome {
+  std::string output;       ///< every byte the child wrote to its descriptor
+  std::string start_error;  ///< non-empty: no child was started (pipe or fork failed)
+  bool timed_out = false;   ///< killed after the time limit
+  int signal = 0;           ///< the signal that ended the child; 0 if it exited
+  int exit_code = 0;        ///< its exit status, when it exited
+  [[nodiscard]] bool exited_cleanly() const {
+    return start_error.empty() && !timed_out && signal == 0 && exit_code == 0;
+  }
+};
+
+/// Forks; the child runs work(fd), writing its answer to fd, and exits with status 0 when
+/// work returns (work may _exit itself with another status). The parent reads everything the
+/// child writes until it ends, killing it after `timeout_seconds`. The child must not return
+/// into the caller's state: no exceptions escape work (they end the child with status 1).
+[[nodiscard]] ChildOutcome run_in_child(const std::function<void(int fd)>& work,
+                                        double timeout_seconds);
+
+/// Writes all of `bytes` to `fd`, retrying interrupted writes; false on any other failure.
+bool write_all(int fd, const void* bytes, std::size_t size);
+
+}  // namespace incise
