@@ -86,7 +86,7 @@ void HapticLoop::release() {
 }
 
 void HapticLoop::set_model(std::shared_ptr<const ContactModel> model) {
-  model_.store(std::move(model), std::memory_order_release);
+  model_.store(std::move(model));
 }
 
 std::optional<DevicePose> HapticLoop::latest_pose() const {
@@ -163,7 +163,7 @@ void HapticLoop::run() {
     const bool overrun = clock.overran();
 
     const std::optional<DevicePose> pose = latest_pose();
-    const std::shared_ptr<const ContactModel> model = model_.load(std::memory_order_acquire);
+    const std::shared_ptr<const ContactModel> model = model_.load();
     Vec3 force = Vec3::Zero();
     bool fresh = false;
     if (pose) {

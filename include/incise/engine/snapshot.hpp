@@ -10,6 +10,7 @@
 #include <optional>
 #include <vector>
 
+#include "incise/core/shared_slot.hpp"
 #include "incise/cut/blade.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
@@ -51,19 +52,15 @@ struct Snapshot {
   std::vector<Vec3> visual_positions;
 };
 
-/// One published snapshot at a time, swapped atomically.
+/// One published snapshot at a time, swapped under a lock held only to copy its pointer.
 class SnapshotChannel {
  public:
-  void publish(std::shared_ptr<const Snapshot> snapshot) {
-    latest_.store(std::move(snapshot), std::memory_order_release);
-  }
+  void publish(std::shared_ptr<const Snapshot> snapshot) { latest_.store(std::move(snapshot)); }
   /// The newest snapshot (null before the first publish). Safe from any thread.
-  [[nodiscard]] std::shared_ptr<const Snapshot> latest() const {
-    return latest_.load(std::memory_order_acquire);
-  }
+  [[nodiscard]] std::shared_ptr<const Snapshot> latest() const { return latest_.load(); }
 
  private:
-  std::atomic<std::shared_ptr<const Snapshot>> latest_;
+  SharedSlot<const Snapshot> latest_;
 };
 
 }  // namespace incise

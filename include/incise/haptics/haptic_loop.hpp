@@ -6,7 +6,8 @@
 // Thread rule: set_model() from the physics thread (once per frame), post_pose() from the
 // network thread (each message), statistics() from any thread; the loop itself runs on the
 // thread start() creates, which alone calls the force callback. Nothing is shared by lock
-// with the physics: the model is an immutable snapshot swapped atomically.
+// with the physics for longer than a pointer copy: the model is an immutable snapshot
+// swapped through a SharedSlot.
 
 #include <atomic>
 #include <chrono>
@@ -18,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "incise/core/shared_slot.hpp"
 #include "incise/haptics/contact_model.hpp"
 
 namespace incise {
@@ -114,7 +116,7 @@ class HapticLoop {
 
   HapticSpec spec_;
   ForceCallback on_force_;
-  std::atomic<std::shared_ptr<const ContactModel>> model_;
+  SharedSlot<const ContactModel> model_;
   mutable std::mutex pose_mutex_;
   std::optional<DevicePose> pose_;
   std::uint64_t posted_ = 0;
