@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -252,6 +255,70 @@ TEST(Cli, SoakCutsWithEveryCutterAndModelAndFindsNoViolation) {
   EXPECT_EQ(report["frames"], 6 * 20);
   EXPECT_EQ(report["violations"], 0);
   EXPECT_FALSE(std::filesystem::exists(dir / "soak" / "failures"));
+}
+
+TEST(Cli, AKilledRunLeavesEveryFrameItWroteAndItsCheckpointWhole) {
+  // Nothing lost: a run killed with SIGKILL (no chance to clean up) part-way through leaves
+  // every frame it finished, its series file and its checkpoint readable. What it was writing
+  // at that moment stays a temporary beside them, never a truncated .vtu.
+  const auto dir = test::scratch_dir("cli-killed");
+  const auto out = dir / "out";
+  const std::string checkpoint = (dir / "run.ck").string();
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::freopen("/dev/null", "w", stdout);
+    std::freopen("/dev/null", "w", stderr);
+    ::execl(INCISE_EXECUTABLE, "incise", "run", "--frames", "100000", "--out", out.string().c_str(),
+            "--checkpoint", checkpoint.c_str(), "--checkpoint-every", "7",
+            static_cast<char*>(nullptr));
+    std::_Exit(127);
+  }
+  const auto frames_written = [&] {
+    std::size_t count = 0;
+    if (std::filesystem::exists(out)) {
+      for (const auto& entry : std::filesystem::directory_iterator(out)) {
+        count += entry.path().extension() == ".vtu" ? 1 : 0;
+      }
+    }
+    return count;
+  };
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (frames_written() < 6 && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run ended before it was killed";
+  ASSERT_GE(frames_written(), 6u);
+  std::size_t temporaries = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(out)) {
+    const std::string name = entry.path().filename().string();
+    if (name.find(".tmp") != std::string::npos) {
+      ++temporaries;
+    } else if (entry.path().extension() == ".vtu") {
+      // Read whole (exit 1 would only say the deformed frame has inverted elements, which a
+      // mass-spring wound may have; a truncated or unreadable file exits 2).
+      const CommandResult info = incise("info " + entry.path().string() + " --json");
+      ASSERT_NE(info.code, 2) << name << ": " << info.err;
+      EXPECT_GE(nlohmann::json::parse(info.out)["tets"].get<int>(), 576) << name;
+    } else if (entry.path().extension() == ".pvd") {
+      // Every frame it lists is there.
+      const std::string series = slurp(entry.path());
+      EXPECT_NE(series.find("</VTKFile>"), std::string::npos) << series;
+      for (std::size_t at = series.find("file=\""); at != std::string::npos;
+           at = series.find("file=\"", at + 1)) {
+        const std::size_t start = at + 6;
+        const std::string file = series.substr(start, series.find('"', start) - start);
+        EXPECT_TRUE(std::filesystem::exists(out / file)) << file;
+      }
+    }
+  }
+  EXPECT_LE(temporaries, 2u) << "at most the frame and the checkpoint being written";
+  const CommandResult resumed =
+      incise("run --resume " + checkpoint + " --frames 2 --out " + (dir / "resumed").string());
+  EXPECT_EQ(resumed.code, 0) << resumed.err;
 }
 
 TEST(Cli, RunResumesFromACheckpointIntoTheSameSeries) {
