@@ -37,10 +37,8 @@ for target in "${targets[@]}"; do
   (cd "$findings" && "$root/$binary" -max_total_time="$seconds" -rss_limit_mb=2048 \
     -malloc_limit_mb=1024 -timeout=10 -print_final_stats=1 -fork=1 -ignore_crashes=1 \
     -ignore_timeouts=1 -ignore_ooms=1 "$root/$corpus" >"run.log" 2>&1) || true
-  runs=$(grep -oE 'stat::number_of_executed_units: *[0-9]+' "$log" | grep -oE '[0-9]+$' | tail -1)
-  if [ -z "$runs" ]; then
-    runs=$(grep -oE '#[0-9]+' "$log" | tail -1 | tr -d '#')
-  fi
+  # Fork mode reports "#RUNS: cov: ... oom/timeout/crash: O/T/C ..." as it goes.
+  runs=$(grep -oE '^#[0-9]+:' "$log" | tail -1 | tr -d '#:' || true)
   found=$(find "$findings" -maxdepth 1 -type f \( -name 'crash-*' -o -name 'leak-*' \
           -o -name 'timeout-*' -o -name 'oom-*' \) | wc -l)
   printf '| `%s` | %s | %s | %s | %s |\n' "$target" "$seconds" "${runs:-?}" \

@@ -41,6 +41,7 @@ struct SoakOptions {
   int poses = 40;
   std::string out = "out/soak";
   std::string data = "../shared/data";
+  std::vector<std::string> replay;  ///< failure folders to check again instead of new cuts
 };
 
 /// One cut's choices, all drawn from its seed.
@@ -274,7 +275,32 @@ CaseResult run_case(const std::filesystem::path& scene_path, bool full_sweep) {
   return result;
 }
 
+/// Checks each kept failure folder again (its scene.json, with the same checks); 0 when every
+/// one now holds.
+int replay(const std::vector<std::string>& folders) {
+  int still = 0;
+  for (const std::string& folder : folders) {
+    const std::filesystem::path scene = std::filesystem::path(folder) / "scene.json";
+    const SceneDescription description = load_scene(scene);
+    const bool full_sweep = description.description.find("full sweep") != std::string::npos;
+    CaseResult result;
+    try {
+      result = run_case(scene, full_sweep);
+    } catch (const std::exception& error) {
+      result.violation = std::string("exception: ") + error.what();
+    }
+    still += result.violation.empty() ? 0 : 1;
+    std::cout << fmt::format("{}: {}\n", folder,
+                             result.violation.empty() ? "ok" : "FAILED " + result.violation);
+  }
+  std::cout << fmt::format("{} of {} kept failures still fail\n", still, folders.size());
+  return still == 0 ? 0 : kExitInvalid;
+}
+
 int soak(const SoakOptions& options) {
+  if (!options.replay.empty()) {
+    return replay(options.replay);
+  }
   const auto started = std::chrono::steady_clock::now();
   const auto minutes = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count() / 60;
@@ -354,6 +380,10 @@ Runner add_soak_command(CLI::App& app) {
       ->check(CLI::Range(2, 100000));
   command->add_option("--out", options->out, "Folder for the report and failures");
   command->add_option("--data", options->data, "Folder of data meshes (../shared/data)");
+  command
+      ->add_option("--replay", options->replay,
+                   "Check kept failure folders (OUT/failures/seed-S) again instead")
+      ->check(CLI::ExistingDirectory);
   return [options] { return soak(*options); };
 }
 
