@@ -20,7 +20,8 @@ namespace incise {
 namespace {
 
 constexpr std::string_view kMagic = "INCISE-CHECKPOINT\n";
-constexpr std::uint32_t kVersion = 3;  // 2: swept triangles carry their sweep number; 3: xfem
+constexpr std::uint32_t kVersion = 4;  // 2: swept triangles carry their sweep number; 3: xfem;
+                                       // 4: xfem quads' shared lines decided exactly
 
 std::uint32_t checksum(std::string_view bytes) {
   uLong crc = crc32(0L, Z_NULL, 0);

@@ -50,6 +50,20 @@ bool segment_intersects_triangle(const Vec3& p, const Vec3& q, const Vec3& a, co
   return CGAL::do_intersect(Kernel::Segment_3(to_cgal(p), to_cgal(q)), triangle);
 }
 
+bool segments_intersect(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b) {
+  if (p == q && a == b) {
+    return p == a;
+  }
+  if (p == q) {
+    return Kernel::Segment_3(to_cgal(a), to_cgal(b)).has_on(to_cgal(p));
+  }
+  if (a == b) {
+    return Kernel::Segment_3(to_cgal(p), to_cgal(q)).has_on(to_cgal(a));
+  }
+  return CGAL::do_intersect(Kernel::Segment_3(to_cgal(p), to_cgal(q)),
+                            Kernel::Segment_3(to_cgal(a), to_cgal(b)));
+}
+
 bool triangles_intersect(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& a1,
                          const Vec3& b1, const Vec3& c1) {
   const Kernel::Triangle_3 first(to_cgal(a0), to_cgal(b0), to_cgal(c0));

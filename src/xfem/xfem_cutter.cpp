@@ -88,6 +88,7 @@ std::vector<TetId> XfemCutter::front() const {
 void XfemCutter::start(const BladePose& pose) {
   last_ = pose;
   started_ = true;
+  continues_ = false;
 }
 
 const XfemCutter::EdgeRecord* XfemCutter::record(VertexId a, VertexId b) const {
@@ -95,29 +96,22 @@ const XfemCutter::EdgeRecord* XfemCutter::record(VertexId a, VertexId b) const {
   return found == edges_.end() ? nullptr : &found->second;
 }
 
-namespace {
-
-/// m: distance from p to the segment [a, b].
-double distance_to_segment(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 ab = b - a;
-  const double length2 = ab.squaredNorm();
-  const double t = length2 > 0.0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
-  return (p - (a + t * ab)).norm();
-}
-
-}  // namespace
-
 void XfemCutter::test_quad(const BladePose& from, const BladePose& to,
                            std::vector<TetId>& changed) {
   const auto triangles = swept_triangles(from, to);
   if (triangles.empty()) {
     return;
   }
-  ++quad_index_;
   Vec3 low = from.tip.cwiseMin(from.base).cwiseMin(to.tip).cwiseMin(to.base);
   Vec3 high = from.tip.cwiseMax(from.base).cwiseMax(to.tip).cwiseMax(to.base);
   std::vector<TetId> near;
   grid_->query(low, high, near);
+  // A quad that continues the stroke shares its start line with the previous quad's end line,
+  // which already counted what crosses it: the start line is open, the end line closed, so a
+  // crossing exactly on the line between two quads counts once. Decided exactly: the edge
+  // meets the start segment.
+  const bool open_start = continues_;
+  continues_ = true;
   // An edge shared by several tetrahedra, or through the quad's diagonal, counts once.
   std::unordered_set<std::uint64_t> tested;
   for (TetId t : near) {
@@ -137,11 +131,15 @@ void XfemCutter::test_quad(const BladePose& from, const BladePose& to,
       }
       const Vec3& xi = mesh_->rest_position(i);
       const Vec3& xj = mesh_->rest_position(j);
+      if (open_start && segments_intersect(xi, xj, from.tip, from.base)) {
+        any = any || edges_.contains(key);
+        continue;
+      }
       for (const auto& triangle : triangles) {
         if (!segment_intersects_triangle(xi, xj, triangle[0], triangle[1], triangle[2])) {
           continue;
         }
-        any = record_crossing(i, j, triangle, from, to) || any;
+        any = record_crossing(i, j, triangle) || any;
         break;
       }
     }
@@ -151,8 +149,7 @@ void XfemCutter::test_quad(const BladePose& from, const BladePose& to,
   }
 }
 
-bool XfemCutter::record_crossing(VertexId i, VertexId j, const std::array<Vec3, 3>& triangle,
-                                 const BladePose& from, const BladePose& to) {
+bool XfemCutter::record_crossing(VertexId i, VertexId j, const std::array<Vec3, 3>& triangle) {
   const Vec3& xi = mesh_->rest_position(i);
   const Vec3& xj = mesh_->rest_position(j);
   const Sign si = orient3d(triangle[0], triangle[1], triangle[2], xi);
@@ -186,19 +183,7 @@ bool XfemCutter::record_crossing(VertexId i, VertexId j, const std::array<Vec3, 
   const double hi = normal.dot(xi - triangle[0]);
   const double hj = normal.dot(xj - triangle[0]);
   const double from_i = std::clamp(hi / (hi - hj), 1e-9, 1.0 - 1e-9);
-  // Where the crossing lies along the sweep: 0 on the blade's start line, 1 on its end line.
-  // A crossing on the line one quad ends and the next starts is one crossing, not two.
-  const Vec3 point = xi + from_i * (xj - xi);
-  const double to_start = distance_to_segment(point, from.tip, from.base);
-  const double to_end = distance_to_segment(point, to.tip, to.base);
-  const double along = to_start / std::max(to_start + to_end, 1e-300);
-  constexpr double kOnLine = 1e-9;
-  if (along < kOnLine && rec.crossings > 0 && rec.last_quad + 1 == quad_index_ && rec.at_end_line) {
-    return true;
-  }
   ++rec.crossings;
-  rec.last_quad = quad_index_;
-  rec.at_end_line = along > 1.0 - kOnLine;
   side_i = side_of(si);
   side_j = side_of(sj);
   rec.at = i_low ? from_i : 1.0 - from_i;
@@ -511,8 +496,8 @@ void XfemCutter::save_state(StateWriter& out) const {
   out.tag("xfem cutter");
   out.value(rest_tets_.size());
   out.value(started_);
+  out.value(continues_);
   out.value(last_);
-  out.value(quad_index_);
   out.value(stats_);
   out.values(state_);
   std::vector<std::uint8_t> has_cut(cuts_.size(), 0);
@@ -554,8 +539,8 @@ void XfemCutter::load_state(StateReader& in) {
     in.fail("xfem rest tetrahedra", "the checkpoint's mesh is not the scene's");
   }
   started_ = in.value<bool>("xfem started");
+  continues_ = in.value<bool>("xfem stroke continues");
   last_ = in.value<BladePose>("xfem blade");
-  quad_index_ = in.value<std::uint64_t>("xfem quads");
   stats_ = in.value<XfemCutterStats>("xfem stats");
   state_ = in.values<TetState>("xfem states");
   const auto has_cut = in.values<std::uint8_t>("xfem has cut");

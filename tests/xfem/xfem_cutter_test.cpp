@@ -163,6 +163,25 @@ TEST(XfemCutter, ACutInAGridPlaneSeparatesWithoutEmptyElements) {
   }
 }
 
+TEST(XfemCutter, ASweepAHairOffAGridPlaneSeparates) {
+  // The soak's findings (seeds 1151, 1709): the blade's plane one rounding step off a plane of
+  // grid vertices, and poses whose blade lines pass (within rounding) through lines of grid
+  // vertices. An edge crossed exactly on the line where one collision quad ends and the next
+  // begins must count once, not twice (tremor), or the tetrahedra around it never split.
+  for (const double x : {std::nextafter(0.04, 0.0), std::nextafter(0.04, 1.0)}) {
+    for (const int poses : {8, 16, 40}) {
+      TetMesh mesh = bar();
+      XfemCutter cutter(mesh);
+      sweep_bar(mesh, cutter, x, 0.03, poses);
+      const std::string where = "x = 0.04 " + std::string(x < 0.04 ? "- " : "+ ") + "1 ulp, " +
+                                std::to_string(poses) + " poses";
+      EXPECT_EQ(pieces_by_vertices(mesh), 2) << where;
+      EXPECT_EQ(cutter.stats().tremor_edges, 0u) << where;
+      EXPECT_EQ(cutter.stats().waiting_tets + cutter.stats().front_tets, 0u) << where;
+    }
+  }
+}
+
 TEST(XfemCutter, FullCutsSeparateAndPartialCutsDoNotOnEveryDataMesh) {
   // Issue "Cut real anatomy right"'s cuts on every tetrahedral mesh in ../shared/data: a
   // vertical blade swept along x at 0.513 of the y-extent, through the whole body (25 poses)

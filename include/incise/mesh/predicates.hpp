@@ -19,6 +19,10 @@ enum class Sign : int { kNegative = -1, kZero = 0, kPositive = 1 };
 [[nodiscard]] bool segment_intersects_triangle(const Vec3& p, const Vec3& q, const Vec3& a,
                                                const Vec3& b, const Vec3& c);
 
+/// Exact test: do the closed segments [p, q] and [a, b] meet? (A degenerate segment is its
+/// point.)
+[[nodiscard]] bool segments_intersect(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b);
+
 /// Exact test: do two closed triangles meet?
 [[nodiscard]] bool triangles_intersect(const Vec3& a0, const Vec3& b0, const Vec3& c0,
                                        const Vec3& a1, const Vec3& b1, const Vec3& c1);

@@ -118,8 +118,6 @@ class XfemCutter {
     double at = 0.5;              ///< last crossing, fraction from the smaller vertex id
     std::int8_t side_low = 0;     ///< side of the smaller-id end (-1, +1; 0 unknown)
     std::int8_t side_high = 0;
-    bool at_end_line = false;     ///< the last crossing lay on its quad's end line
-    std::uint64_t last_quad = 0;  ///< the quad of the last crossing
   };
   enum class TetState : std::uint8_t { kWhole, kFront, kWaiting, kSplit };
 
@@ -127,8 +125,7 @@ class XfemCutter {
   /// Records the crossings of one swept quad; `changed` gets the tetrahedra it reached.
   void test_quad(const BladePose& from, const BladePose& to, std::vector<TetId>& changed);
   /// Records that edge (i, j) meets `triangle` (of the quad from -> to); true when it did.
-  bool record_crossing(VertexId i, VertexId j, const std::array<Vec3, 3>& triangle,
-                       const BladePose& from, const BladePose& to);
+  bool record_crossing(VertexId i, VertexId j, const std::array<Vec3, 3>& triangle);
   /// The cut the records make of a whole tetrahedron, if they cross it completely; `reached`
   /// says whether any record touches it.
   [[nodiscard]] std::optional<ElementCut> resolve(TetId rest_tet, bool& reached) const;
@@ -155,11 +152,11 @@ class XfemCutter {
   std::unordered_map<VertexId, std::vector<TetId>> tied_users_;
   std::vector<TetId> front_;  ///< rest tetrahedra in state kFront or kWaiting
   BladePose last_{};
-  std::uint64_t quad_index_ = 0;  ///< quads swept so far
-  double travel_ = 0.0;           ///< m: the blade midpoint's travel so far
+  double travel_ = 0.0;  ///< m: the blade midpoint's travel so far
   /// Per rest tetrahedron: time (s) and travel (m) of the move that first reached it.
   std::vector<std::pair<double, double>> reached_at_;
   bool started_ = false;
+  bool continues_ = false;  ///< the next quad starts where the last one ended (same stroke)
   XfemCutterStats stats_;
 };
 
