@@ -2,6 +2,7 @@
 
 #include <poll.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -10,9 +11,51 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <iostream>
 
+// Sanitizers reserve terabytes of address space for their shadow memory: an address-space
+// limit would stop them, not the allocation it is meant for.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define INCISE_SANITIZED_BUILD 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(memory_sanitizer)
+#define INCISE_SANITIZED_BUILD 1
+#endif
+#endif
+
 namespace incise {
+namespace {
+
+/// Limits the calling process's address space to what it uses now plus `budget` bytes.
+void limit_address_space(std::size_t budget) {
+  std::size_t pages = 0;
+  std::ifstream statm("/proc/self/statm");
+  if (!(statm >> pages)) {
+    return;  // no /proc: leave the process unlimited rather than guess
+  }
+  const auto now = static_cast<rlim_t>(pages) * static_cast<rlim_t>(::sysconf(_SC_PAGESIZE));
+  rlimit limit{};
+  if (::getrlimit(RLIMIT_AS, &limit) != 0) {
+    return;
+  }
+  const rlim_t wanted = now + static_cast<rlim_t>(budget);
+  if (limit.rlim_max == RLIM_INFINITY || wanted < limit.rlim_max) {
+    limit.rlim_cur = wanted;
+    (void)::setrlimit(RLIMIT_AS, &limit);
+  }
+}
+
+}  // namespace
+
+bool child_memory_budget_applies() {
+#ifdef INCISE_SANITIZED_BUILD
+  return false;
+#else
+  return true;
+#endif
+}
 
 bool write_all(int fd, const void* bytes, std::size_t size) {
   const auto* data = static_cast<const char*>(bytes);
@@ -30,7 +73,8 @@ bool write_all(int fd, const void* bytes, std::size_t size) {
   return true;
 }
 
-ChildOutcome run_in_child(const std::function<void(int fd)>& work, double timeout_seconds) {
+ChildOutcome run_in_child(const std::function<void(int fd)>& work, double timeout_seconds,
+                          std::size_t memory_budget) {
   ChildOutcome outcome;
   int fds[2];
   if (::pipe(fds) != 0) {
@@ -48,6 +92,9 @@ ChildOutcome run_in_child(const std::function<void(int fd)>& work, double timeou
   }
   if (child == 0) {
     ::close(fds[0]);
+    if (memory_budget > 0 && child_memory_budget_applies()) {
+      limit_address_space(memory_budget);
+    }
     try {
       work(fds[1]);
     } catch (...) {

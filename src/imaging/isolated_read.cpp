@@ -3,91 +3,64 @@
 #include <fmt/format.h>
 
 #include <csignal>
+#include <cstdint>
 #include <cstring>
 #include <exception>
+#include <new>
 #include <string>
 
 #include "incise/core/child_process.hpp"
 #include "incise/core/error.hpp"
+#include "incise/core/state_archive.hpp"
 
 namespace incise::imaging {
 namespace {
 
-// What the child sends: one tag byte, then the payload (host byte order: same machine).
+// What the child sends: one tag byte, then the payload, written with the checkpoints'
+// StateWriter and read back bounds-checked (a child that died half-way sends less).
 constexpr char kVolume = 'V';
 constexpr char kInputError = 'E';
 constexpr char kOtherError = 'X';
 
-void put_bytes(std::string& out, const void* data, std::size_t size) {
-  out.append(static_cast<const char*>(data), size);
-}
-template <typename T>
-void put(std::string& out, const T& value) {
-  put_bytes(out, &value, sizeof(T));
-}
-void put_text(std::string& out, const std::string& text) {
-  put<std::uint64_t>(out, text.size());
-  out += text;
-}
-
-/// Reads what the child sent, bounds-checked (a child that died half-way sends less).
-class Received {
- public:
-  explicit Received(const std::string& bytes) : bytes_(bytes) {}
-  [[nodiscard]] bool take(void* data, std::size_t size) {
-    if (size > bytes_.size() - at_) {
-      return false;
-    }
-    std::memcpy(data, bytes_.data() + at_, size);
-    at_ += size;
-    return true;
-  }
-  template <typename T>
-  [[nodiscard]] bool take(T& value) {
-    return take(&value, sizeof(T));
-  }
-  [[nodiscard]] bool take_text(std::string& text) {
-    std::uint64_t size = 0;
-    if (!take(size) || size > bytes_.size() - at_) {
-      return false;
-    }
-    text.assign(bytes_.data() + at_, size);
-    at_ += size;
-    return true;
-  }
-
- private:
-  const std::string& bytes_;
-  std::size_t at_ = 0;
-};
-
-void child(const std::function<VolumeImage()>& read, int fd) {
-  std::string out;
+void child(const std::function<VolumeImage()>& read, int fd, const std::filesystem::path& shown,
+           const char* library, std::size_t memory_budget) {
+  StateWriter out;
   try {
     const VolumeImage image = read();
-    out += kVolume;
-    for (std::size_t n : image.size) {
-      put<std::uint64_t>(out, n);
-    }
-    put_bytes(out, image.spacing.data(), 3 * sizeof(double));
-    put_bytes(out, image.origin.data(), 3 * sizeof(double));
-    put_bytes(out, image.direction.data(), 9 * sizeof(double));
-    put_text(out, image.description);
-    put<std::uint64_t>(out, image.values.size());
-    put_bytes(out, image.values.data(), image.values.size() * sizeof(float));
+    out.value(kVolume);
+    out.value(image.size);
+    out.value(image.spacing);
+    out.value(image.origin);
+    out.value(image.direction);
+    out.text(image.description);
+    out.values(image.values);
   } catch (const InputError& error) {
-    out.assign(1, kInputError);
-    put_text(out, error.file());
-    put<std::uint64_t>(out, error.line());
-    put_text(out, error.what());
+    out = StateWriter();
+    out.value(kInputError);
+    out.text(error.file());
+    out.value<std::uint64_t>(error.line());
+    out.text(error.what());
+  } catch (const std::bad_alloc&) {
+    out = StateWriter();
+    out.value(kInputError);
+    out.text(shown.string());
+    out.value<std::uint64_t>(0);
+    out.text(memory_budget > 0 && child_memory_budget_applies()
+                 ? fmt::format("{} asked for more memory than a volume of this size can need "
+                               "(over {} MB; the file claims more data than it holds); nothing "
+                               "was read",
+                               library, memory_budget >> 20)
+                 : std::string("not enough memory to read the volume; nothing was read"));
   } catch (const std::exception& error) {
-    out.assign(1, kOtherError);
-    put_text(out, error.what());
+    out = StateWriter();
+    out.value(kOtherError);
+    out.text(error.what());
   } catch (...) {
-    out.assign(1, kOtherError);
-    put_text(out, "an unknown exception");
+    out = StateWriter();
+    out.value(kOtherError);
+    out.text("an unknown exception");
   }
-  (void)write_all(fd, out.data(), out.size());
+  (void)write_all(fd, out.bytes().data(), out.bytes().size());
 }
 
 /// The message of an InputError's what() without the "file:line: " its constructor adds.
@@ -104,11 +77,13 @@ std::string message_of(const std::string& what, const std::string& file, std::si
 
 VolumeImage read_in_child(const std::function<VolumeImage()>& read,
                           const std::filesystem::path& shown, const char* library,
-                          double timeout_seconds) {
+                          double timeout_seconds, std::size_t memory_budget) {
   const auto fail = [&](const std::string& why) -> InputError {
     return InputError(shown.string(), 0, fmt::format("{} {}; nothing was read", library, why));
   };
-  const ChildOutcome outcome = run_in_child([&](int fd) { child(read, fd); }, timeout_seconds);
+  const ChildOutcome outcome =
+      run_in_child([&](int fd) { child(read, fd, shown, library, memory_budget); }, timeout_seconds,
+                   memory_budget);
   if (!outcome.start_error.empty()) {
     throw fail("could not be started (" + outcome.start_error + ")");
   }
@@ -121,45 +96,42 @@ VolumeImage read_in_child(const std::function<VolumeImage()>& read,
                     "crashed)",
                     outcome.signal == SIGABRT ? "an assertion, " : "", strsignal(outcome.signal)));
   }
-  const std::string& received = outcome.output;
-  Received in(received);
+  StateReader in(outcome.output, shown.string());
   char tag = 0;
-  if (!in.take(tag)) {
-    throw fail("ended without an answer");
+  try {
+    tag = in.value<char>("tag");
+    if (tag == kVolume) {
+      VolumeImage image;
+      image.size = in.value<std::array<std::size_t, 3>>("size");
+      image.spacing = in.value<Vec3>("spacing");
+      image.origin = in.value<Vec3>("origin");
+      image.direction = in.value<Eigen::Matrix3d>("direction");
+      image.description = in.text("description");
+      image.values = in.values<float>("values");
+      return image;
+    }
+  } catch (const InputError&) {
+    throw fail(outcome.output.empty() ? "ended without an answer" : "sent an incomplete answer");
   }
-  if (tag == kInputError) {
-    std::string file;
-    std::uint64_t line = 0;
-    std::string what;
-    if (in.take_text(file) && in.take(line) && in.take_text(what)) {
-      throw InputError(file, line, message_of(what, file, line));
-    }
-  } else if (tag == kOtherError) {
-    std::string what;
-    if (in.take_text(what)) {
-      throw fail("failed: " + what);
-    }
-  } else if (tag == kVolume) {
-    VolumeImage image;
-    std::uint64_t count = 0;
-    bool ok = true;
-    for (std::size_t& n : image.size) {
-      std::uint64_t value = 0;
-      ok = ok && in.take(value);
-      n = value;
-    }
-    ok = ok && in.take(image.spacing.data(), 3 * sizeof(double)) &&
-         in.take(image.origin.data(), 3 * sizeof(double)) &&
-         in.take(image.direction.data(), 9 * sizeof(double)) && in.take_text(image.description) &&
-         in.take(count) && count <= received.size() / sizeof(float);
-    if (ok) {
-      image.values.resize(count);
-      if (in.take(image.values.data(), count * sizeof(float))) {
-        return image;
-      }
-    }
+  if (tag != kInputError && tag != kOtherError) {
+    throw fail("sent an unreadable answer");
   }
-  throw fail("sent an incomplete answer");
+  std::string file;
+  std::uint64_t line = 0;
+  std::string what;
+  try {
+    if (tag == kInputError) {
+      file = in.text("file");
+      line = in.value<std::uint64_t>("line");
+    }
+    what = in.text("message");
+  } catch (const InputError&) {
+    throw fail("sent an incomplete answer");
+  }
+  if (tag == kOtherError) {
+    throw fail("failed: " + what);
+  }
+  throw InputError(file, line, message_of(what, file, line));
 }
 
 }  // namespace incise::imaging

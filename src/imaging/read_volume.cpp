@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <cstdlib>
-#include <new>
+#include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -236,7 +238,8 @@ VolumeImage read_dicom_folder(const std::filesystem::path& folder) {
 }
 
 /// ITK reports through exceptions (its warnings would only repeat them on stderr): they become
-/// InputErrors naming the file, as does running out of memory.
+/// InputErrors naming the file. Running out of memory is reported by read_in_child, which
+/// knows the child's memory budget.
 template <typename Read>
 VolumeImage with_itk_errors(const std::filesystem::path& path, const Read& read) {
   itk::Object::GlobalWarningDisplayOff();
@@ -245,9 +248,31 @@ VolumeImage with_itk_errors(const std::filesystem::path& path, const Read& read)
   } catch (const itk::ExceptionObject& failure) {
     throw InputError(path.string(), 0,
                      std::string("cannot read the volume: ") + failure.GetDescription());
-  } catch (const std::bad_alloc&) {
-    throw InputError(path.string(), 0, "not enough memory to read the volume");
   }
+}
+
+/// s: how long GDCM may take for a file or series.
+constexpr double kReaderSeconds = 300.0;
+
+/// bytes: what the child reading a DICOM file or folder may allocate: 512 MiB, plus 64 bytes
+/// for every byte of the files (a voxel of 2 bytes becomes a 4-byte float; ITK, GDCM and the
+/// answer to the parent each hold a copy; compressed data expands).
+std::size_t dicom_memory_budget(const std::filesystem::path& path) {
+  std::uintmax_t bytes = 0;
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) {
+    for (const auto& entry : std::filesystem::directory_iterator(path, error)) {
+      if (entry.is_regular_file(error)) {
+        bytes += entry.file_size(error);
+      }
+    }
+  } else {
+    bytes = std::filesystem::file_size(path, error);
+  }
+  constexpr std::uintmax_t kBase = std::uintmax_t{512} << 20;
+  constexpr std::uintmax_t kPerByte = 64;
+  const std::uintmax_t most = std::numeric_limits<std::size_t>::max() / 2;
+  return static_cast<std::size_t>(std::min(most, kBase + kPerByte * std::min(bytes, most / 128)));
 }
 
 VolumeImage read_dicom_file(const std::filesystem::path& path) {
@@ -286,15 +311,20 @@ VolumeImage read_volume(const std::filesystem::path& path) {
         },
         path, "MetaIO (ITK's MetaImage reader)", 60.0);
   }
-  // DICOM goes through GDCM, whose assertions abort the process: in a child process.
+  // DICOM goes through GDCM, whose assertions abort the process: in a child process. GDCM
+  // also allocates what an element's declared length says before it reads the element (1.4 GB
+  // for a 1 KB file, found by fuzzing): the child may use at most what a volume stored in
+  // these files could need, as floats, several times over (compressed transfer syntaxes
+  // included), plus a fixed allowance.
   constexpr const char* kGdcm = "GDCM (the DICOM library ITK reads through)";
+  const std::size_t budget = dicom_memory_budget(path);
   if (std::filesystem::is_directory(path, error)) {
     return read_in_child(
-        [&] { return with_itk_errors(path, [&] { return read_dicom_folder(path); }); }, path,
-        kGdcm);
+        [&] { return with_itk_errors(path, [&] { return read_dicom_folder(path); }); }, path, kGdcm,
+        kReaderSeconds, budget);
   }
   return read_in_child([&] { return with_itk_errors(path, [&] { return read_dicom_file(path); }); },
-                       path, kGdcm);
+                       path, kGdcm, kReaderSeconds, budget);
 }
 
 #else

@@ -2,6 +2,7 @@
 // by an independent writer) and isosurfaces out (a sphere-in-sphere phantom, scan borders).
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "incise/core/child_process.hpp"
 #include "incise/core/error.hpp"
 #include "incise/imaging/isosurface.hpp"
 #include "incise/imaging/read_volume.hpp"
@@ -277,6 +279,22 @@ TEST(ReadVolume, ADicomFileThatStopsGdcmIsRefusedAndTheProcessGoesOn) {
     EXPECT_EQ(read_volume(dir / "CT_small.dcm").size[0], 128u);
   }
   fs::remove_all(dir);
+}
+
+TEST(ReadVolume, ADicomHeaderClaimingGigabytesIsRefusedWithoutTakingThem) {
+  // Found by fuzzing: 439 bytes whose file meta group declares an element of 1.4 GB. GDCM
+  // allocates (and zero-fills) what an element's length says before reading it; the child
+  // that reads DICOM may only use what files of this size can need, so the allocation fails
+  // there and the file is refused, naming it.
+  if (!child_memory_budget_applies()) {
+    GTEST_SKIP() << "sanitizer build: the child's address space is not limited";
+  }
+  const fs::path file = fs::path(INCISE_SOURCE_DIR) / "tests/data/dicom/claims_1400mb.dcm";
+  const std::string message = read_error(file);
+  EXPECT_NE(message.find(file.string()), std::string::npos) << message;
+  rusage usage{};
+  ASSERT_EQ(getrusage(RUSAGE_CHILDREN, &usage), 0);
+  EXPECT_LT(usage.ru_maxrss, 400L * 1024) << "KiB: the child's largest resident size";
 }
 
 /// A sphere-in-sphere phantom (mm): soft tissue to radius 40, bone to radius 25, about

@@ -25,8 +25,15 @@ struct ChildOutcome {
 /// work returns (work may _exit itself with another status). The parent reads everything the
 /// child writes until it ends, killing it after `timeout_seconds`. The child must not return
 /// into the caller's state: no exceptions escape work (they end the child with status 1).
+/// `memory_budget` (bytes, 0: none) bounds what the child may add to the address space it
+/// inherits (RLIMIT_AS): an allocation beyond it fails in the child (std::bad_alloc) instead
+/// of taking the machine's memory. Not applied in sanitizer builds, whose shadow memory needs
+/// terabytes of address space (child_memory_budget_applies() says which).
 [[nodiscard]] ChildOutcome run_in_child(const std::function<void(int fd)>& work,
-                                        double timeout_seconds);
+                                        double timeout_seconds, std::size_t memory_budget = 0);
+
+/// Whether run_in_child's memory budget is applied in this build.
+[[nodiscard]] bool child_memory_budget_applies();
 
 /// Writes all of `bytes` to `fd`, retrying interrupted writes; false on any other failure.
 bool write_all(int fd, const void* bytes, std::size_t size);
