@@ -139,6 +139,7 @@ Runner add_cut_command(CLI::App& app) {
       json["split"] = *split;
       json["blade_vertices"] = stats.blade_vertices;
       json["blade_slides"] = stats.blade_slides;
+      json["blade_points_collapsed"] = stats.blade_points_collapsed;
       json["blade_points_left_out"] = stats.blade_points_left_out;
       json["swept_area"] = stats.swept_area;
       json["edges_split"] = stats.edges_split;

@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <set>
+#include <vector>
 
 #include "cutter_helpers.hpp"
 #include "incise/core/error.hpp"
@@ -218,6 +221,31 @@ void SubdivisionCutter::insert_point(const Vec3& point, const Vec3& normal) {
   stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, smallest);
 }
 
+double SubdivisionCutter::cut_area_through(std::initializer_list<VertexId> vertices) const {
+  // As cut_area_around, over the faces through any of the vertices, each (tetrahedron, face)
+  // once.
+  std::vector<TetId> tets;
+  for (VertexId vertex : vertices) {
+    tets.insert(tets.end(), mesh_.vertex_tets(vertex).begin(), mesh_.vertex_tets(vertex).end());
+  }
+  std::sort(tets.begin(), tets.end());
+  tets.erase(std::unique(tets.begin(), tets.end()), tets.end());
+  double total = 0.0;
+  for (TetId t : tets) {
+    const Tet& v = mesh_.tet(t);
+    for (int f = 0; f < 4; ++f) {
+      bool through = false;
+      for (VertexId vertex : vertices) {
+        through = through || (v[f] != vertex && std::find(v.begin(), v.end(), vertex) != v.end());
+      }
+      if (through && marks_.is_cut(t, f)) {
+        total += 0.5 * area(rest_face(mesh_, t, f));
+      }
+    }
+  }
+  return total;
+}
+
 double SubdivisionCutter::cut_area_around(VertexId vertex) const {
   // Each cut face through the vertex is seen from two tetrahedra around it (its two sides, or
   // the two copies of a face the cut opened while the vertex itself stayed joined).
@@ -235,6 +263,7 @@ double SubdivisionCutter::cut_area_around(VertexId vertex) const {
 
 void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
   const Vec3 direction = pose.base - pose.tip;
+  std::vector<std::pair<Provisional, std::array<double, 4>>> leaving;
 
   for (const Provisional& point : provisional_) {
     // Where the new blade line meets the feature the vertex was put in: the plane of its face,
@@ -269,7 +298,15 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
       inside = inside && weights[k] >= options_.snap_fraction;
     }
     if (!inside) {
-      continue;  // the blade left the face or tetrahedron: the vertex stays behind
+      // The blade is leaving the face or tetrahedron: the vertex is handed over to where the
+      // cut will cross the face's edge, or stays behind, to be collapsed onto the crossing
+      // this move makes if it can (collapse_left_behind).
+      if (point.count == 3) {
+        leaving.emplace_back(point, weights);
+      } else {
+        left_behind_.push_back(point);
+      }
+      continue;
     }
     Vec3 rest = Vec3::Zero();
     Vec3 now = Vec3::Zero();
@@ -323,6 +360,330 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
     next_provisional_.push_back(point);
     ++stats_.blade_slides;
   }
+  hand_over(leaving);
+}
+
+namespace {
+
+/// Whether `vertex` lies on the boundary of the feature spanned by `corners` (a face's three
+/// or a tetrahedron's four): it is one of them, or it was made (through edge, face and
+/// tetrahedron splits, copies and slides) as a combination of fewer of them than the feature
+/// has. Decided from the vertices' origins, not from coordinates.
+bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
+                         const std::array<VertexId, 4>& corners, int count) {
+  std::vector<VertexId> leaves;
+  std::vector<VertexId> stack{vertex};
+  const auto is_corner = [&](VertexId v) {
+    return std::find(corners.begin(), corners.begin() + count, v) != corners.begin() + count;
+  };
+  for (int steps = 0; !stack.empty(); ++steps) {
+    if (steps > 256) {
+      return false;  // a deep history: not worth following
+    }
+    VertexId v = stack.back();
+    stack.pop_back();
+    if (is_corner(v)) {
+      leaves.push_back(v);
+      continue;
+    }
+    const VertexOrigin& origin = mesh.vertex_origin(v);
+    if (origin.kind == VertexOrigin::Kind::kFresh) {
+      return false;  // an original vertex that is not a corner
+    }
+    for (int p = 0; p < origin.parent_count; ++p) {
+      if (origin.weights[static_cast<std::size_t>(p)] > 0.0) {
+        stack.push_back(origin.parents[static_cast<std::size_t>(p)]);
+      }
+    }
+  }
+  std::sort(leaves.begin(), leaves.end());
+  leaves.erase(std::unique(leaves.begin(), leaves.end()), leaves.end());
+  return static_cast<int>(leaves.size()) < count;
+}
+
+}  // namespace
+
+bool SubdivisionCutter::try_collapse(VertexId vertex, VertexId target) {
+  // A target the cut has opened at (its copies hold the two sides apart) would join the sides
+  // again through the vertex's tetrahedra, which hold both.
+  for (TetId t : mesh_.vertex_tets(target)) {
+    const int local = mesh_.local_index(t, target);
+    for (int f = 0; f < 4; ++f) {
+      if (f != local && mesh_.tet_neighbors(t)[f] < 0 && marks_.is_cut(t, f)) {
+        return false;
+      }
+    }
+  }
+  // Every tetrahedron that stays is positive (at rest and where the cutter intersects) and its
+  // worst no worse than the star's worst (or than 0.05). Each original tetrahedron's part of
+  // the star keeps its volume, and a removed tetrahedron is absorbed by one of the same
+  // original: so the body's boundary, every region and material (given per original), and
+  // the mass of each are kept.
+  const std::span<const TetId> star = mesh_.vertex_tets(vertex);
+  double worst_before = 1.0;
+  double worst_after = 1.0;
+  double star_volume = 0.0;
+  std::vector<std::pair<std::int32_t, double>> change;  // (original, m^3 after - before)
+  for (TetId t : star) {
+    const std::array<Vec3, 4> before = rest_corners(mesh_, t);
+    const std::int32_t original = ancestry_[t].id;
+    const double volume = signed_volume(before[0], before[1], before[2], before[3]);
+    worst_before = std::min(worst_before, quality(before));
+    star_volume += volume;
+    change.emplace_back(original, -volume);
+    const int at_target = mesh_.local_index(t, target);
+    if (at_target >= 0) {
+      const TetId absorber = mesh_.tet_neighbors(t)[at_target];
+      if (absorber < 0 || ancestry_[absorber].id != original) {
+        return false;
+      }
+      continue;  // removed
+    }
+    const int local = mesh_.local_index(t, vertex);
+    std::array<Vec3, 4> after = before;
+    after[local] = mesh_.rest_position(target);
+    if (orient3d(after[0], after[1], after[2], after[3]) != Sign::kPositive) {
+      return false;
+    }
+    if (positions_ != nullptr) {
+      const Tet& v = mesh_.tet(t);
+      std::array<Vec3, 4> now{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
+      now[local] = position(target);
+      if (orient3d(now[0], now[1], now[2], now[3]) != Sign::kPositive) {
+        return false;
+      }
+    }
+    worst_after = std::min(worst_after, quality(after));
+    change.emplace_back(original, signed_volume(after[0], after[1], after[2], after[3]));
+  }
+  if (worst_after < std::min(0.05, worst_before)) {
+    return false;
+  }
+  std::sort(change.begin(), change.end());
+  for (std::size_t k = 0; k < change.size();) {
+    double sum = 0.0;
+    const std::int32_t original = change[k].first;
+    for (; k < change.size() && change[k].first == original; ++k) {
+      sum += change[k].second;
+    }
+    if (std::abs(sum) > 1e-10 * star_volume) {
+      return false;
+    }
+  }
+  const double area_before = cut_area_through({vertex, target});
+  try {
+    mesh_.collapse_vertex(vertex, target);
+  } catch (const InputError&) {
+    return false;  // the link condition does not hold here: the vertex stays
+  }
+  // Interior faces through the target are decided again, as for any vertex this move put on
+  // the cut (those through the collapsed vertex now run through it). Faces the cut opened keep
+  // their marks.
+  for (TetId t : mesh_.vertex_tets(target)) {
+    const Tet& v = mesh_.tet(t);
+    const int local = mesh_.local_index(t, target);
+    for (int f = 0; f < 4; ++f) {
+      const TetId neighbor = mesh_.tet_neighbors(t)[f];
+      if (f == local || neighbor < 0) {
+        continue;
+      }
+      const auto& face = tet_local::kFaces[f];
+      const int across = local_face_of(mesh_.tet(neighbor), v[face[0]], v[face[1]], v[face[2]]);
+      marks_.unmark(t, f);
+      if (across >= 0) {
+        marks_.unmark(neighbor, across);
+      }
+    }
+  }
+  stats_.cut_area += cut_area_through({target}) - area_before;
+  fresh_.push_back(target);
+  ++stats_.blade_points_collapsed;
+  return true;
+}
+
+std::optional<SubdivisionCutter::Handover> SubdivisionCutter::exit_of(
+    const Provisional& point, const std::array<double, 4>& next) const {
+  // The trace of the swept surface in the face runs from the vertex (weights `now`) towards
+  // where the new blade line meets the face's plane (`next`), which is within the snap
+  // fraction of the face's boundary or past it; it leaves through the side whose weight
+  // reaches 0 first.
+  const VertexId vertex = point.vertex;
+  std::array<Vec3, 3> feature;
+  for (int k = 0; k < 3; ++k) {
+    feature[k] = position(point.corners[k]);
+  }
+  const Vec3 normal = (feature[1] - feature[0]).cross(feature[2] - feature[0]);
+  const double area2 = normal.squaredNorm();
+  if (!(area2 > 0.0) || mesh_.vertex_tets(vertex).empty()) {
+    return std::nullopt;
+  }
+  const Vec3 at = position(vertex);
+  const std::array<double, 3> now{normal.dot((feature[1] - at).cross(feature[2] - at)) / area2,
+                                  normal.dot((feature[2] - at).cross(feature[0] - at)) / area2,
+                                  normal.dot((feature[0] - at).cross(feature[1] - at)) / area2};
+  double leave = std::numeric_limits<double>::infinity();
+  int side = -1;
+  for (int k = 0; k < 3; ++k) {
+    if (next[k] < now[k] && next[k] < options_.snap_fraction) {
+      const double s = now[k] / (now[k] - next[k]);
+      if (s >= 0.0 && s < leave) {
+        leave = s;
+        side = k;
+      }
+    }
+  }
+  if (side < 0) {
+    return std::nullopt;
+  }
+  std::array<double, 3> exit{};
+  double sum = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    exit[k] = k == side ? 0.0 : std::max(0.0, now[k] + leave * (next[k] - now[k]));
+    sum += exit[k];
+  }
+  if (!(sum > 0.0)) {
+    return std::nullopt;
+  }
+  // The exit may lie ahead of the blade, by at most the snap distance of the face (measured
+  // where the cutter intersects, as this move's swept triangles).
+  Vec3 exit_point = Vec3::Zero();
+  double size = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    exit_point += exit[k] / sum * feature[k];
+    size = std::max(size, (feature[k] - feature[(k + 1) % 3]).norm());
+  }
+  Handover handover;
+  handover.vertex = vertex;
+  handover.a = point.corners[static_cast<std::size_t>((side + 1) % 3)];
+  handover.b = point.corners[static_cast<std::size_t>((side + 2) % 3)];
+  handover.t = exit[static_cast<std::size_t>((side + 2) % 3)] / sum;  // from a to b
+  handover.ahead = distance_to(move_triangles_, exit_point);
+  handover.size = size;
+  if (handover.ahead > options_.snap_fraction * size) {
+    return std::nullopt;
+  }
+  return handover;
+}
+
+VertexId SubdivisionCutter::vertex_at_exit(const Handover& exit) {
+  // The vertices on the edge (a, b) next to the leaving vertex, by their place along it: the
+  // edge may have been split already (by a crossing, or by the exit of a blade-line vertex in
+  // a neighbouring face, which leaves through the same point).
+  const Vec3 from = mesh_.rest_position(exit.a);
+  const Vec3 along = mesh_.rest_position(exit.b) - from;
+  const double length2 = along.squaredNorm();
+  if (!(length2 > 0.0)) {
+    return kInvalidId;
+  }
+  std::vector<std::pair<double, VertexId>> chain{{0.0, exit.a}, {1.0, exit.b}};
+  const std::array<VertexId, 4> ends{exit.a, exit.b, kInvalidId, kInvalidId};
+  for (TetId t : mesh_.vertex_tets(exit.vertex)) {
+    for (VertexId u : mesh_.tet(t)) {
+      if (u != exit.a && u != exit.b && u != exit.vertex &&
+          on_feature_boundary(mesh_, u, ends, 3)) {
+        chain.emplace_back((mesh_.rest_position(u) - from).dot(along) / length2, u);
+      }
+    }
+  }
+  std::sort(chain.begin(), chain.end());
+  chain.erase(std::unique(chain.begin(), chain.end()), chain.end());
+  // The nearest vertex on the edge, if the exit is within the snap fraction of the piece of
+  // edge it lies on; else that piece is split at the exit.
+  for (std::size_t k = 0; k + 1 < chain.size(); ++k) {
+    const auto [t0, p] = chain[k];
+    const auto [t1, q] = chain[k + 1];
+    if (exit.t < t0 || exit.t > t1) {
+      continue;
+    }
+    const double piece = t1 - t0;
+    if (!(piece > 0.0)) {
+      return kInvalidId;
+    }
+    const double within = (exit.t - t0) / piece;
+    if (within < options_.snap_fraction) {
+      return p;
+    }
+    if (within > 1.0 - options_.snap_fraction) {
+      return q;
+    }
+    const EdgeId edge = mesh_.find_edge(p, q);
+    if (edge == kInvalidId) {
+      return kInvalidId;  // the chain misses a vertex the leaving vertex does not see
+    }
+    const VertexId made = split_edge(mesh_, edge, mesh_.edge(edge)[0] == p ? within : 1.0 - within);
+    ++stats_.edges_split;
+    return made;
+  }
+  return kInvalidId;
+}
+
+void SubdivisionCutter::hand_over(
+    const std::vector<std::pair<Provisional, std::array<double, 4>>>& leaving) {
+  // A blade-line vertex in a face the blade is leaving is collapsed onto the point where the
+  // cut will cross the face's edge (split there, or a vertex on the edge within the snap
+  // fraction): the face keeps no vertex of its own. The blade line leaves neighbouring faces
+  // through the same point at once, and one vertex's collapse may need another's first, so
+  // collapses are tried again while any succeeds.
+  std::vector<std::pair<VertexId, VertexId>> pending;  // (vertex, target)
+  for (const auto& [point, next] : leaving) {
+    const auto exit = exit_of(point, next);
+    const VertexId target = exit ? vertex_at_exit(*exit) : kInvalidId;
+    if (target == kInvalidId) {
+      left_behind_.push_back(point);
+      continue;
+    }
+    if (on_cut_[target] == 0) {
+      // On the swept surface ahead of the blade, or a vertex within the snap fraction of it.
+      mark_on_cut(target, std::max({1e-9 * exit->size, exit->ahead,
+                                    distance_to(move_triangles_, position(target))}));
+    } else {
+      fresh_.push_back(target);
+    }
+    pending.emplace_back(point.vertex, target);
+  }
+  for (bool progress = true; progress && !pending.empty();) {
+    progress = false;
+    for (auto it = pending.begin(); it != pending.end();) {
+      if (mesh_.find_edge(it->first, it->second) != kInvalidId &&
+          try_collapse(it->first, it->second)) {
+        it = pending.erase(it);
+        progress = true;
+      } else {
+        ++it;
+      }
+    }
+  }
+}
+
+void SubdivisionCutter::collapse_left_behind() {
+  for (const Provisional& left : left_behind_) {
+    const VertexId vertex = left.vertex;
+    // Still a feature corner of a blade-line vertex that slides on: it stays.
+    bool needed = false;
+    for (const Provisional& point : next_provisional_) {
+      needed = needed || std::find(point.corners.begin(), point.corners.begin() + point.count,
+                                   vertex) != point.corners.begin() + point.count;
+    }
+    if (needed || mesh_.vertex_tets(vertex).empty()) {
+      continue;
+    }
+    // Targets: crossings this move split, next to it, on its feature's boundary; nearest first.
+    std::vector<std::pair<double, VertexId>> targets;
+    for (VertexId u : crossings_made_) {
+      if (mesh_.find_edge(vertex, u) != kInvalidId &&
+          on_feature_boundary(mesh_, u, left.corners, left.count)) {
+        targets.emplace_back((mesh_.rest_position(u) - mesh_.rest_position(vertex)).norm(), u);
+      }
+    }
+    std::sort(targets.begin(), targets.end());
+    for (const auto& candidate : targets) {
+      if (try_collapse(vertex, candidate.second)) {
+        break;
+      }
+    }
+  }
+  left_behind_.clear();
+  crossings_made_.clear();
 }
 
 }  // namespace incise

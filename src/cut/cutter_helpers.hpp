@@ -19,6 +19,11 @@ inline double longest_edge(const std::array<Vec3, 3>& t) {
   return std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
 }
 
+/// The unit normal of a triangle.
+inline Vec3 unit_normal(const std::array<Vec3, 3>& t) {
+  return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
+}
+
 /// The vertices of a tetrahedron's face, sorted: one key per face whichever tet it is seen from.
 inline std::array<VertexId, 3> face_key(const Tet& tet, int local_face) {
   const auto& face = tet_local::kFaces[local_face];

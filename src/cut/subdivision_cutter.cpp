@@ -123,6 +123,8 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
 
   start = Clock::now();
   split_crossed_edges(contact);
+  collapse_left_behind();
+  insert_new_blade_line(pose, triangles);
   surface_.insert(surface_.end(), triangles.begin(), triangles.end());
   open_cut(triangles);
   stats_.gc_seconds = gc_seconds + seconds_since(start);
@@ -143,23 +145,28 @@ void SubdivisionCutter::place_blade_line(const BladePose& from, const BladePose&
                                          const std::vector<std::array<Vec3, 3>>& triangles) {
   // Vertices where the blade line crosses faces, and at its tip: both ends of the swept
   // surface. The previous blade line was placed by the previous move already (unless the body
-  // moved since or this is the first move); its vertices slide along with the blade.
+  // moved since or this is the first move); its vertices slide along with the blade. The new
+  // blade line's vertices are put in after the crossings are split (insert_new_blade_line), so
+  // a vertex the blade has left can be collapsed onto its crossing first.
+  next_provisional_.clear();
   if (options_.open_under_blade && !triangles.empty()) {
-    const auto unit_normal = [](const std::array<Vec3, 3>& t) {
-      return (t[1] - t[0]).cross(t[2] - t[0]).normalized();
-    };
     if (provisional_.empty()) {
       insert_blade_points(from, unit_normal(triangles.front()));
     }
-    next_provisional_.clear();
-    sliding_ = options_.slide_blade_points;
-    if (sliding_) {
+    if (options_.slide_blade_points) {
       slide_blade_points(pose);
     }
+  }
+  provisional_.clear();
+}
+
+void SubdivisionCutter::insert_new_blade_line(const BladePose& pose,
+                                              const std::vector<std::array<Vec3, 3>>& triangles) {
+  if (options_.open_under_blade && !triangles.empty()) {
+    sliding_ = options_.slide_blade_points;
     insert_blade_points(pose, unit_normal(triangles.back()));
     sliding_ = false;
   }
-  provisional_.clear();
 }
 
 SubdivisionCutter::Contact SubdivisionCutter::collide(
@@ -188,6 +195,7 @@ void SubdivisionCutter::split_crossed_edges(const Contact& contact) {
     const double t = mesh_.edge(edge)[0] == crossing.a ? crossing.t : 1.0 - crossing.t;
     const VertexId middle = split_edge(mesh_, edge, t);
     mark_on_cut(middle, 0.0);
+    crossings_made_.push_back(middle);
     ++stats_.edges_split;
     stats_.min_volume_ratio = std::min(stats_.min_volume_ratio, std::min(t, 1.0 - t));
   }

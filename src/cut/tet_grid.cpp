@@ -141,10 +141,25 @@ void TetGrid::on_tet_added(const TetMesh& mesh, TetId tet) {
   insert(tet, mesh.tet(tet));
 }
 
+bool TetGrid::unpend(TetId tet) {
+  const auto it = std::find(pending_.begin(), pending_.end(), tet);
+  if (it == pending_.end()) {
+    return false;
+  }
+  *it = pending_.back();
+  pending_.pop_back();
+  return true;
+}
+
+// An edit may arrive while tetrahedra around a moved vertex wait to be filed (pending_): they
+// are not in any cell, and the mesh already shows the edit, so they are handled by id here and
+// never filed with corners they no longer have.
+
 void TetGrid::on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
                               const Tet& parent_vertices) {
-  file_pending();
-  erase(parent, parent_vertices);
+  if (!unpend(parent)) {
+    erase(parent, parent_vertices);
+  }
   for (TetId child : children) {
     insert(child, mesh.tet(child));
   }
@@ -152,11 +167,24 @@ void TetGrid::on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const
 
 void TetGrid::on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                              const Tet& removed_vertices) {
-  file_pending();
-  erase(removed, removed_vertices);
-  if (removed != moved_from) {
-    rename(moved_from, removed, mesh.tet(removed));
+  if (!unpend(removed)) {
+    erase(removed, removed_vertices);
   }
+  if (removed != moved_from) {
+    if (unpend(moved_from)) {
+      pending_.push_back(removed);
+    } else {
+      rename(moved_from, removed, mesh.tet(removed));
+    }
+  }
+}
+
+void TetGrid::on_tet_reshaped(const TetMesh& mesh, TetId tet, const Tet& old_vertices) {
+  if (std::find(pending_.begin(), pending_.end(), tet) != pending_.end()) {
+    return;  // filed later, at its new corners
+  }
+  erase(tet, old_vertices);
+  insert(tet, mesh.tet(tet));
 }
 
 void TetGrid::query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) const {

@@ -646,12 +646,7 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
   return ids;
 }
 
-void TetMesh::remove_tet(TetId t) {
-  if (t < 0 || static_cast<std::size_t>(t) >= tets_.size()) {
-    throw InputError("remove_tet: tetrahedron " + std::to_string(t) + " does not exist");
-  }
-  const Tet removed_vertices = tets_[t];
-  detach(t);
+TetId TetMesh::erase_detached(TetId t) {
   const auto last = static_cast<TetId>(tets_.size() - 1);
   if (t != last) {
     tets_[t] = tets_[last];
@@ -676,8 +671,121 @@ void TetMesh::remove_tet(TetId t) {
   tet_fractions_.pop_back();
   tet_neighbors_.pop_back();
   tet_edges_.pop_back();
+  return last;
+}
+
+void TetMesh::remove_tet(TetId t) {
+  if (t < 0 || static_cast<std::size_t>(t) >= tets_.size()) {
+    throw InputError("remove_tet: tetrahedron " + std::to_string(t) + " does not exist");
+  }
+  const Tet removed_vertices = tets_[t];
+  detach(t);
+  const TetId last = erase_detached(t);
   for (MeshObserver* observer : observers_) {
     observer->on_tet_removed(*this, t, last, removed_vertices);
+  }
+  finish_edit();
+}
+
+void TetMesh::collapse_vertex(VertexId vertex, VertexId target) {
+  const auto exists = [&](VertexId v) {
+    return v >= 0 && static_cast<std::size_t>(v) < rest_positions_.size();
+  };
+  const std::string where =
+      "collapse_vertex(" + std::to_string(vertex) + ", " + std::to_string(target) + "): ";
+  if (!exists(vertex) || !exists(target) || vertex == target) {
+    throw InputError(where + "two distinct existing vertices needed");
+  }
+  if (find_edge(vertex, target) == kInvalidId) {
+    throw InputError(where + "not an edge");
+  }
+  // Which tetrahedra go and which change, and who takes each one's material.
+  const std::vector<TetId> star(vertex_tets_[vertex].begin(), vertex_tets_[vertex].end());
+  std::vector<TetId> removed;
+  std::vector<TetId> reshaped;
+  for (TetId t : star) {
+    (contains(tets_[t], target) ? removed : reshaped).push_back(t);
+  }
+  std::vector<TetId> into;
+  for (TetId t : removed) {
+    const TetId across = tet_neighbors_[t][local_index(t, target)];
+    if (across < 0 || contains(tets_[across], target)) {
+      throw InputError(where + "tetrahedron " + std::to_string(t) +
+                       " has no neighbour to absorb it (the collapse would change the boundary)");
+    }
+    into.push_back(across);
+  }
+  // The link condition: no tetrahedron twice, no face on three tetrahedra, around the target.
+  std::vector<Tet> around;
+  for (TetId t : vertex_tets_[target]) {
+    if (!contains(tets_[t], vertex)) {
+      around.push_back(tets_[t]);
+    }
+  }
+  for (TetId t : reshaped) {
+    Tet moved = tets_[t];
+    std::replace(moved.begin(), moved.end(), vertex, target);
+    around.push_back(moved);
+  }
+  std::vector<std::array<VertexId, 4>> sets;
+  std::vector<std::array<VertexId, 3>> faces;
+  for (const Tet& tet : around) {
+    std::array<VertexId, 4> sorted = tet;
+    std::sort(sorted.begin(), sorted.end());
+    sets.push_back(sorted);
+    for (const auto& face : tet_local::kFaces) {
+      std::array<VertexId, 3> f{tet[face[0]], tet[face[1]], tet[face[2]]};
+      if (contains(tet, target) && std::find(f.begin(), f.end(), target) != f.end()) {
+        std::sort(f.begin(), f.end());
+        faces.push_back(f);
+      }
+    }
+  }
+  std::sort(sets.begin(), sets.end());
+  std::sort(faces.begin(), faces.end());
+  if (std::adjacent_find(sets.begin(), sets.end()) != sets.end()) {
+    throw InputError(where + "a tetrahedron would be repeated");
+  }
+  for (std::size_t k = 2; k < faces.size(); ++k) {
+    if (faces[k] == faces[k - 2]) {
+      throw InputError(where + "a face would be shared by three tetrahedra");
+    }
+  }
+
+  // The edit: detach everything that changes, reshape, attach, then drop the removed ones
+  // (highest id first, so the ids still to be dropped or absorbed into stay valid).
+  for (TetId t : star) {
+    detach(t);
+  }
+  std::vector<Tet> old_vertices;
+  for (TetId t : reshaped) {
+    old_vertices.push_back(tets_[t]);
+    std::replace(tets_[t].begin(), tets_[t].end(), vertex, target);
+  }
+  for (TetId t : reshaped) {
+    attach(t);
+  }
+  for (std::size_t k = 0; k < reshaped.size(); ++k) {
+    for (MeshObserver* observer : observers_) {
+      observer->on_tet_reshaped(*this, reshaped[k], old_vertices[k]);
+    }
+  }
+  std::vector<std::size_t> order(removed.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    order[k] = k;
+  }
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return removed[a] > removed[b]; });
+  for (std::size_t k : order) {
+    const TetId t = removed[k];
+    const Tet gone = tets_[t];
+    const TetId last = erase_detached(t);
+    for (MeshObserver* observer : observers_) {
+      observer->on_tet_absorbed(*this, t, into[k], last, gone);
+    }
+    for (TetId& absorber : into) {
+      absorber = absorber == last ? t : absorber;  // the last tetrahedron moved to t
+    }
   }
   finish_edit();
 }

@@ -50,7 +50,7 @@ CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const MaterialAssignme
     elements_[tet].valid = true;
     tet_mass_[tet] = materials_.of(tet).density * elements_[tet].shape.volume;
   }
-  tet_mass_.set_hook(mass_split_by_volume(mesh_));
+  conserve_mass(tet_mass_, mesh_);
   mesh.add_observer(this);
   refresh();
 }

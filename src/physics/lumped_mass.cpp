@@ -52,4 +52,15 @@ TetData<double>::Hook mass_split_by_volume(TetMesh* const& mesh) {
   };
 }
 
+TetData<double>::AbsorbHook mass_absorbed() {
+  return [](TetData<double>& mass, TetId into, const double& removed_mass) {
+    mass[into] += removed_mass;
+  };
+}
+
+void conserve_mass(TetData<double>& mass, TetMesh* const& mesh) {
+  mass.set_hook(mass_split_by_volume(mesh));
+  mass.set_absorb_hook(mass_absorbed());
+}
+
 }  // namespace incise

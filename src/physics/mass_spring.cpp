@@ -31,7 +31,7 @@ MassSpringModel::MassSpringModel(TetMesh& mesh, const MaterialAssignment& materi
     const auto tet = static_cast<TetId>(t);
     tet_mass_[tet] = materials_.of(tet).density * std::abs(signed_volume(mesh, tet));
   }
-  tet_mass_.set_hook(mass_split_by_volume(mesh_));
+  conserve_mass(tet_mass_, mesh_);
   mesh.add_observer(this);
   is_dirty_.assign(mesh.vertex_count(), 0);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {

@@ -10,14 +10,18 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <map>
+#include <memory>
 #include <random>
 
 #include "blade_walks.hpp"
 #include "incise/cut/subdivision_cutter.hpp"
+#include "incise/cut/tet_grid.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
+#include "incise/mesh/predicates.hpp"
 #include "incise/mesh/validate.hpp"
 #include "incise/meshing/tetrahedralize.hpp"
 #include "test_support.hpp"
@@ -40,28 +44,58 @@ struct Pieces {
   std::vector<int> sides;       ///< -1 / +1: all centroids below / above the plane; 0: both
 };
 
-Pieces pieces_across(const TetMesh& mesh, double plane_y) {
+/// m: the snap distance at a point of the body before the cut: a tenth of the longest edge of
+/// the input tetrahedron holding it (the cutter snaps crossings and blade points that far,
+/// relative to the element it cuts). Null `input`, or a point in none: `fallback`.
+double snap_band(const TetMesh* input, const TetGrid* grid, const Vec3& point, double fallback) {
+  if (input == nullptr) {
+    return fallback;
+  }
+  std::vector<TetId> near;
+  grid->query(point, point, near);
+  for (TetId t : near) {
+    const std::array<Vec3, 4> c = rest_corners(*input, t);
+    if (locate_in_tet(point, c[0], c[1], c[2], c[3]) != TetLocation::kOutside) {
+      double longest = 0.0;
+      for (const auto& e : tet_local::kEdges) {
+        longest = std::max(longest, (c[e[0]] - c[e[1]]).norm());
+      }
+      return 0.1 * longest;
+    }
+  }
+  return fallback;
+}
+
+/// The pieces of a cut mesh and the side of the plane y = plane_y each lies on. `input` (the
+/// mesh before the cut) gives the snap band around the plane where a tetrahedron may lie on
+/// either side; without it, a tenth of the tetrahedron's own longest edge.
+Pieces pieces_across(const TetMesh& mesh, double plane_y, const TetMesh* input = nullptr) {
   Pieces pieces;
   const std::vector<int> component = tet_components(mesh, &pieces.by_faces);
   pieces.by_vertices = pieces_by_vertices(mesh);
   pieces.volumes.assign(static_cast<std::size_t>(pieces.by_faces), 0.0);
   std::vector<std::array<int, 2>> count(static_cast<std::size_t>(pieces.by_faces), {0, 0});
+  TetMesh input_copy;
+  std::unique_ptr<TetGrid> grid;
+  if (input != nullptr) {
+    input_copy = *input;
+    grid = std::make_unique<TetGrid>(input_copy);
+  }
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    const Tet& v = mesh.tet(static_cast<TetId>(t));
-    const double y = (mesh.rest_position(v[0]).y() + mesh.rest_position(v[1]).y() +
-                      mesh.rest_position(v[2]).y() + mesh.rest_position(v[3]).y()) /
-                     4.0;
-    const auto c = static_cast<std::size_t>(component[t]);
-    pieces.volumes[c] += std::abs(signed_volume(mesh, static_cast<TetId>(t)));
-    // A tetrahedron closer to the plane than the snap distance (a tenth of its longest edge)
-    // may lie on either side: the cut follows vertices snapped that far.
+    const std::array<Vec3, 4> c = rest_corners(mesh, static_cast<TetId>(t));
+    const Vec3 centroid = (c[0] + c[1] + c[2] + c[3]) / 4.0;
+    const auto piece = static_cast<std::size_t>(component[t]);
+    pieces.volumes[piece] += std::abs(signed_volume(mesh, static_cast<TetId>(t)));
+    // A tetrahedron closer to the plane than the snap distance may lie on either side: the
+    // cut follows vertices snapped that far.
     double longest = 0.0;
     for (const auto& e : tet_local::kEdges) {
-      longest =
-          std::max(longest, (mesh.rest_position(v[e[0]]) - mesh.rest_position(v[e[1]])).norm());
+      longest = std::max(longest, (c[e[0]] - c[e[1]]).norm());
     }
-    if (std::abs(y - plane_y) > 0.1 * longest) {
-      ++count[c][y < plane_y ? 0 : 1];
+    const double band =
+        snap_band(input != nullptr ? &input_copy : nullptr, grid.get(), centroid, 0.1 * longest);
+    if (std::abs(centroid.y() - plane_y) > band) {
+      ++count[piece][centroid.y() < plane_y ? 0 : 1];
     }
   }
   for (const auto& [below, above] : count) {
@@ -106,8 +140,9 @@ TEST_P(FullCut, SeparatesIntoPiecesOnEachSideOfTheBlade) {
   int pieces_in = 0;
   (void)tet_components(mesh, &pieces_in);
   const double volume = total_volume(mesh);
+  const TetMesh input = mesh;
   cut_checked(mesh, sweep_along_x(box, 0.513, 1.1, poses), poses > 24 ? 8 : 1);
-  const Pieces pieces = pieces_across(mesh, plane_y);
+  const Pieces pieces = pieces_across(mesh, plane_y, &input);
   // Separated, in the same way by faces and by vertices.
   EXPECT_GT(pieces.by_faces, pieces_in);
   EXPECT_GE(pieces.by_faces, 2);
@@ -156,7 +191,7 @@ TEST(FullCut, SeparatesMeshesMadeFromSurfaces) {
       const Box box = bounds(mesh);
       const double plane_y = box.low.y() + 0.513 * (box.high.y() - box.low.y());
       cut_checked(mesh, sweep_along_x(box, 0.513, 1.1, poses), poses > 24 ? 8 : 1);
-      const Pieces pieces = pieces_across(mesh, plane_y);
+      const Pieces pieces = pieces_across(mesh, plane_y, &made);
       EXPECT_GE(pieces.by_faces, 2);
       EXPECT_EQ(pieces.by_vertices, pieces.by_faces);
       for (std::size_t p = 0; p < pieces.volumes.size(); ++p) {
@@ -191,25 +226,32 @@ INSTANTIATE_TEST_SUITE_P(DataMeshes, PartialCut, ::testing::Range<std::size_t>(0
                          });
 
 TEST(FullCutGrowth, BarelyDependsOnHowFinelyThePathIsSampled) {
-  // The same swept plane in 24 and in 240 poses. Blade-line vertices slide with the blade
-  // instead of being left behind every pose; what remains is one vertex left where the blade
-  // line leaves each face. The issue's goal is 1.5x; 3x guards what holds today (it was up to
-  // 9.5x when every pose added vertices).
+  // The same swept plane in one move, 24 and 240 poses, on every data mesh. Blade-line
+  // vertices slide with the blade, and one whose face the blade leaves is collapsed onto the
+  // point where the cut crosses that face's edge, so what is left is mostly what the swept
+  // surface itself needs. The goals are 1.5x (240 against 24 poses) and 2x (against
+  // one move); the bounds here are those measured (BENCHMARKS.md) with a little room, so a
+  // change that brings back growth with the sampling fails (before the collapse: up to 2.8x).
   if (!std::filesystem::exists(test::data_dir())) {
     GTEST_SKIP() << "no ../shared/data";
   }
-  for (const char* name : {"sofa/liver.msh", "sofa/cylinder.msh", "pbd/armadillo_4k.ele"}) {
-    std::array<std::size_t, 2> tets{};
-    for (int k = 0; k < 2; ++k) {
+  for (const auto& name : data_meshes()) {
+    std::array<std::size_t, 3> tets{};
+    const std::array<int, 3> poses{1, 24, 240};
+    for (std::size_t k = 0; k < 3; ++k) {
       TetMesh mesh = read_tet_mesh(test::data_file(name)).mesh;
-      const auto path = sweep_along_x(bounds(mesh), 0.513, 1.1, k == 0 ? 24 : 240);
       SubdivisionCutter cutter(mesh);
-      cutter.cut_along(path);
+      cutter.cut_along(sweep_along_x(bounds(mesh), 0.513, 1.1, poses[k]));
       ASSERT_TRUE(validate(mesh).ok()) << name;
       tets[k] = mesh.tet_count();
     }
-    EXPECT_LE(static_cast<double>(tets[1]), 3.0 * static_cast<double>(tets[0]))
-        << name << ": " << tets[0] << " tets at 24 poses, " << tets[1] << " at 240";
+    const auto ratio = [&](std::size_t a, std::size_t b) {
+      return static_cast<double>(tets[a]) / static_cast<double>(tets[b]);
+    };
+    std::printf("%s: %zu / %zu / %zu tets at 1 / 24 / 240 poses: %.3f x 24 poses, %.3f x one\n",
+                name.c_str(), tets[0], tets[1], tets[2], ratio(2, 1), ratio(2, 0));
+    EXPECT_LE(ratio(2, 1), 1.6) << name;
+    EXPECT_LE(ratio(2, 0), 2.4) << name;
   }
 }
 
@@ -223,8 +265,9 @@ TEST(FullCut, StaysValidAtTwoThousandFourHundredPoses) {
   TetMesh mesh = read_tet_mesh(test::data_file("sofa/liver.msh")).mesh;
   const double plane_y = bounds(mesh).low.y() + 0.513 * (bounds(mesh).high - bounds(mesh).low).y();
   const std::size_t tets_in = mesh.tet_count();
+  const TetMesh input = mesh;
   cut_checked(mesh, sweep_along_x(bounds(mesh), 0.513, 1.1, 2400), 20);
-  const Pieces pieces = pieces_across(mesh, plane_y);
+  const Pieces pieces = pieces_across(mesh, plane_y, &input);
   EXPECT_GE(pieces.by_faces, 2);
   EXPECT_EQ(pieces.by_vertices, pieces.by_faces);
   // Finer sampling than 240 poses adds little: the blade leaves no vertex in slivers.

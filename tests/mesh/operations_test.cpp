@@ -1,10 +1,12 @@
-// Conforming split operators: counts, volume, conformity, and refusals.
+// Conforming split operators: counts, volume, conformity, and refusals; the vertex collapse
+// that undoes a face split once the face's edge is split.
 
 #include "incise/mesh/operations.hpp"
 
 #include <gtest/gtest.h>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/attributes.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/validate.hpp"
@@ -81,6 +83,81 @@ TEST(Operations, RefuseBadArguments) {
                InputError);
   EXPECT_EQ(mesh.tet_count(), tets);
   EXPECT_EQ(mesh.compare_with_rebuilt_adjacency(), "");
+}
+
+TEST(Operations, CollapseUndoesAFaceSplitOntoItsEdgeSplit) {
+  // Two tetrahedra on the face (a, b, c); a vertex put in the face, then the face's edge
+  // (a, b) split: collapsing the face vertex onto the edge's gives exactly the edge split (four
+  // tetrahedra), every tetrahedron positive, the volume, the boundary and (through the absorb
+  // hook) a per-tetrahedron mass kept.
+  TetMesh mesh({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0.2, 0.3, 1), Vec3(0.3, 0.2, -1)},
+               {{0, 1, 2, 3}, {0, 2, 1, 4}});
+  ASSERT_TRUE(validate(mesh).ok());
+  TetData<double> mass(mesh, 0.0, TetRule::kDefault);
+  mass.set_hook(
+      [&mesh](TetData<double>& m, TetId, std::span<const TetId> children, const double& parent) {
+        double sum = 0.0;
+        for (TetId c : children) {
+          sum += signed_volume(mesh, c);
+        }
+        for (TetId c : children) {
+          m[c] = parent * signed_volume(mesh, c) / sum;
+        }
+      });
+  mass.set_absorb_hook(
+      [](TetData<double>& m, TetId into, const double& removed) { m[into] += removed; });
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    mass[static_cast<TetId>(t)] = 1000.0 * signed_volume(mesh, static_cast<TetId>(t));
+  }
+  const double volume = total_volume(mesh);
+  const double total_mass = 1000.0 * volume;
+  const SurfaceEdgeCheck boundary = check_boundary(mesh);
+  const int face = mesh.local_index(0, 3);  // the face opposite the apex: (a, b, c)
+  const VertexId in_face = split_face(mesh, 0, face, {0.3, 0.3, 0.4});
+  const VertexId on_edge = split_edge(mesh, mesh.find_edge(0, 1), 0.4);
+  ASSERT_EQ(mesh.tet_count(), 8u);
+  mesh.collapse_vertex(in_face, on_edge);
+  EXPECT_EQ(mesh.tet_count(), 4u);
+  EXPECT_TRUE(mesh.vertex_tets(in_face).empty());
+  EXPECT_TRUE(validate(mesh).ok()) << validate(mesh).describe();
+  EXPECT_NEAR(total_volume(mesh), volume, 1e-14);
+  EXPECT_EQ(check_boundary(mesh).open_edges, boundary.open_edges);
+  EXPECT_TRUE(check_boundary(mesh).watertight());
+  // The total is kept exactly: each removed tetrahedron's mass goes to the one that grows over
+  // its space (as a slide, the collapse moves mass between the tetrahedra of the star only).
+  double sum = 0.0;
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    sum += mass[static_cast<TetId>(t)];
+  }
+  EXPECT_NEAR(sum, total_mass, 1e-12);
+  // The unreferenced vertex counts as no piece.
+  EXPECT_EQ(pieces_by_vertices(mesh), 1);
+}
+
+TEST(Operations, CollapseRefusesWhatWouldBreakTheMesh) {
+  TetMesh mesh = grid();
+  const std::uint64_t revision = mesh.revision();
+  // Not an edge.
+  const Tet first = mesh.tet(0);
+  VertexId far = kInvalidId;
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    if (mesh.find_edge(first[0], static_cast<VertexId>(v)) == kInvalidId &&
+        static_cast<VertexId>(v) != first[0]) {
+      far = static_cast<VertexId>(v);
+      break;
+    }
+  }
+  ASSERT_NE(far, kInvalidId);
+  EXPECT_THROW(mesh.collapse_vertex(first[0], far), InputError);
+  EXPECT_THROW(mesh.collapse_vertex(first[0], first[0]), InputError);
+  EXPECT_THROW(mesh.collapse_vertex(first[0], 100000), InputError);
+  EXPECT_EQ(mesh.revision(), revision);  // nothing changed
+  EXPECT_TRUE(validate(mesh).ok());
+  // A lone tetrahedron has no neighbour to absorb it: collapsing any of its edges would take
+  // the body away.
+  TetMesh lone({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)}, {{0, 1, 2, 3}});
+  EXPECT_THROW(lone.collapse_vertex(0, 1), InputError);
+  EXPECT_EQ(lone.tet_count(), 1u);
 }
 
 }  // namespace

@@ -18,7 +18,9 @@
 //
 // The cutter only edits the mesh: physics attached through attribute containers follows.
 
+#include <initializer_list>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "incise/cut/blade.hpp"
@@ -77,8 +79,10 @@ struct CutStats {
   std::size_t edges_split = 0;
   std::size_t vertices_snapped = 0;
   std::size_t vertices_duplicated = 0;
-  std::size_t blade_vertices = 0;         ///< vertices inserted on the blade line
-  std::size_t blade_slides = 0;           ///< blade-line vertices slid along with the blade
+  std::size_t blade_vertices = 0;  ///< vertices inserted on the blade line
+  std::size_t blade_slides = 0;    ///< blade-line vertices slid along with the blade
+  /// Blade-line vertices the blade left behind, collapsed onto the edge crossing next to them.
+  std::size_t blade_points_collapsed = 0;
   std::size_t blade_points_left_out = 0;  ///< not inserted: they would thin a tet below 1e-4
   std::size_t generic_splits = 0;  ///< tetrahedra given the generic split (SplitMode::kGeneric)
   std::size_t cut_faces = 0;       ///< faces found on the cut (each counted once)
@@ -163,6 +167,13 @@ class SubdivisionCutter {
   [[nodiscard]] double min_volume_ratio_to_original() const;
 
  private:
+  /// A blade-line vertex that may still slide with the blade (not separated): the corners of
+  /// the face (count 3) or tetrahedron (count 4) it was put in, where it stays.
+  struct Provisional {
+    VertexId vertex = kInvalidId;
+    std::array<VertexId, 4> corners{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
+    int count = 0;
+  };
   struct Crossing {
     VertexId a;
     VertexId b;
@@ -175,14 +186,46 @@ class SubdivisionCutter {
     std::vector<VertexId> snapped;
   };
   // The stages of one move (move_to), in order.
-  /// Blade-line vertices for the previous and the new pose (sliding those that can).
+  /// Blade-line vertices of the previous pose slid to the new one where they can (or put in,
+  /// at a stroke's first move).
   void place_blade_line(const BladePose& from, const BladePose& pose,
                         const std::vector<std::array<Vec3, 3>>& triangles);
+  /// Blade-line vertices put in where the new pose's blade line needs them.
+  void insert_new_blade_line(const BladePose& pose,
+                             const std::vector<std::array<Vec3, 3>>& triangles);
   /// Collision detection, the swept surface recorded, cut-edge codes classified.
   [[nodiscard]] Contact collide(const std::vector<std::array<Vec3, 3>>& triangles,
                                 const BladePose& pose);
   /// Snapped vertices put on the cut; crossed edges split at the crossing.
   void split_crossed_edges(const Contact& contact);
+  /// Blade-line vertices the blade has just left (their face or tetrahedron) collapsed onto a
+  /// crossing this move split on that feature's boundary, where that keeps every tetrahedron
+  /// around them sound: the vertex the wound needed under the blade is let go of once the
+  /// blade is past it, so what is left does not depend on how finely the path is sampled.
+  void collapse_left_behind();
+  /// Collapses a blade-line vertex onto a vertex next to it if every tetrahedron around it
+  /// stays positive, no worse than before and filling the same space; true when done.
+  bool try_collapse(VertexId vertex, VertexId target);
+  /// Where a blade-line vertex leaves its face: the edge (a, b) and the place t (0 at a, 1 at
+  /// b) where the cut will cross it.
+  struct Handover {
+    VertexId vertex = kInvalidId;
+    VertexId a = kInvalidId;
+    VertexId b = kInvalidId;
+    double t = 0.0;
+    double ahead = 0.0;  ///< m: how far the exit lies ahead of this move's swept surface
+    double size = 0.0;   ///< m: the face's longest edge
+  };
+  /// The exit of a blade-line vertex from its face, given the new blade line's weights in that
+  /// face (`next`); nothing when it cannot be told or lies too far ahead of the blade.
+  [[nodiscard]] std::optional<Handover> exit_of(const Provisional& point,
+                                                const std::array<double, 4>& next) const;
+  /// The vertex at an exit: one on the edge within the snap fraction, else the edge piece split
+  /// there; kInvalidId when there is none.
+  VertexId vertex_at_exit(const Handover& exit);
+  /// Blade-line vertices in faces the blade is leaving collapsed onto their exits, where they
+  /// can be; the others are left behind (collapse_left_behind tries again after the crossings).
+  void hand_over(const std::vector<std::pair<Provisional, std::array<double, 4>>>& leaving);
   /// Faces on the cut marked, vertices separated, pinched edges resolved.
   void open_cut(const std::vector<std::array<Vec3, 3>>& triangles);
 
@@ -201,6 +244,8 @@ class SubdivisionCutter {
   void slide_blade_points(const BladePose& pose);
   /// Rest area (m^2) of the cut faces through a vertex that the cut has not opened at.
   [[nodiscard]] double cut_area_around(VertexId vertex) const;
+  /// The same over the faces through any of `vertices`, each counted once.
+  [[nodiscard]] double cut_area_through(std::initializer_list<VertexId> vertices) const;
   void presplit_generic(const Contact& contact);
   /// Puts a vertex on the cut (remembering how far it lies from the swept surface) and records
   /// the original edge it lies in, if any.
@@ -275,16 +320,13 @@ class SubdivisionCutter {
   std::vector<std::array<Vec3, 3>> move_triangles_;
   /// This move's part of it (unbounded images).
   std::vector<std::array<Vec3, 3>> move_rest_triangles_;
-  /// A blade-line vertex that may still slide with the blade (not separated): the corners of
-  /// the face (count 3) or tetrahedron (count 4) it was put in, where it stays.
-  struct Provisional {
-    VertexId vertex = kInvalidId;
-    std::array<VertexId, 4> corners{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
-    int count = 0;
-  };
   /// Those of the last pose, and of this one (while insert_point records them).
   std::vector<Provisional> provisional_;
   std::vector<Provisional> next_provisional_;
+  /// Blade-line vertices whose feature the blade left this move, and the edge crossings this
+  /// move split: collapse_left_behind's input.
+  std::vector<Provisional> left_behind_;
+  std::vector<VertexId> crossings_made_;
   bool sliding_ = false;
   /// Vertices separate() duplicated during this move.
   std::vector<VertexId> separated_;

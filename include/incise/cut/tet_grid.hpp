@@ -37,6 +37,7 @@ class TetGrid final : public MeshObserver {
   void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                       const Tet& removed_vertices) override;
   void on_vertex_relocating(const TetMesh& mesh, VertexId vertex) override;
+  void on_tet_reshaped(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
   void on_mesh_destroyed() override { mesh_ = nullptr; }
   /// The cells exactly as filed: queries list tetrahedra in filing order.
   void save_state(StateWriter& out) const override;
@@ -55,6 +56,8 @@ class TetGrid final : public MeshObserver {
   void insert(TetId tet, const Tet& vertices) const;
   void erase(TetId tet, const Tet& vertices);
   void rename(TetId from, TetId to, const Tet& vertices);
+  /// Takes a tetrahedron off the list waiting to be filed; false when it was not on it.
+  bool unpend(TetId tet);
   std::size_t cell_index(long i, long j, long k) const;
   /// Files the tetrahedra taken out while a vertex moved, at their new bounds. Done lazily (at
   /// the next query or edit), when every observer, current positions included, has followed.

@@ -189,7 +189,12 @@ class TetData final : public detail::AttributeBase<T> {
   explicit TetData(TetMesh& mesh, T default_value = T{}, TetRule rule = TetRule::kCopy)
       : detail::AttributeBase<T>(mesh, mesh.tet_count(), std::move(default_value)), rule_(rule) {}
 
+  /// Called when a tetrahedron is absorbed by another (collapse_vertex), before it is removed,
+  /// with its value: e.g. adds its mass to `into`'s. Without one its value is dropped.
+  using AbsorbHook = std::function<void(TetData&, TetId into, const T& removed_value)>;
+
   void set_hook(Hook hook) { hook_ = std::move(hook); }
+  void set_absorb_hook(AbsorbHook hook) { absorb_hook_ = std::move(hook); }
   [[nodiscard]] std::size_t count_in(const TetMesh& mesh) const override {
     return mesh.tet_count();
   }
@@ -218,9 +223,18 @@ class TetData final : public detail::AttributeBase<T> {
     this->swap_remove(removed, moved_from);
   }
 
+  void on_tet_absorbed(const TetMesh& /*mesh*/, TetId removed, TetId into, TetId moved_from,
+                       const Tet& /*removed_vertices*/) override {
+    if (absorb_hook_) {
+      absorb_hook_(*this, into, this->values_[removed]);
+    }
+    this->swap_remove(removed, moved_from);
+  }
+
  private:
   TetRule rule_;
   Hook hook_;
+  AbsorbHook absorb_hook_;
 };
 
 /// One value per edge.

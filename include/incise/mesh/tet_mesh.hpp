@@ -82,6 +82,19 @@ class MeshObserver {
   /// copy); `old_vertices` are those it used before.
   virtual void on_tet_reconnected(const TetMesh& /*mesh*/, TetId /*tet*/,
                                   const Tet& /*old_vertices*/) {}
+  /// A tetrahedron kept its id (and its values) but one corner is now another vertex at
+  /// another place (collapse_vertex): its rest shape changed. By default, as a reconnection.
+  virtual void on_tet_reshaped(const TetMesh& mesh, TetId tet, const Tet& old_vertices) {
+    on_tet_reconnected(mesh, tet, old_vertices);
+  }
+  /// `removed` is gone and its material belongs to `into` now (collapse_vertex: `into` grew
+  /// over the space `removed` filled); `into` is its id before what follows: as for
+  /// on_tet_removed, the last tetrahedron (`moved_from`) then takes the id `removed`. By
+  /// default, as a removal.
+  virtual void on_tet_absorbed(const TetMesh& mesh, TetId removed, TetId /*into*/, TetId moved_from,
+                               const Tet& removed_vertices) {
+    on_tet_removed(mesh, removed, moved_from, removed_vertices);
+  }
   /// Edges appended by one edit, in id order. Edges that the same edit makes unused are still
   /// present (with no tetrahedra) until their on_edge_removed event follows.
   virtual void on_edges_created(const TetMesh& /*mesh*/, std::span<const EdgeOrigin> /*edges*/) {}
@@ -200,6 +213,16 @@ class TetMesh {
   /// the blade instead of leaving one behind every frame.
   void relocate_vertex(VertexId vertex, std::span<const VertexId> parents,
                        std::span<const double> weights);
+  /// Collapses `vertex` onto `target` (an edge collapse): each tetrahedron using both is
+  /// removed and absorbed (on_tet_absorbed) by its neighbour across the face opposite
+  /// `target`; every other tetrahedron using `vertex` uses `target` instead
+  /// (on_tet_reshaped). `vertex` is left with no tetrahedra (an unreferenced vertex). Throws
+  /// InputError, changing nothing, unless (vertex, target) is an edge, every removed
+  /// tetrahedron has such a neighbour that is kept, and the result repeats no tetrahedron and
+  /// puts no face on three (the link condition). The caller keeps every reshaped tetrahedron
+  /// positive and the region they fill the same. The subdivision cutter collapses a blade-line
+  /// vertex the blade has left behind onto the crossing next to it.
+  void collapse_vertex(VertexId vertex, VertexId target);
   /// Moves a vertex's rest position (m), e.g. snapping; adjacency is unchanged.
   void set_rest_position(VertexId vertex, const Vec3& rest_position);
 
@@ -228,6 +251,8 @@ class TetMesh {
   static TetMesh& unobserved(TetMesh& mesh);
   void attach(TetId tet);
   void detach(TetId tet);
+  /// Drops a detached tetrahedron: the last one takes its id. Returns the id that moved.
+  TetId erase_detached(TetId tet);
   void update_face(VertexId a, VertexId b, VertexId c);
   EdgeId find_or_create_edge(VertexId a, VertexId b);
   EdgeOrigin edge_parent(EdgeId edge) const;

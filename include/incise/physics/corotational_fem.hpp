@@ -95,6 +95,10 @@ class CorotationalFemModel final : public ForceModel,
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
   void on_mesh_destroyed() override { mesh_ = nullptr; }
+  /// A collapse changed the tetrahedron's rest shape: its element is computed again.
+  void on_tet_reshaped(const TetMesh& /*mesh*/, TetId tet, const Tet& /*old_vertices*/) override {
+    elements_[tet].valid = false;
+  }
   void on_material_fraction_changed(const TetMesh& /*mesh*/, TetId /*tet*/) override {
     masses_stale_ = true;
     frequency_revision_ = kNoRevision;

@@ -12,4 +12,12 @@ namespace incise {
 /// is the owner's mesh pointer, read when the hook runs (it follows relocations).
 [[nodiscard]] TetData<double>::Hook mass_split_by_volume(TetMesh* const& mesh);
 
+/// An absorb hook for the same container: a tetrahedron a collapse removes gives its mass to
+/// the one that grows over its space, so the total is kept (both have material fraction 1:
+/// the subdivision cutter's meshes).
+[[nodiscard]] TetData<double>::AbsorbHook mass_absorbed();
+
+/// Sets both hooks on a per-tetrahedron mass container.
+void conserve_mass(TetData<double>& mass, TetMesh* const& mesh);
+
 }  // namespace incise
