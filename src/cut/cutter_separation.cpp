@@ -166,10 +166,8 @@ double SubdivisionCutter::sheet_bulge(const std::array<Vec3, 3>& face,
     return 0.0;
   }
   // Every sweep from the first corner's to the last one's passes within the face's size.
-  const std::vector<std::int64_t> near = swept_->tags_within(centroid(face), size);
-  const auto begin = std::lower_bound(near.begin(), near.end(), first);
-  const auto end = std::upper_bound(near.begin(), near.end(), last);
-  if (end - begin != last - first + 1) {
+  const std::vector<std::int64_t> near = swept_->tags_within(centroid(face), size, first, last);
+  if (static_cast<std::int64_t>(near.size()) != last - first + 1) {
     return 0.0;
   }
   return kSweptSurfaceBulge * size;

@@ -6,9 +6,6 @@
 #include "incise/mesh/predicates.hpp"
 
 namespace incise::detail {
-namespace {
-constexpr int kLevels = 24;  // the coarsest cell is 2^23 times the finest
-}
 
 double TriangleIndex::cell_size(int level) const {
   return std::ldexp(finest_, level);
@@ -68,15 +65,19 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
       for (long i = first[0]; i <= last[0]; ++i) {
         const Vec3 centre = (Vec3(double(i), double(j), double(k)).array() + 0.5) * size;
         if (squared_distance_to_triangle(centre, t[0], t[1], t[2]) <= reach2) {
-          cells_[key(level, Cell(i, j, k))].push_back(index);
+          auto& cell = cells_[key(level, Cell(i, j, k))];
+          if (cell.empty()) {
+            occupied_[static_cast<std::size_t>(level)].push_back(Cell(i, j, k));
+          }
+          cell.push_back(index);
         }
       }
     }
   }
 }
 
-template <typename Visit>
-void TriangleIndex::within(const Vec3& point, double radius, Visit visit) const {
+template <typename Visit, typename Accept>
+void TriangleIndex::within(const Vec3& point, double radius, Visit visit, Accept accept) const {
   // Cells in shells of growing distance around the point's cell, so a nearest-triangle query
   // among thousands of thin swept strips (a finely sampled path) stops once the shells lie
   // farther than the nearest triangle found: the box of the whole radius held up to a million
@@ -100,6 +101,9 @@ void TriangleIndex::within(const Vec3& point, double radius, Visit visit) const 
       }
       const double reach = std::sqrt(radius2);
       for (std::uint32_t index : it->second) {
+        if (!accept(index)) {
+          continue;
+        }
         const Stored& stored = triangles_[index];
         if ((point.array() < stored.low.array() - reach).any() ||
             (point.array() > stored.high.array() + reach).any()) {
@@ -117,6 +121,32 @@ void TriangleIndex::within(const Vec3& point, double radius, Visit visit) const 
       }
       return false;
     };
+    const std::vector<Cell>& occupied = occupied_[static_cast<std::size_t>(level)];
+    const double box_cells = ((last - first).cast<double>() + 1.0).prod();
+    if (box_cells > static_cast<double>(occupied.size())) {
+      // Fewer occupied cells than cells in the box: visit those, nearest first.
+      std::vector<std::pair<double, std::size_t>> order;
+      for (std::size_t c = 0; c < occupied.size(); ++c) {
+        const Cell& cell = occupied[c];
+        if ((cell < first).any() || (cell > last).any()) {
+          continue;
+        }
+        const Vec3 low = cell.cast<double>().matrix() * size;
+        const Vec3 gap = (low - point).cwiseMax(point - low - Vec3::Constant(size)).cwiseMax(0.0);
+        order.emplace_back(gap.squaredNorm(), c);
+      }
+      std::sort(order.begin(), order.end());
+      for (const auto& [gap2, c] : order) {
+        if (gap2 > radius2) {
+          break;
+        }
+        const Cell& cell = occupied[c];
+        if (visit_cell(cell[0], cell[1], cell[2])) {
+          return;
+        }
+      }
+      continue;
+    }
     for (long shell = 0; shell <= shells; ++shell) {
       // Every point of a cell in this shell is at least (shell - 1) cells away.
       const double gap = static_cast<double>(shell - 1) * size;
@@ -163,13 +193,20 @@ bool TriangleIndex::any_within(const Vec3& point, double radius) const {
   return found;
 }
 
-std::vector<std::int64_t> TriangleIndex::tags_within(const Vec3& point, double radius) const {
+std::vector<std::int64_t> TriangleIndex::tags_within(const Vec3& point, double radius,
+                                                     std::int64_t first, std::int64_t last) const {
   std::vector<std::int64_t> tags;
   const double radius2 = radius * radius;
-  within(point, radius, [&](std::uint32_t index, double) {
-    tags.push_back(triangles_[index].tag);
-    return radius2;  // every triangle within the radius
-  });
+  within(
+      point, radius,
+      [&](std::uint32_t index, double) {
+        tags.push_back(triangles_[index].tag);
+        return radius2;  // every triangle within the radius
+      },
+      [&](std::uint32_t index) {
+        const std::int64_t tag = triangles_[index].tag;
+        return tag >= first && tag <= last;
+      });
   std::sort(tags.begin(), tags.end());
   tags.erase(std::unique(tags.begin(), tags.end()), tags.end());
   return tags;
@@ -188,6 +225,9 @@ void TriangleIndex::load_state(StateReader& in) {
   triangles_.clear();
   levels_.clear();
   cells_.clear();
+  for (auto& cells : occupied_) {
+    cells.clear();
+  }
   for (const Stored& s : stored) {
     add(s.corners, s.low, s.high, s.tag);
   }

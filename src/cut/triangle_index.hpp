@@ -42,8 +42,12 @@ class TriangleIndex {
   [[nodiscard]] std::int64_t nearest(const Vec3& point, double radius, double* distance) const;
   /// Whether a stored triangle lies within `radius` (m) of `point`.
   [[nodiscard]] bool any_within(const Vec3& point, double radius) const;
-  /// The tags of every stored triangle within `radius` (m) of `point`, sorted, each once.
-  [[nodiscard]] std::vector<std::int64_t> tags_within(const Vec3& point, double radius) const;
+  /// The tags in [first, last] of the stored triangles within `radius` (m) of `point`, sorted,
+  /// each once (triangles with other tags are not even measured).
+  [[nodiscard]] std::vector<std::int64_t> tags_within(
+      const Vec3& point, double radius,
+      std::int64_t first = std::numeric_limits<std::int64_t>::min(),
+      std::int64_t last = std::numeric_limits<std::int64_t>::max()) const;
 
  private:
   struct Stored {
@@ -58,13 +62,24 @@ class TriangleIndex {
   /// Calls visit(index, squared distance) for stored triangles within `radius`, nearer cells
   /// first; visit returns the squared radius still of interest (only triangles at most that
   /// far are visited from then on), or a negative number to stop.
+  /// `accept(index)`, when given, filters triangles before their distance is measured.
+  template <typename Visit, typename Accept>
+  void within(const Vec3& point, double radius, Visit visit, Accept accept) const;
   template <typename Visit>
-  void within(const Vec3& point, double radius, Visit visit) const;
+  void within(const Vec3& point, double radius, Visit visit) const {
+    within(point, radius, visit, [](std::uint32_t) { return true; });
+  }
+
+  static constexpr int kLevels = 24;  ///< the coarsest cell is 2^23 times the finest
 
   double finest_;
   std::vector<Stored> triangles_;
   std::vector<int> levels_;  ///< levels holding at least one triangle
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells_;
+  /// Per level, the cells holding triangles: a query whose box spans more cells than a level
+  /// holds scans these instead of the box (a wide query among thousands of tiny cut
+  /// triangles looked up hundreds of thousands of empty cells).
+  std::array<std::vector<Cell>, kLevels> occupied_;
 };
 
 }  // namespace incise::detail
