@@ -365,12 +365,12 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
 
 namespace {
 
-/// Whether `vertex` lies on the boundary of the feature spanned by `corners` (a face's three
-/// or a tetrahedron's four): it is one of them, or it was made (through edge, face and
-/// tetrahedron splits, copies and slides) as a combination of fewer of them than the feature
-/// has. Decided from the vertices' origins, not from coordinates.
-bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
-                         const std::array<VertexId, 4>& corners, int count) {
+/// How many of `corners` (the first `count`) `vertex` was made from, through edge, face and
+/// tetrahedron splits, copies and slides (its vertex origins, not its coordinates): 1 for a
+/// corner or a point made from one, 2 for a point on an edge between two of them, ...; -1 when
+/// it depends on another vertex (or on too long a history to follow).
+int corners_spanned(const TetMesh& mesh, VertexId vertex, const std::array<VertexId, 4>& corners,
+                    int count) {
   std::vector<VertexId> leaves;
   std::vector<VertexId> stack{vertex};
   const auto is_corner = [&](VertexId v) {
@@ -378,9 +378,9 @@ bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
   };
   for (int steps = 0; !stack.empty(); ++steps) {
     if (steps > 256) {
-      return false;  // a deep history: not worth following
+      return -1;
     }
-    VertexId v = stack.back();
+    const VertexId v = stack.back();
     stack.pop_back();
     if (is_corner(v)) {
       leaves.push_back(v);
@@ -388,7 +388,7 @@ bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
     }
     const VertexOrigin& origin = mesh.vertex_origin(v);
     if (origin.kind == VertexOrigin::Kind::kFresh) {
-      return false;  // an original vertex that is not a corner
+      return -1;  // an original vertex that is not a corner
     }
     for (int p = 0; p < origin.parent_count; ++p) {
       if (origin.weights[static_cast<std::size_t>(p)] > 0.0) {
@@ -397,8 +397,15 @@ bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
     }
   }
   std::sort(leaves.begin(), leaves.end());
-  leaves.erase(std::unique(leaves.begin(), leaves.end()), leaves.end());
-  return static_cast<int>(leaves.size()) < count;
+  return static_cast<int>(std::unique(leaves.begin(), leaves.end()) - leaves.begin());
+}
+
+/// Whether `vertex` lies on the boundary of the feature spanned by `corners` (a face's three
+/// or a tetrahedron's four): it was made from fewer of them than the feature has.
+bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
+                         const std::array<VertexId, 4>& corners, int count) {
+  const int spanned = corners_spanned(mesh, vertex, corners, count);
+  return spanned >= 0 && spanned < count;
 }
 
 }  // namespace
@@ -580,7 +587,7 @@ VertexId SubdivisionCutter::vertex_at_exit(const Handover& exit) {
   for (TetId t : mesh_.vertex_tets(exit.vertex)) {
     for (VertexId u : mesh_.tet(t)) {
       if (u != exit.a && u != exit.b && u != exit.vertex &&
-          on_feature_boundary(mesh_, u, ends, 3)) {
+          corners_spanned(mesh_, u, ends, 2) > 0) {
         chain.emplace_back((mesh_.rest_position(u) - from).dot(along) / length2, u);
       }
     }
