@@ -81,6 +81,11 @@ void session(std::string_view bytes) {
 void checkpoint(std::string_view bytes) {
   (void)Engine::resume(write_input(bytes, ".ckpt"));
 }
+/// The state behind a valid header: what a checkpoint written by a faulty (or hostile) writer
+/// would hold, past the checksum that stops random corruption.
+void checkpoint_state(std::string_view bytes) {
+  (void)Engine::resume(write_input(Engine::checkpoint_with_state(bytes), ".ckpt"));
+}
 
 #ifdef INCISE_FUZZ_IMAGING
 void metaimage(std::string_view bytes) {
@@ -119,15 +124,23 @@ void igtl_stream(std::string_view bytes) {
 #endif
 
 constexpr std::array kTargets{
-    Target{"mesh_msh", kMsh, mesh<kMsh>},      Target{"mesh_vtk", kVtk, mesh<kVtk>},
-    Target{"mesh_vtu", kVtu, mesh<kVtu>},      Target{"mesh_medit", kMedit, mesh<kMedit>},
-    Target{"mesh_tetgen", kNode, mesh<kNode>}, Target{"mesh_obj", kObj, mesh<kObj>},
-    Target{"mesh_stl", kStl, mesh<kStl>},      Target{"mesh_ply", kPly, mesh<kPly>},
-    Target{"scene", ".json", scene},           Target{"plan", ".json", plan},
-    Target{"blade_path", ".csv", blade_path},  Target{"session", ".jsonl", session},
+    Target{"mesh_msh", kMsh, mesh<kMsh>},
+    Target{"mesh_vtk", kVtk, mesh<kVtk>},
+    Target{"mesh_vtu", kVtu, mesh<kVtu>},
+    Target{"mesh_medit", kMedit, mesh<kMedit>},
+    Target{"mesh_tetgen", kNode, mesh<kNode>},
+    Target{"mesh_obj", kObj, mesh<kObj>},
+    Target{"mesh_stl", kStl, mesh<kStl>},
+    Target{"mesh_ply", kPly, mesh<kPly>},
+    Target{"scene", ".json", scene},
+    Target{"plan", ".json", plan},
+    Target{"blade_path", ".csv", blade_path},
+    Target{"session", ".jsonl", session},
     Target{"checkpoint", ".ckpt", checkpoint},
+    Target{"checkpoint_state", ".state", checkpoint_state},
 #ifdef INCISE_FUZZ_IMAGING
-    Target{"metaimage", ".mha", metaimage},    Target{"dicom", ".dcm", dicom},
+    Target{"metaimage", ".mha", metaimage},
+    Target{"dicom", ".dcm", dicom},
 #endif
 #ifdef INCISE_FUZZ_IGTL
     Target{"igtl", ".igtl", igtl_stream},

@@ -19,7 +19,7 @@ shift
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
   targets=(mesh_msh mesh_vtk mesh_vtu mesh_medit mesh_tetgen mesh_obj mesh_stl mesh_ply scene
-           plan blade_path session checkpoint metaimage dicom igtl)
+           plan blade_path session checkpoint checkpoint_state metaimage dicom igtl)
 fi
 cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz

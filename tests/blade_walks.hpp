@@ -12,6 +12,7 @@
 #include "incise/cut/blade.hpp"
 #include "incise/cut/blade_walk.hpp"
 #include "incise/io/mesh_io.hpp"
+#include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 #include "test_support.hpp"
@@ -30,6 +31,18 @@ inline Box bounds(const TetMesh& mesh) {
     box.high = box.high.cwiseMax(p);
   }
   return box;
+}
+
+/// The area of the body's boundary at rest (m^2): a cut that opens adds twice its own.
+inline double boundary_area(const TetMesh& mesh) {
+  double area = 0.0;
+  for (const BoundaryFace& face : boundary_faces(mesh)) {
+    const Vec3& a = mesh.rest_position(face.vertices[0]);
+    area += 0.5 * (mesh.rest_position(face.vertices[1]) - a)
+                      .cross(mesh.rest_position(face.vertices[2]) - a)
+                      .norm();
+  }
+  return area;
 }
 
 /// Every tetrahedral mesh in ../shared/data.

@@ -276,8 +276,10 @@ void SubdivisionCutter::keep_no_shards() {
         for (int g = 0; g < 4; ++g) {
           const TetId other = mesh_.tet_neighbors(r)[g];
           if (other >= 0 && marks_.is_cut(r, g) && !inside.contains(other)) {
-            if (swept_side(other, centroid(rest_face(mesh_, r, g)), face_reach(r, g)) == join) {
+            const std::array<Vec3, 3> corners = rest_face(mesh_, r, g);
+            if (swept_side(other, centroid(corners), face_reach(r, g)) == join) {
               marks_.unmark(r, g);
+              stats_.cut_area -= area(corners);
               ++stats_.shards_kept;
             }
           }

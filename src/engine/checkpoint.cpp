@@ -66,12 +66,15 @@ void Engine::save_checkpoint(const std::filesystem::path& path) const {
   }
   out.tag("end");
 
-  const std::string& payload = out.bytes();
+  write_file_atomically(path, checkpoint_with_state(out.bytes()));
+}
+
+std::string Engine::checkpoint_with_state(std::string_view state) {
   StateWriter header;
   header.value(kVersion);
-  header.value(static_cast<std::uint64_t>(payload.size()));
-  header.value(checksum(payload));
-  write_file_atomically(path, std::string(kMagic) + header.bytes() + payload);
+  header.value(static_cast<std::uint64_t>(state.size()));
+  header.value(checksum(state));
+  return std::string(kMagic) + header.bytes() + std::string(state);
 }
 
 std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "blade_walks.hpp"
 #include "incise/cut/subdivision_cutter.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
@@ -15,16 +16,7 @@
 namespace incise {
 namespace {
 
-double boundary_area(const TetMesh& mesh) {
-  double area = 0.0;
-  for (const BoundaryFace& face : boundary_faces(mesh)) {
-    const Vec3& a = mesh.rest_position(face.vertices[0]);
-    area += 0.5 * (mesh.rest_position(face.vertices[1]) - a)
-                      .cross(mesh.rest_position(face.vertices[2]) - a)
-                      .norm();
-  }
-  return area;
-}
+using test::boundary_area;
 
 TetMesh block() {
   BoxGridOptions options;

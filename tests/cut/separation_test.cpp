@@ -29,6 +29,7 @@
 namespace incise {
 namespace {
 
+using test::boundary_area;
 using test::bounds;
 using test::Box;
 using test::data_meshes;
@@ -240,10 +241,15 @@ TEST(FullCutGrowth, BarelyDependsOnHowFinelyThePathIsSampled) {
     const std::array<int, 3> poses{1, 24, 240};
     for (std::size_t k = 0; k < 3; ++k) {
       TetMesh mesh = read_tet_mesh(test::data_file(name)).mesh;
+      const double area_in = boundary_area(mesh);
       SubdivisionCutter cutter(mesh);
       cutter.cut_along(sweep_along_x(bounds(mesh), 0.513, 1.1, poses[k]));
       ASSERT_TRUE(validate(mesh).ok()) << name;
       tets[k] = mesh.tet_count();
+      // The report's cut area is kept up as faces are found, split, collapsed and given back
+      // to shards; a full cut opens every one, adding it twice to the boundary.
+      EXPECT_NEAR(cutter.stats().cut_area, (boundary_area(mesh) - area_in) / 2.0, 1e-9 * area_in)
+          << name << ", " << poses[k] << " poses";
     }
     const auto ratio = [&](std::size_t a, std::size_t b) {
       return static_cast<double>(tets[a]) / static_cast<double>(tets[b]);

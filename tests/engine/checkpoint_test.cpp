@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "incise/core/error.hpp"
+#include "incise/core/state_archive.hpp"
 #include "incise/engine/engine.hpp"
 #include "test_support.hpp"
 
@@ -121,6 +122,25 @@ TEST(Checkpoint, DamagedFilesGiveClearErrors) {
   }
   // The good one still resumes.
   EXPECT_EQ(Engine::resume(dir / "good.ck")->frame(), 20);
+}
+
+TEST(Checkpoint, AYesNoValueThatIsNeitherIsRefused) {
+  // Found by fuzzing the state behind a valid header (fuzz target checkpoint_state): a byte
+  // other than 0 or 1 read as a bool is undefined behaviour, so the reader refuses it.
+  StateWriter out;
+  out.value<std::uint8_t>(1);
+  out.value<std::uint8_t>(101);
+  StateReader in(out.bytes(), "state.ck");
+  EXPECT_TRUE(in.value<bool>("blade present"));
+  try {
+    (void)in.value<bool>("cutter present");
+    FAIL() << "101 read as a bool";
+  } catch (const InputError& error) {
+    const std::string what = error.what();
+    EXPECT_NE(what.find("state.ck"), std::string::npos) << what;
+    EXPECT_NE(what.find("cutter present"), std::string::npos) << what;
+    EXPECT_NE(what.find("101"), std::string::npos) << what;
+  }
 }
 
 }  // namespace

@@ -63,6 +63,15 @@ class StateReader {
   template <RawState T>
   T value(const char* what) {
     need(sizeof(T), what);
+    if constexpr (std::is_same_v<T, bool>) {
+      // A bool's byte other than 0 or 1 is no bool: loading it would be undefined behaviour.
+      const auto byte = static_cast<unsigned char>(bytes_[offset_]);
+      if (byte > 1) {
+        fail(what, "holds " + std::to_string(byte) + " where a yes/no value (0 or 1) belongs");
+      }
+      ++offset_;
+      return byte == 1;
+    }
     T v;
     std::memcpy(static_cast<void*>(&v), bytes_.data() + offset_, sizeof(T));
     offset_ += sizeof(T);

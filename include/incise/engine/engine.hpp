@@ -13,6 +13,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "incise/engine/frame_sink.hpp"
@@ -77,6 +78,10 @@ class Engine {
   /// part's state restored. A missing, truncated, corrupted or foreign file is an InputError
   /// naming it; nothing is half-restored.
   [[nodiscard]] static std::unique_ptr<Engine> resume(const std::filesystem::path& path);
+  /// A checkpoint file holding `state` (the bytes after the header) under a valid header: its
+  /// format version, size and checksum. For fuzzing the state itself, which the checksum
+  /// otherwise shields from random changes.
+  [[nodiscard]] static std::string checkpoint_with_state(std::string_view state);
 
   [[nodiscard]] int frame() const;
   [[nodiscard]] double time() const;  ///< s
