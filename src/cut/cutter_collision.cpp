@@ -97,13 +97,17 @@ void SubdivisionCutter::record_swept(const std::vector<std::array<Vec3, 3>>& tri
   // pieces of one sheet (a move in which the blade stood still adds nothing and no tag).
   const std::size_t before = swept_->size();
   const auto tag = static_cast<std::int64_t>(stats_.sweeps);
+  move_sweep_ = -1;
   if (positions_ == nullptr) {
     for (const auto& triangle : triangles) {
       swept_->add(triangle, Vec3::Constant(-std::numeric_limits<double>::max()),
                   Vec3::Constant(std::numeric_limits<double>::max()), tag);
       move_rest_triangles_.push_back(triangle);
     }
-    stats_.sweeps += swept_->size() > before ? 1 : 0;
+    if (swept_->size() > before) {
+      move_sweep_ = tag;
+      ++stats_.sweeps;
+    }
     return;
   }
   for (TetId t : contact.touched) {
@@ -136,7 +140,10 @@ void SubdivisionCutter::record_swept(const std::vector<std::array<Vec3, 3>>& tri
       move_rest_triangles_.push_back(image);
     }
   }
-  stats_.sweeps += swept_->size() > before ? 1 : 0;
+  if (swept_->size() > before) {
+    move_sweep_ = tag;
+    ++stats_.sweeps;
+  }
 }
 
 void SubdivisionCutter::classify(const Contact& contact, const BladePose& pose) {

@@ -15,6 +15,10 @@
 
 namespace incise::cutter_detail {
 
+/// How far (a fraction of its longest edge) a face's centroid may lie off a curved swept
+/// surface when its corners lie on it.
+constexpr double kSweptSurfaceBulge = 0.05;
+
 inline double longest_edge(const std::array<Vec3, 3>& t) {
   return std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
 }

@@ -25,9 +25,6 @@ using namespace cutter_detail;  // NOLINT(google-build-using-namespace): the cut
 
 namespace {
 
-/// How far (a fraction of its longest edge) a face's centroid may lie off a curved swept
-/// surface when its corners lie on it.
-constexpr double kSweptSurfaceBulge = 0.05;
 /// The most sweeps (moves in which the blade moved) one face is checked across for one sheet.
 constexpr std::int64_t kMostSweepsAcrossAFace = 4096;
 

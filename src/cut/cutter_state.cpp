@@ -71,6 +71,7 @@ void SubdivisionCutter::load_state(StateReader& in) {
   }
   fresh_.clear();
   separated_.clear();
+  move_sweep_ = -1;
   next_provisional_.clear();
 }
 

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <unordered_set>
 
 #include "cutter_helpers.hpp"
 #include "incise/core/error.hpp"
@@ -30,7 +31,7 @@ SubdivisionCutter::SubdivisionCutter(TetMesh& mesh, const CutterOptions& options
       on_cut_(mesh, 0, VertexRule::kDefault),
       cut_offset_(mesh, 0.0, VertexRule::kDefault),
       ancestry_(mesh, Ancestry{}, TetRule::kCopy) {
-  swept_ = std::make_unique<detail::TriangleIndex>(grid_.cell_size() / 64.0);
+  swept_ = std::make_unique<detail::TriangleIndex>(grid_.cell_size() / 32.0);
   if (!(options_.snap_fraction > 0.0 && options_.snap_fraction < 0.5)) {
     throw InputError("snap fraction must lie in (0, 0.5)");
   }
@@ -201,22 +202,78 @@ void SubdivisionCutter::split_crossed_edges(const Contact& contact) {
   }
 }
 
+bool SubdivisionCutter::sweep_reaches_around(VertexId vertex) {
+  if (move_sweep_ < 0) {
+    return false;  // nothing swept: no face can newly lie on the cut
+  }
+  // A face only now on the cut has a corner or its centroid within its reach of this move's
+  // sweep (at rest; parts_across_surface, sheet_bulge): within the largest offset of its
+  // corners, or the bulge allowed for its size. The sweep is one image per tetrahedron it
+  // touched where the body is deformed: there only their bounding box is asked.
+  const auto near_sweep = [&](const Vec3& point, double reach) {
+    if (((point - move_rest_low_).array() < -reach).any() ||
+        ((point - move_rest_high_).array() > reach).any()) {
+      return false;
+    }
+    return move_rest_triangles_.size() > 8 || distance_to(move_rest_triangles_, point) <= reach;
+  };
+  for (TetId t : mesh_.vertex_tets(vertex)) {
+    const Tet& v = mesh_.tet(t);
+    for (int f = 0; f < 4; ++f) {
+      const auto& face = tet_local::kFaces[f];
+      if (mesh_.tet_neighbors(t)[f] < 0 || marks_.is_cut(t, f) || on_cut_[v[face[0]]] == 0 ||
+          on_cut_[v[face[1]]] == 0 || on_cut_[v[face[2]]] == 0) {
+        continue;  // not a face mark_cut_faces decides
+      }
+      const std::array<Vec3, 3> p = rest_face(mesh_, t, f);
+      const double size = longest_edge(p);
+      double offset = 0.0;
+      for (int k : face) {
+        offset = std::max(offset, cut_offset_[v[k]]);
+      }
+      const double reach = std::max(offset * (1.0 + 1e-9), kSweptSurfaceBulge * size) + 2e-9 * size;
+      if (near_sweep(p[0], reach) || near_sweep(p[1], reach) || near_sweep(p[2], reach) ||
+          near_sweep(centroid(p), reach)) {
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
 void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangles) {
   // Decide the faces this move puts on the cut, then separate their corners where cut faces
   // part the tetrahedra around them. Faces through vertices put on the cut earlier are
   // decided again where this move swept: the surface may only now reach past them.
+  std::vector<VertexId> nearby;
   for (const auto& triangle : triangles) {
     Vec3 low;
     Vec3 high;
     triangle_bounds(triangle, low, high);
-    const Vec3 margin = Vec3::Constant(grid_.cell_size() * 0.5);
+    // A cell (a mean edge) around: the vertices whose faces sweep_reaches_around asks about.
+    const Vec3 margin = Vec3::Constant(grid_.cell_size());
     grid_.query(low - margin, high + margin, scratch_);
     for (TetId t : scratch_) {
       for (VertexId v : mesh_.tet(t)) {
         if (on_cut_[v] != 0) {
-          fresh_.push_back(v);
+          nearby.push_back(v);
         }
       }
+    }
+  }
+  move_rest_low_ = Vec3::Constant(std::numeric_limits<double>::max());
+  move_rest_high_ = -move_rest_low_;
+  for (const auto& triangle : move_rest_triangles_) {
+    for (const Vec3& corner : triangle) {
+      move_rest_low_ = move_rest_low_.cwiseMin(corner);
+      move_rest_high_ = move_rest_high_.cwiseMax(corner);
+    }
+  }
+  std::sort(nearby.begin(), nearby.end());
+  nearby.erase(std::unique(nearby.begin(), nearby.end()), nearby.end());
+  for (VertexId v : nearby) {
+    if (sweep_reaches_around(v)) {
+      fresh_.push_back(v);
     }
   }
   std::vector<VertexId> candidates = mark_cut_faces();
@@ -224,13 +281,30 @@ void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangl
   candidates.insert(candidates.end(), fresh_.begin(), fresh_.end());
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
-  const auto first_copy = static_cast<VertexId>(mesh_.vertex_count());
-  for (VertexId v : candidates) {
-    stats_.vertices_duplicated += separate(v);
-  }
-  // Copies made by the separation can be pinched too.
-  for (auto v = first_copy; static_cast<std::size_t>(v) < mesh_.vertex_count(); ++v) {
-    candidates.push_back(v);
+  // Separating a vertex parts the faces its tetrahedra shared through it, which may leave a
+  // neighbour on the cut separable too: its neighbours join the work.
+  std::unordered_set<VertexId> queued(candidates.begin(), candidates.end());
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const VertexId vertex = candidates[i];
+    const auto first_copy = static_cast<VertexId>(mesh_.vertex_count());
+    const std::size_t copies = separate(vertex);
+    if (copies == 0) {
+      continue;
+    }
+    stats_.vertices_duplicated += copies;
+    std::vector<VertexId> parted{vertex};
+    for (auto v = first_copy; static_cast<std::size_t>(v) < mesh_.vertex_count(); ++v) {
+      parted.push_back(v);  // copies made by the separation can be pinched too
+    }
+    for (VertexId v : parted) {
+      for (TetId t : mesh_.vertex_tets(v)) {
+        for (VertexId u : mesh_.tet(t)) {
+          if ((on_cut_[u] != 0 || u >= first_copy) && queued.insert(u).second) {
+            candidates.push_back(u);
+          }
+        }
+      }
+    }
   }
   resolve_pinched_edges(candidates);
   // Blade-line vertices the cut has opened at stay where they are; the others may slide.
