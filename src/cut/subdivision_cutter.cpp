@@ -202,78 +202,65 @@ void SubdivisionCutter::split_crossed_edges(const Contact& contact) {
   }
 }
 
-bool SubdivisionCutter::sweep_reaches_around(VertexId vertex) {
-  if (move_sweep_ < 0) {
-    return false;  // nothing swept: no face can newly lie on the cut
-  }
+bool SubdivisionCutter::sweep_reaches(TetId tet, int local_face) const {
   // A face only now on the cut has a corner or its centroid within its reach of this move's
   // sweep (at rest; parts_across_surface, sheet_bulge): within the largest offset of its
   // corners, or the bulge allowed for its size. The sweep is one image per tetrahedron it
   // touched where the body is deformed: there only their bounding box is asked.
-  const auto near_sweep = [&](const Vec3& point, double reach) {
+  const Tet& v = mesh_.tet(tet);
+  const auto& face = tet_local::kFaces[local_face];
+  const std::array<Vec3, 3> p = rest_face(mesh_, tet, local_face);
+  const double size = longest_edge(p);
+  double offset = 0.0;
+  for (int k : face) {
+    offset = std::max(offset, cut_offset_[v[k]]);
+  }
+  const double reach = std::max(offset * (1.0 + 1e-9), kSweptSurfaceBulge * size) + 2e-9 * size;
+  const auto near_sweep = [&](const Vec3& point) {
     if (((point - move_rest_low_).array() < -reach).any() ||
         ((point - move_rest_high_).array() > reach).any()) {
       return false;
     }
     return move_rest_triangles_.size() > 8 || distance_to(move_rest_triangles_, point) <= reach;
   };
-  for (TetId t : mesh_.vertex_tets(vertex)) {
-    const Tet& v = mesh_.tet(t);
-    for (int f = 0; f < 4; ++f) {
-      const auto& face = tet_local::kFaces[f];
-      if (mesh_.tet_neighbors(t)[f] < 0 || marks_.is_cut(t, f) || on_cut_[v[face[0]]] == 0 ||
-          on_cut_[v[face[1]]] == 0 || on_cut_[v[face[2]]] == 0) {
-        continue;  // not a face mark_cut_faces decides
-      }
-      const std::array<Vec3, 3> p = rest_face(mesh_, t, f);
-      const double size = longest_edge(p);
-      double offset = 0.0;
-      for (int k : face) {
-        offset = std::max(offset, cut_offset_[v[k]]);
-      }
-      const double reach = std::max(offset * (1.0 + 1e-9), kSweptSurfaceBulge * size) + 2e-9 * size;
-      if (near_sweep(p[0], reach) || near_sweep(p[1], reach) || near_sweep(p[2], reach) ||
-          near_sweep(centroid(p), reach)) {
-        return true;
-      }
-    }
-  }
-  return false;
+  return near_sweep(p[0]) || near_sweep(p[1]) || near_sweep(p[2]) || near_sweep(centroid(p));
 }
 
 void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangles) {
   // Decide the faces this move puts on the cut, then separate their corners where cut faces
   // part the tetrahedra around them. Faces through vertices put on the cut earlier are
-  // decided again where this move swept: the surface may only now reach past them.
-  std::vector<VertexId> nearby;
-  for (const auto& triangle : triangles) {
-    Vec3 low;
-    Vec3 high;
-    triangle_bounds(triangle, low, high);
-    // A cell (a mean edge) around: the vertices whose faces sweep_reaches_around asks about.
+  // decided again where this move swept (the surface may only now reach past them): the
+  // undecided ones within reach of the sweep, found among the tetrahedra a cell (a mean edge)
+  // around it.
+  if (move_sweep_ >= 0 && !triangles.empty()) {
+    move_rest_low_ = Vec3::Constant(std::numeric_limits<double>::max());
+    move_rest_high_ = -move_rest_low_;
+    for (const auto& triangle : move_rest_triangles_) {
+      for (const Vec3& corner : triangle) {
+        move_rest_low_ = move_rest_low_.cwiseMin(corner);
+        move_rest_high_ = move_rest_high_.cwiseMax(corner);
+      }
+    }
+    Vec3 low = Vec3::Constant(std::numeric_limits<double>::max());
+    Vec3 high = -low;
+    for (const auto& triangle : triangles) {
+      Vec3 triangle_low;
+      Vec3 triangle_high;
+      triangle_bounds(triangle, triangle_low, triangle_high);
+      low = low.cwiseMin(triangle_low);
+      high = high.cwiseMax(triangle_high);
+    }
     const Vec3 margin = Vec3::Constant(grid_.cell_size());
     grid_.query(low - margin, high + margin, scratch_);
     for (TetId t : scratch_) {
-      for (VertexId v : mesh_.tet(t)) {
-        if (on_cut_[v] != 0) {
-          nearby.push_back(v);
+      const Tet& v = mesh_.tet(t);
+      for (int f = 0; f < 4; ++f) {
+        const auto& face = tet_local::kFaces[f];
+        if (mesh_.tet_neighbors(t)[f] >= 0 && !marks_.is_cut(t, f) && on_cut_[v[face[0]]] != 0 &&
+            on_cut_[v[face[1]]] != 0 && on_cut_[v[face[2]]] != 0 && sweep_reaches(t, f)) {
+          fresh_.insert(fresh_.end(), {v[face[0]], v[face[1]], v[face[2]]});
         }
       }
-    }
-  }
-  move_rest_low_ = Vec3::Constant(std::numeric_limits<double>::max());
-  move_rest_high_ = -move_rest_low_;
-  for (const auto& triangle : move_rest_triangles_) {
-    for (const Vec3& corner : triangle) {
-      move_rest_low_ = move_rest_low_.cwiseMin(corner);
-      move_rest_high_ = move_rest_high_.cwiseMax(corner);
-    }
-  }
-  std::sort(nearby.begin(), nearby.end());
-  nearby.erase(std::unique(nearby.begin(), nearby.end()), nearby.end());
-  for (VertexId v : nearby) {
-    if (sweep_reaches_around(v)) {
-      fresh_.push_back(v);
     }
   }
   std::vector<VertexId> candidates = mark_cut_faces();

@@ -228,9 +228,9 @@ class SubdivisionCutter {
   void hand_over(const std::vector<std::pair<Provisional, std::array<double, 4>>>& leaving);
   /// Faces on the cut marked, vertices separated, pinched edges resolved.
   void open_cut(const std::vector<std::array<Vec3, 3>>& triangles);
-  /// Whether faces around a vertex already on the cut may only now lie on it: this move's
-  /// sweep passes within their reach.
-  [[nodiscard]] bool sweep_reaches_around(VertexId vertex);
+  /// Whether an interior face with its corners on the cut may only now lie on it: this move's
+  /// sweep passes within its reach.
+  [[nodiscard]] bool sweep_reaches(TetId tet, int local_face) const;
 
   [[nodiscard]] Contact detect(const std::vector<std::array<Vec3, 3>>& triangles);
   void classify(const Contact& contact, const BladePose& pose);
@@ -343,7 +343,7 @@ class SubdivisionCutter {
   VertexData<double> cut_offset_;
   /// The tag of the sweep this move added to the swept-surface index, or -1 if none.
   std::int64_t move_sweep_ = -1;
-  Vec3 move_rest_low_ = Vec3::Zero();  ///< bounds of move_rest_triangles_ (m), in open_cut
+  Vec3 move_rest_low_ = Vec3::Zero();  ///< bounds of move_rest_triangles_ (m), set by open_cut
   Vec3 move_rest_high_ = Vec3::Zero();
   TetData<Ancestry> ancestry_;
   std::vector<std::uint8_t> ancestor_codes_;
