@@ -111,6 +111,34 @@ void CutFaceMarks::on_tet_replaced(const TetMesh& mesh, TetId parent,
   }
 }
 
+void CutFaceMarks::on_tet_absorbed(const TetMesh& mesh, TetId removed, TetId into, TetId moved_from,
+                                   const Tet& removed_vertices) {
+  // The absorber (already reshaped) has grown over the removed tetrahedron: its face toward
+  // it now lies where the removed one's face opposite the collapsed vertex was, and takes that
+  // face's mark (a face the cut opened there stays one).
+  const Tet& grown = mesh.tet(into);
+  int collapsed = -1;
+  for (int k = 0; k < 4; ++k) {
+    if (std::find(grown.begin(), grown.end(), removed_vertices[static_cast<std::size_t>(k)]) ==
+        grown.end()) {
+      collapsed = k;
+    }
+  }
+  if (collapsed >= 0) {
+    const auto& face = tet_local::kFaces[static_cast<std::size_t>(collapsed)];
+    const int local = local_face_of(grown, removed_vertices[static_cast<std::size_t>(face[0])],
+                                    removed_vertices[static_cast<std::size_t>(face[1])],
+                                    removed_vertices[static_cast<std::size_t>(face[2])]);
+    if (local >= 0) {
+      auto& bits = bits_[static_cast<std::size_t>(into)];
+      const auto bit = static_cast<std::uint8_t>(1U << local);
+      const bool cut = (bits_[static_cast<std::size_t>(removed)] >> collapsed & 1U) != 0;
+      bits = static_cast<std::uint8_t>(cut ? bits | bit : bits & ~bit);
+    }
+  }
+  on_tet_removed(mesh, removed, moved_from, removed_vertices);
+}
+
 void CutFaceMarks::on_tet_removed(const TetMesh& /*mesh*/, TetId removed, TetId moved_from,
                                   const Tet& /*removed_vertices*/) {
   bits_[static_cast<std::size_t>(removed)] = bits_[static_cast<std::size_t>(moved_from)];

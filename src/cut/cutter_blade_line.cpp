@@ -410,16 +410,75 @@ bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
 
 }  // namespace
 
-bool SubdivisionCutter::try_collapse(VertexId vertex, VertexId target) {
-  // A target the cut has opened at (its copies hold the two sides apart) would join the sides
-  // again through the vertex's tetrahedra, which hold both.
-  for (TetId t : mesh_.vertex_tets(target)) {
-    const int local = mesh_.local_index(t, target);
+namespace {
+
+/// Whether the cut has opened at `vertex`: a face through it is a boundary face the cut made.
+bool opened_at(const TetMesh& mesh, const CutFaceMarks& marks, VertexId vertex) {
+  for (TetId t : mesh.vertex_tets(vertex)) {
+    const int local = mesh.local_index(t, vertex);
     for (int f = 0; f < 4; ++f) {
-      if (f != local && mesh_.tet_neighbors(t)[f] < 0 && marks_.is_cut(t, f)) {
-        return false;
+      if (f != local && mesh.tet_neighbors(t)[f] < 0 && marks.is_cut(t, f)) {
+        return true;
       }
     }
+  }
+  return false;
+}
+
+}  // namespace
+
+bool SubdivisionCutter::boundary_kept_flat(VertexId vertex, VertexId target) const {
+  // The boundary faces through the vertex (the cut's, once it has opened there) lie in one
+  // plane, the target in it: collapsing retriangulates that flat piece of boundary, with the
+  // same area and the same shape, so each side's copy of the wound keeps matching the other.
+  Vec3 vector_before = Vec3::Zero();
+  Vec3 vector_after = Vec3::Zero();
+  double area_before = 0.0;
+  double area_after = 0.0;
+  for (TetId t : mesh_.vertex_tets(vertex)) {
+    const int local = mesh_.local_index(t, vertex);
+    const bool removed = mesh_.local_index(t, target) >= 0;
+    for (int f = 0; f < 4; ++f) {
+      if (f == local || mesh_.tet_neighbors(t)[f] >= 0) {
+        continue;
+      }
+      std::array<Vec3, 3> face = rest_face(mesh_, t, f);
+      const Vec3 normal = (face[1] - face[0]).cross(face[2] - face[0]);
+      vector_before += normal;
+      area_before += normal.norm();
+      const Tet& v = mesh_.tet(t);
+      const auto& corners = tet_local::kFaces[f];
+      bool through_target = false;
+      for (int k = 0; k < 3; ++k) {
+        through_target = through_target || v[corners[k]] == target;
+        if (v[corners[k]] == vertex) {
+          face[k] = mesh_.rest_position(target);
+        }
+      }
+      if (removed && through_target) {
+        continue;  // collapses to an edge
+      }
+      const Vec3 moved = (face[1] - face[0]).cross(face[2] - face[0]);
+      vector_after += moved;
+      area_after += moved.norm();
+    }
+  }
+  const double tolerance = 1e-9 * area_before;
+  return std::abs(area_before - vector_before.norm()) <= tolerance &&
+         std::abs(area_after - area_before) <= tolerance &&
+         (vector_after - vector_before).norm() <= tolerance;
+}
+
+bool SubdivisionCutter::try_collapse(VertexId vertex, VertexId target) {
+  // A target the cut has opened at (its copies hold the two sides apart) would join the sides
+  // again through the vertex's tetrahedra, which hold both, unless the cut has opened at the
+  // vertex too (its tetrahedra lie on one side).
+  const bool opened = opened_at(mesh_, marks_, vertex);
+  if (opened_at(mesh_, marks_, target) && !opened) {
+    return false;
+  }
+  if (opened && !boundary_kept_flat(vertex, target)) {
+    return false;
   }
   // Every tetrahedron that stays is positive (at rest and where the cutter intersects) and its
   // worst no worse than the star's worst (or than 0.05). Each original tetrahedron's part of
@@ -657,6 +716,69 @@ void SubdivisionCutter::hand_over(
         progress = true;
       } else {
         ++it;
+      }
+    }
+  }
+}
+
+void SubdivisionCutter::collapse_opened_behind(const Vec3& low, const Vec3& high) {
+  // Vertices made inside a face (the blade line's points) and their copies, on the cut.
+  std::vector<TetId> around;
+  grid_.query(low, high, around);
+  std::vector<VertexId> points;
+  for (TetId t : around) {
+    for (VertexId v : mesh_.tet(t)) {
+      VertexId point = v;
+      if (mesh_.vertex_origin(v).kind == VertexOrigin::Kind::kDuplicate) {
+        point = mesh_.vertex_origin(v).parents[0];
+      }
+      const VertexOrigin& origin = mesh_.vertex_origin(point);
+      if (on_cut_[v] != 0 && origin.kind == VertexOrigin::Kind::kCombination &&
+          origin.parent_count == 3) {
+        points.push_back(v);
+      }
+    }
+  }
+  std::sort(points.begin(), points.end());
+  points.erase(std::unique(points.begin(), points.end()), points.end());
+  for (VertexId vertex : points) {
+    if (mesh_.vertex_tets(vertex).empty() || !opened_at(mesh_, marks_, vertex)) {
+      continue;
+    }
+    bool sliding = false;
+    for (const Provisional& point : provisional_) {
+      sliding = sliding || point.vertex == vertex;
+    }
+    VertexId point = vertex;
+    if (mesh_.vertex_origin(vertex).kind == VertexOrigin::Kind::kDuplicate) {
+      point = mesh_.vertex_origin(vertex).parents[0];
+    }
+    const VertexOrigin& origin = mesh_.vertex_origin(point);
+    const std::array<VertexId, 4> corners{origin.parents[0], origin.parents[1], origin.parents[2],
+                                          kInvalidId};
+    // Still sliding with the blade, or the blade still crosses its face: the wound's front may
+    // lie at the vertex. Once the blade has left the face, the cut crosses it completely and
+    // the vertex is one more point inside it, on both sides.
+    if (sliding || segment_intersects_triangle(pose_.tip, pose_.base, position(corners[0]),
+                                               position(corners[1]), position(corners[2]))) {
+      continue;
+    }
+    // Targets: vertices of the cut on the face's boundary next to it, nearest first; the
+    // collapse keeps the boundary there flat (boundary_kept_flat), so each side's copy of the
+    // wound is retriangulated alike.
+    std::vector<std::pair<double, VertexId>> targets;
+    for (TetId t : mesh_.vertex_tets(vertex)) {
+      for (VertexId u : mesh_.tet(t)) {
+        if (u != vertex && on_cut_[u] != 0 && on_feature_boundary(mesh_, u, corners, 3)) {
+          targets.emplace_back((mesh_.rest_position(u) - mesh_.rest_position(vertex)).norm(), u);
+        }
+      }
+    }
+    std::sort(targets.begin(), targets.end());
+    targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
+    for (const auto& candidate : targets) {
+      if (try_collapse(vertex, candidate.second)) {
+        break;
       }
     }
   }

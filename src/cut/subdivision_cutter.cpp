@@ -231,7 +231,8 @@ void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangl
   // part the tetrahedra around them. Faces through vertices put on the cut earlier are
   // decided again where this move swept (the surface may only now reach past them): the
   // undecided ones within reach of the sweep, found among the tetrahedra a cell (a mean edge)
-  // around it.
+  // around it. Blade-line vertices the cut opened at, in faces the blade has now left, are
+  // collapsed first where they can be.
   if (move_sweep_ >= 0 && !triangles.empty()) {
     move_rest_low_ = Vec3::Constant(std::numeric_limits<double>::max());
     move_rest_high_ = -move_rest_low_;
@@ -251,6 +252,7 @@ void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangl
       high = high.cwiseMax(triangle_high);
     }
     const Vec3 margin = Vec3::Constant(grid_.cell_size());
+    collapse_opened_behind(low - margin, high + margin);
     grid_.query(low - margin, high + margin, scratch_);
     for (TetId t : scratch_) {
       const Tet& v = mesh_.tet(t);

@@ -38,6 +38,8 @@ class CutFaceMarks final : public MeshObserver {
                        const Tet& parent_vertices) override;
   void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
                       const Tet& removed_vertices) override;
+  void on_tet_absorbed(const TetMesh& mesh, TetId removed, TetId into, TetId moved_from,
+                       const Tet& removed_vertices) override;
   void on_mesh_destroyed() override { mesh_ = nullptr; }
   void save_state(StateWriter& out) const override {
     out.tag("cut face marks");
