@@ -412,6 +412,25 @@ bool on_feature_boundary(const TetMesh& mesh, VertexId vertex,
 
 namespace {
 
+/// Whether the boundary faces through `vertex` lie in one plane (their areas add up to the
+/// area of their sum, to round-off).
+bool flat_boundary_fan(const TetMesh& mesh, VertexId vertex) {
+  Vec3 vector = Vec3::Zero();
+  double total = 0.0;
+  for (TetId t : mesh.vertex_tets(vertex)) {
+    const int local = mesh.local_index(t, vertex);
+    for (int f = 0; f < 4; ++f) {
+      if (f != local && mesh.tet_neighbors(t)[f] < 0) {
+        const std::array<Vec3, 3> face = rest_face(mesh, t, f);
+        const Vec3 normal = (face[1] - face[0]).cross(face[2] - face[0]);
+        vector += normal;
+        total += normal.norm();
+      }
+    }
+  }
+  return std::abs(total - vector.norm()) <= 1e-9 * total;
+}
+
 /// Whether the cut has opened at `vertex`: a face through it is a boundary face the cut made.
 bool opened_at(const TetMesh& mesh, const CutFaceMarks& marks, VertexId vertex) {
   for (TetId t : mesh.vertex_tets(vertex)) {
@@ -762,6 +781,9 @@ void SubdivisionCutter::collapse_opened_behind(const Vec3& low, const Vec3& high
     if (sliding || segment_intersects_triangle(pose_.tip, pose_.base, position(corners[0]),
                                                position(corners[1]), position(corners[2]))) {
       continue;
+    }
+    if (!flat_boundary_fan(mesh_, vertex)) {
+      continue;  // no collapse keeps a bent piece of boundary as it is (boundary_kept_flat)
     }
     // Targets: vertices of the cut on the face's boundary next to it, nearest first; the
     // collapse keeps the boundary there flat (boundary_kept_flat), so each side's copy of the
