@@ -21,6 +21,7 @@
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/generators.hpp"
+#include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
 #include "incise/mesh/validate.hpp"
 #include "incise/meshing/tetrahedralize.hpp"
@@ -382,6 +383,51 @@ TEST(RandomBladeWalks, KeepEveryInvariantAfterEveryPose) {
       EXPECT_GT(v, 1e-6 * volume) << "a shard";
     }
   }
+}
+
+TEST(CutFaceMarks, FollowATetrahedronAbsorbedByACollapse) {
+  // Every boundary face marked as the cut's (as after the cut opened there), then a vertex put
+  // in the face between two tetrahedra and collapsed onto a split of that face's edge: the
+  // removed tetrahedra's boundary faces pass to the ones that grow over them, so the marked
+  // boundary is still the whole boundary (it lost the faces of the absorbed ones before).
+  TetMesh mesh({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0.2, 0.3, 1), Vec3(0.3, 0.2, -1)},
+               {{0, 1, 2, 3}, {0, 2, 1, 4}});
+  CutFaceMarks marks(mesh);
+  const auto marked_boundary = [&] {
+    double marked = 0.0;
+    double all = 0.0;
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const auto tet = static_cast<TetId>(t);
+      for (int f = 0; f < 4; ++f) {
+        if (mesh.tet_neighbors(tet)[f] < 0) {
+          const auto& local = tet_local::kFaces[static_cast<std::size_t>(f)];
+          const Vec3& a = mesh.rest_position(mesh.tet(tet)[local[0]]);
+          const double area = 0.5 * (mesh.rest_position(mesh.tet(tet)[local[1]]) - a)
+                                        .cross(mesh.rest_position(mesh.tet(tet)[local[2]]) - a)
+                                        .norm();
+          all += area;
+          marked += marks.is_cut(tet, f) ? area : 0.0;
+        }
+      }
+    }
+    return std::pair{marked, all};
+  };
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    for (int f = 0; f < 4; ++f) {
+      if (mesh.tet_neighbors(static_cast<TetId>(t))[f] < 0) {
+        marks.mark(static_cast<TetId>(t), f);
+      }
+    }
+  }
+  const VertexId in_face = split_face(mesh, 0, mesh.local_index(0, 3), {0.3, 0.3, 0.4});
+  const VertexId on_edge = split_edge(mesh, mesh.find_edge(0, 1), 0.4);
+  const auto [marked_before, all_before] = marked_boundary();
+  ASSERT_NEAR(marked_before, all_before, 1e-14);
+  mesh.collapse_vertex(in_face, on_edge);
+  ASSERT_TRUE(validate(mesh).ok());
+  const auto [marked_after, all_after] = marked_boundary();
+  EXPECT_NEAR(all_after, all_before, 1e-14);
+  EXPECT_NEAR(marked_after, all_after, 1e-14);
 }
 
 }  // namespace
