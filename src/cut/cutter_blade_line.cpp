@@ -740,37 +740,31 @@ void SubdivisionCutter::hand_over(
   }
 }
 
-void SubdivisionCutter::collapse_opened_behind(const Vec3& low, const Vec3& high) {
-  // Vertices made inside a face (the blade line's points) and their copies, on the cut.
-  std::vector<TetId> around;
-  grid_.query(low, high, around);
-  std::vector<VertexId> points;
+bool SubdivisionCutter::collapse_opened_behind(const std::vector<TetId>& around) {
+  // Vertices made inside a face (the blade line's points) and their copies, on the cut, each
+  // with the face point it is (itself, or the vertex it copies).
+  std::vector<std::pair<VertexId, VertexId>> points;  // (vertex, face point)
   for (TetId t : around) {
     for (VertexId v : mesh_.tet(t)) {
-      VertexId point = v;
-      if (mesh_.vertex_origin(v).kind == VertexOrigin::Kind::kDuplicate) {
-        point = mesh_.vertex_origin(v).parents[0];
-      }
+      const VertexOrigin& own = mesh_.vertex_origin(v);
+      const VertexId point = own.kind == VertexOrigin::Kind::kDuplicate ? own.parents[0] : v;
       const VertexOrigin& origin = mesh_.vertex_origin(point);
       if (on_cut_[v] != 0 && origin.kind == VertexOrigin::Kind::kCombination &&
           origin.parent_count == 3) {
-        points.push_back(v);
+        points.emplace_back(v, point);
       }
     }
   }
   std::sort(points.begin(), points.end());
   points.erase(std::unique(points.begin(), points.end()), points.end());
-  for (VertexId vertex : points) {
+  bool collapsed = false;
+  for (const auto& [vertex, point] : points) {
     if (mesh_.vertex_tets(vertex).empty() || !opened_at(mesh_, marks_, vertex)) {
       continue;
     }
     bool sliding = false;
-    for (const Provisional& point : provisional_) {
-      sliding = sliding || point.vertex == vertex;
-    }
-    VertexId point = vertex;
-    if (mesh_.vertex_origin(vertex).kind == VertexOrigin::Kind::kDuplicate) {
-      point = mesh_.vertex_origin(vertex).parents[0];
+    for (const Provisional& blade_point : provisional_) {
+      sliding = sliding || blade_point.vertex == vertex;
     }
     const VertexOrigin& origin = mesh_.vertex_origin(point);
     const std::array<VertexId, 4> corners{origin.parents[0], origin.parents[1], origin.parents[2],
@@ -800,10 +794,12 @@ void SubdivisionCutter::collapse_opened_behind(const Vec3& low, const Vec3& high
     targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
     for (const auto& candidate : targets) {
       if (try_collapse(vertex, candidate.second)) {
+        collapsed = true;
         break;
       }
     }
   }
+  return collapsed;
 }
 
 void SubdivisionCutter::collapse_left_behind() {

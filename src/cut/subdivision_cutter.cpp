@@ -31,6 +31,7 @@ SubdivisionCutter::SubdivisionCutter(TetMesh& mesh, const CutterOptions& options
       on_cut_(mesh, 0, VertexRule::kDefault),
       cut_offset_(mesh, 0.0, VertexRule::kDefault),
       ancestry_(mesh, Ancestry{}, TetRule::kCopy) {
+  // The swept-surface index's finest cells: 1/32 of a mean edge.
   swept_ = std::make_unique<detail::TriangleIndex>(grid_.cell_size() / 32.0);
   if (!(options_.snap_fraction > 0.0 && options_.snap_fraction < 0.5)) {
     throw InputError("snap fraction must lie in (0, 0.5)");
@@ -252,8 +253,10 @@ void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangl
       high = high.cwiseMax(triangle_high);
     }
     const Vec3 margin = Vec3::Constant(grid_.cell_size());
-    collapse_opened_behind(low - margin, high + margin);
     grid_.query(low - margin, high + margin, scratch_);
+    if (collapse_opened_behind(scratch_)) {
+      grid_.query(low - margin, high + margin, scratch_);  // the collapses reshaped some
+    }
     for (TetId t : scratch_) {
       const Tet& v = mesh_.tet(t);
       for (int f = 0; f < 4; ++f) {

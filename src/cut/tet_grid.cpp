@@ -22,7 +22,7 @@ TetGrid::TetGrid(TetMesh& mesh, const VertexData<Vec3>* positions, double cell_s
       const auto& ends = mesh.edge(static_cast<EdgeId>(e));
       sum += (position(ends[0]) - position(ends[1])).norm();
     }
-    cell_size = mesh.edge_count() > 0 ? 1.0 * sum / static_cast<double>(mesh.edge_count()) : 1.0;
+    cell_size = mesh.edge_count() > 0 ? sum / static_cast<double>(mesh.edge_count()) : 1.0;
   }
   // At most about 4 cells per tetrahedron, so memory stays proportional to the mesh.
   const Vec3 extent = (high - low).cwiseMax(Vec3::Constant(1e-12));

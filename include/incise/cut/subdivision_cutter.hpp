@@ -209,9 +209,10 @@ class SubdivisionCutter {
   /// Whether collapsing `vertex` onto `target` keeps the boundary around it as it is: flat,
   /// the same area, the target in its plane.
   [[nodiscard]] bool boundary_kept_flat(VertexId vertex, VertexId target) const;
-  /// Blade-line vertices the cut opened at (and their copies) in the box (m), in faces the
-  /// blade has left: collapsed onto a vertex of the cut on their face's boundary where they can.
-  void collapse_opened_behind(const Vec3& low, const Vec3& high);
+  /// Blade-line vertices the cut opened at (and their copies) in the tetrahedra `around`, in
+  /// faces the blade has left: collapsed onto a vertex of the cut on their face's boundary
+  /// where they can. True if any was (the tetrahedra changed).
+  bool collapse_opened_behind(const std::vector<TetId>& around);
   /// Where a blade-line vertex leaves its face: the edge (a, b) and the place t (0 at a, 1 at
   /// b) where the cut will cross it.
   struct Handover {

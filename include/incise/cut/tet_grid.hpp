@@ -13,7 +13,7 @@ namespace incise {
 
 class TetGrid final : public MeshObserver {
  public:
-  /// Cell size defaults to twice the mean edge length. `positions` (m), when given, must
+  /// Cell size defaults to the mean edge length. `positions` (m), when given, must
   /// outlive the grid.
   explicit TetGrid(TetMesh& mesh, const VertexData<Vec3>* positions = nullptr,
                    double cell_size = 0.0);
