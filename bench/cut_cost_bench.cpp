@@ -8,7 +8,7 @@
 // raises CG iterations over the uncut body's frames, listed too.
 //
 // usage: cut_cost_bench [--cells 10,20,40] [--model corotational-fem|mass-spring]
-//                       [--cutter subdivision|xfem] [--blade-x 0.05]
+//                       [--cutter subdivision|xfem] [--blade-x 0.05] [--per-frame 1]
 // (x = 0.05 m is a plane of grid vertices at every n here; 0.0537 m crosses the cells)
 // Frames 1-10 are "before", 16-45 (the blade moving inside) "cutting", 46-65 "after".
 
@@ -29,9 +29,14 @@ using incise::FrameRecord;
 
 struct Means {
   double cd = 0, gc = 0, rx = 0, total = 0, iterations = 0;
+  double refresh = 0, forces = 0, preconditioner = 0, solve = 0;  // s, within rx
   int frames = 0;
-  void add(const FrameRecord& r, std::size_t cg_iterations) {
-    iterations += static_cast<double>(cg_iterations);
+  void add(const FrameRecord& r, const incise::IntegratorStats& stats) {
+    iterations += static_cast<double>(stats.solver_iterations_last_step);
+    refresh += stats.seconds_refresh;
+    forces += stats.seconds_forces;
+    preconditioner += stats.seconds_preconditioner;
+    solve += stats.seconds_products + stats.seconds_vector_updates + stats.seconds_solver_start;
     cd += r.cd;
     gc += r.gc;
     rx += r.rx;
@@ -44,6 +49,9 @@ struct Means {
                        1e3 * cd / n, 1e3 * gc / n, 1e3 * rx / n, iterations / n);
   }
   [[nodiscard]] double mean() const { return frames > 0 ? total / frames : 0.0; }
+  [[nodiscard]] double per_frame(double sum) const { return frames > 0 ? sum / frames : 0.0; }
+  /// Solver time per CG iteration (s).
+  [[nodiscard]] double per_iteration() const { return iterations > 0 ? solve / iterations : 0.0; }
 };
 
 std::string scene_text(int cells, const std::string& model, const std::string& cutter, double x) {
@@ -71,7 +79,8 @@ int main(int argc, char** argv) {
   std::vector<int> sizes{10, 20, 40};
   std::string model = "corotational-fem";
   std::string cutter = "subdivision";
-  double blade_x = 0.05;  // m
+  double blade_x = 0.05;   // m
+  bool per_frame = false;  // --per-frame 1: every frame on stderr
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
       sizes.clear();
@@ -90,12 +99,15 @@ int main(int argc, char** argv) {
       cutter = argv[i + 1];
     } else if (std::strcmp(argv[i], "--blade-x") == 0) {
       blade_x = std::atof(argv[i + 1]);
+    } else if (std::strcmp(argv[i], "--per-frame") == 0) {
+      per_frame = std::strcmp(argv[i + 1], "0") != 0;
     }
   }
   std::printf(
       "| n | tets | cutting frame ms (cd / gc / rx; CG iterations) | frames before the cut | "
       "frames after the cut | extra ms over after | ratio to after |\n"
       "|---|---|---|---|---|---|---|\n");
+  std::vector<std::string> where;  // the second table's rows
   for (int n : sizes) {
     Engine engine(incise::parse_scene(scene_text(n, model, cutter, blade_x), "cut_cost.json"));
     const std::size_t tets = engine.mesh().tet_count();
@@ -108,13 +120,18 @@ int main(int argc, char** argv) {
         return 1;
       }
       const FrameRecord& r = engine.last_frame();
-      const std::size_t iterations = engine.integrator().stats().solver_iterations_last_step;
+      const incise::IntegratorStats& stats = engine.integrator().stats();
+      if (per_frame) {
+        std::fprintf(stderr, "n %d frame %d tets %zu cd %.2f gc %.2f update %.2f rx %.2f CG %zu\n",
+                     n, r.frame, r.tets, 1e3 * r.cd, 1e3 * r.gc, 1e3 * stats.seconds_refresh,
+                     1e3 * r.rx, stats.solver_iterations_last_step);
+      }
       if (r.frame <= 10) {
-        before.add(r, iterations);
+        before.add(r, stats);
       } else if (r.frame >= 16 && r.frame <= 45) {
-        cutting.add(r, iterations);
+        cutting.add(r, stats);
       } else if (r.frame >= 46) {
-        after.add(r, iterations);
+        after.add(r, stats);
       }
     }
     std::printf("| %d | %zu -> %zu | %s | %s | %s | %.1f | %.2f |\n", n, tets,
@@ -122,6 +139,29 @@ int main(int argc, char** argv) {
                 after.row().c_str(), 1e3 * (cutting.mean() - after.mean()),
                 after.mean() > 0 ? cutting.mean() / after.mean() : 0.0);
     std::fflush(stdout);
+    const auto ms = [](double seconds) { return 1e3 * seconds; };
+    const double edit = cutting.per_frame(cutting.cd + cutting.gc + cutting.refresh);
+    const double extra_iterations =
+        cutting.per_frame(cutting.iterations) - after.per_frame(after.iterations);
+    where.push_back(fmt::format(
+        "| {} | {:.1f} ({:.1f} / {:.1f} / {:.1f}) | {:.1f} x {:.3f} = {:.1f} | {:.3f} | {:.1f} | "
+        "{:.1f} |",
+        n, ms(edit), ms(cutting.per_frame(cutting.cd)), ms(cutting.per_frame(cutting.gc)),
+        ms(cutting.per_frame(cutting.refresh)), extra_iterations, ms(after.per_iteration()),
+        ms(extra_iterations * after.per_iteration()), ms(cutting.per_iteration()),
+        ms(cutting.per_frame(cutting.forces + cutting.preconditioner) -
+           after.per_frame(after.forces + after.preconditioner)),
+        ms(cutting.mean() - after.mean())));
+  }
+  std::printf(
+      "\nWhere the extra of a cutting frame goes (ms per frame): the edit (cd / gc / the model "
+      "following it), extra CG iterations at the after-frames' cost per iteration, the cutting "
+      "frames' cost per iteration, forces + preconditioner over the after-frames', all of it\n\n"
+      "| n | edit (cd / gc / model update) | extra CG iterations x ms each | ms per iteration "
+      "when cutting | forces + preconditioner extra | extra in all |\n"
+      "|---|---|---|---|---|---|\n");
+  for (const std::string& row : where) {
+    std::printf("%s\n", row.c_str());
   }
   return 0;
 }

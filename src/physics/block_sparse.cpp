@@ -13,74 +13,120 @@
 namespace incise {
 namespace {
 
-/// Copies `from` into `to`, growing `to` with slack so small growth does not reallocate.
-template <typename T>
-void copy_growing(const std::vector<T>& from, std::vector<T>& to) {
-  if (to.capacity() < from.size()) {
-    to.reserve(from.size() + from.size() / 4);
+/// Grows `values` to `size` with slack, so small growth does not reallocate (and fault in
+/// fresh pages for) the whole array every frame, a cost of the body's size. New blocks are zero.
+void grow_zero(std::vector<Mat3>& values, std::size_t size) {
+  if (values.capacity() < size) {
+    values.reserve(size + size / 4);
   }
-  to.assign(from.begin(), from.end());
+  values.resize(size, Mat3::Zero());
 }
 
 }  // namespace
 
+BlockSparseMatrix::BlockSparseMatrix() : pattern_(std::make_shared<BlockPattern>()) {}
+
 void BlockSparseMatrix::build_pattern(const TetMesh& mesh) {
-  build_pattern(vertex_graph(mesh), mesh.revision());
+  build_pattern(vertex_graph(mesh));
 }
 
-void BlockSparseMatrix::build_pattern(const VertexGraph& graph, std::uint64_t revision) {
+void BlockSparseMatrix::build_pattern(const VertexGraph& graph) {
   const std::size_t n = graph.row_start.size() - 1;
-  // Each row: the diagonal, then the neighbours.
-  row_start_.resize(n + 1);
-  for (std::size_t v = 0; v <= n; ++v) {
-    row_start_[v] = graph.row_start[v] + v;
-  }
-  columns_.resize(row_start_[n]);
-  for (std::size_t v = 0; v < n; ++v) {
-    columns_[row_start_[v]] = static_cast<VertexId>(v);
+  auto pattern = std::make_shared<BlockPattern>();
+  pattern->version = pattern_->version + 1;
+  // Each row: the diagonal and the neighbours, sorted (products then walk p in order, and
+  // find() bisects).
+  std::vector<VertexId> row;
+  pattern->columns.assign(n, [&](std::size_t v) -> std::span<const VertexId> {
     const auto neighbours = graph.neighbors(static_cast<VertexId>(v));
-    std::copy(neighbours.begin(), neighbours.end(),
-              columns_.begin() + static_cast<std::ptrdiff_t>(row_start_[v] + 1));
-  }
-  diagonal_.resize(n);
+    row.assign(1, static_cast<VertexId>(v));
+    row.insert(row.end(), neighbours.begin(), neighbours.end());
+    std::sort(row.begin(), row.end());
+    return row;
+  });
+  pattern_ = std::move(pattern);
+  pattern_->diagonal.resize(n);
   for (std::size_t v = 0; v < n; ++v) {
-    // Sorted columns make products walk p in order and let find() bisect.
-    std::sort(columns_.begin() + static_cast<std::ptrdiff_t>(row_start_[v]),
-              columns_.begin() + static_cast<std::ptrdiff_t>(row_start_[v + 1]));
-    diagonal_[v] = find(static_cast<VertexId>(v), static_cast<VertexId>(v));
+    pattern_->diagonal[v] = find(static_cast<VertexId>(v), static_cast<VertexId>(v));
   }
-  zero_values();
-  pattern_revision_ = revision;
+  values_.clear();
+  fit_values();
 }
 
 void BlockSparseMatrix::match_pattern(const BlockSparseMatrix& other) {
-  if (pattern_revision_ == other.pattern_revision_ && row_start_ == other.row_start_ &&
-      columns_ == other.columns_) {
+  if (pattern_ != other.pattern_) {
+    pattern_ = other.pattern_;
+    values_.clear();
+  }
+  fit_values();
+}
+
+void BlockSparseMatrix::fit_values() {
+  const std::size_t size = pattern_->columns.storage().size();
+  if (fitted_version_ == pattern_->version && values_.size() == size) {
     return;
   }
-  pattern_revision_ = other.pattern_revision_;
-  copy_growing(other.row_start_, row_start_);
-  copy_growing(other.columns_, columns_);
-  copy_growing(other.diagonal_, diagonal_);
-  zero_values();
+  grow_zero(values_, size);
+  fitted_version_ = pattern_->version;
 }
 
 void BlockSparseMatrix::zero_values() {
-  // A cut adds a few blocks per frame: growing by exactly that would reallocate (and fault in
-  // fresh pages for) the whole array every frame, a cost of the body's size. Grow with slack.
-  if (values_.capacity() < columns_.size()) {
-    values_.reserve(columns_.size() + columns_.size() / 4);
-  }
-  values_.resize(columns_.size());
+  fit_values();
   std::fill(values_.begin(), values_.end(), Mat3::Zero());
 }
 
+void BlockSparseMatrix::add_rows(std::size_t rows) {
+  BlockPattern& pattern = *pattern_;
+  const std::size_t old_rows = pattern.columns.rows();
+  if (rows <= old_rows) {
+    return;
+  }
+  pattern.columns.add_rows(rows);
+  pattern.diagonal.resize(rows);
+  for (std::size_t v = old_rows; v < rows; ++v) {
+    const auto row = static_cast<VertexId>(v);
+    pattern.columns.set_row(v, std::span<const VertexId>(&row, 1));
+    pattern.diagonal[v] = pattern.columns.begin()[v];
+  }
+  ++pattern.version;
+  fit_values();
+}
+
+void BlockSparseMatrix::edit_row(VertexId row, std::span<const VertexId> sorted_columns) {
+  BlockPattern& pattern = *pattern_;
+  const auto r = static_cast<std::size_t>(row);
+  INCISE_ASSERT(r < pattern.columns.rows(), "edit_row: no such row");
+  INCISE_ASSERT(std::is_sorted(sorted_columns.begin(), sorted_columns.end()) &&
+                    std::binary_search(sorted_columns.begin(), sorted_columns.end(), row),
+                "edit_row: columns must be sorted and hold the diagonal");
+  if (!pattern.columns.set_row(r, sorted_columns)) {
+    return;
+  }
+  pattern.diagonal[r] = find(row, row);
+  ++pattern.version;
+  fit_values();
+}
+
+bool BlockSparseMatrix::compact_if_fragmented() {
+  BlockPattern& pattern = *pattern_;
+  if (!pattern.columns.compact_if_fragmented()) {
+    return false;
+  }
+  for (std::size_t v = 0; v < pattern.columns.rows(); ++v) {
+    pattern.diagonal[v] = find(static_cast<VertexId>(v), static_cast<VertexId>(v));
+  }
+  ++pattern.version;
+  values_.clear();
+  fit_values();
+  return true;
+}
+
 std::size_t BlockSparseMatrix::find(VertexId row, VertexId column) const {
-  const auto begin = columns_.begin() + static_cast<std::ptrdiff_t>(row_start_[row]);
-  const auto end = columns_.begin() + static_cast<std::ptrdiff_t>(row_start_[row + 1]);
-  const auto it = std::lower_bound(begin, end, column);
-  INCISE_ASSERT(it != end && *it == column, "block outside the matrix pattern");
-  return static_cast<std::size_t>(it - columns_.begin());
+  const std::span<const VertexId> columns = row_columns(row);
+  const auto it = std::lower_bound(columns.begin(), columns.end(), column);
+  INCISE_ASSERT(it != columns.end() && *it == column, "block outside the matrix pattern");
+  return pattern_->columns.begin()[static_cast<std::size_t>(row)] +
+         static_cast<std::size_t>(it - columns.begin());
 }
 
 void BlockSparseMatrix::set_zero() {
@@ -91,11 +137,11 @@ namespace {
 
 /// One row after another, Eigen's 3x3 block times vector.
 void multiply_rows_portable(const Mat3* values, const VertexId* columns,
-                            const std::size_t* row_start, std::size_t begin, std::size_t end,
-                            const Vec3* p, Vec3* out) {
+                            const std::size_t* row_begin, const std::size_t* row_end,
+                            std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
   for (std::size_t i = begin; i < end; ++i) {
     Vec3 sum = Vec3::Zero();
-    for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
+    for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
       sum.noalias() += values[k] * p[columns[k]];
     }
     out[i - begin] = sum;
@@ -111,17 +157,15 @@ void multiply_rows_portable(const Mat3* values, const VertexId* columns,
 // columns 0 and 1 are the first three lanes of 4-wide loads at offsets 0 and 3, and column 2
 // is the last three lanes of the load at offset 5 (no load reads past the block); that
 // column is summed in its own register and shifted into place once per row.
-__attribute__((target("avx2,fma"))) void multiply_rows_avx2(const Mat3* blocks,
-                                                            const VertexId* columns,
-                                                            const std::size_t* row_start,
-                                                            std::size_t begin, std::size_t end,
-                                                            const Vec3* p, Vec3* out) {
+__attribute__((target("avx2,fma"))) void multiply_rows_avx2(
+    const Mat3* blocks, const VertexId* columns, const std::size_t* row_begin,
+    const std::size_t* row_end, std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
   const double* values = blocks->data();
   for (std::size_t i = begin; i < end; ++i) {
     __m256d first = _mm256_setzero_pd();
     __m256d second = _mm256_setzero_pd();
     __m256d third_shifted = _mm256_setzero_pd();
-    for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
+    for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
       const double* a = values + 9 * k;
       const double* q = p[columns[k]].data();
       first = _mm256_fmadd_pd(_mm256_loadu_pd(a), _mm256_broadcast_sd(q), first);
@@ -148,16 +192,19 @@ bool cpu_has_avx2_fma() {
 void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::span<const Vec3> p,
                                       Vec3* out) const {
   INCISE_ASSERT(end <= rows() && p.size() >= rows(), "product outside the matrix");
+  INCISE_ASSERT(values_.size() == pattern_->columns.storage().size(),
+                "product with a matrix that has not matched its pattern since an edit");
+  const VertexId* columns = pattern_->columns.storage().data();
+  const std::size_t* row_begin = pattern_->columns.begin().data();
+  const std::size_t* row_end = pattern_->columns.end().data();
 #ifdef INCISE_HAVE_AVX2_ROWS
   static const bool avx2 = cpu_has_avx2_fma();  // a property of the machine, asked once
   if (avx2) {
-    multiply_rows_avx2(values_.data(), columns_.data(), row_start_.data(), begin, end, p.data(),
-                       out);
+    multiply_rows_avx2(values_.data(), columns, row_begin, row_end, begin, end, p.data(), out);
     return;
   }
 #endif
-  multiply_rows_portable(values_.data(), columns_.data(), row_start_.data(), begin, end, p.data(),
-                         out);
+  multiply_rows_portable(values_.data(), columns, row_begin, row_end, begin, end, p.data(), out);
 }
 
 template <typename Store>

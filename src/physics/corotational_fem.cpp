@@ -12,14 +12,6 @@
 
 namespace incise {
 
-namespace {
-
-/// Colours 0..63 come from a 64-bit mask per vertex; the rare element that finds all of them
-/// taken around its corners goes to colour 64, which is processed serially.
-constexpr std::size_t kParallelColours = 64;
-
-}  // namespace
-
 CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const Material& material,
                                            const CorotationalFemParameters& parameters)
     : CorotationalFemModel(mesh, MaterialAssignment::uniform(material), parameters) {}
@@ -32,7 +24,8 @@ CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const MaterialAssignme
       elements_(mesh, FemElement{}, TetRule::kDefault),
       tet_mass_(mesh, 0.0, TetRule::kDefault),
       rotations_(mesh, Eigen::Quaterniond::Identity(), TetRule::kCopy),
-      masses_(mesh, 0.0, VertexRule::kDefault) {
+      masses_(mesh, 0.0, VertexRule::kDefault),
+      slots_(mesh, {}, TetRule::kDefault) {
   for (const Material& material : materials_.table()) {
     lames_.push_back(lame_parameters(material.young_modulus, material.poisson_ratio));
   }
@@ -75,161 +68,233 @@ double CorotationalFemModel::total_mass() const {
 
 // ---- following edits ------------------------------------------------------------------------
 
+void CorotationalFemModel::mark(VertexId vertex) {
+  const auto v = static_cast<std::size_t>(vertex);
+  if (v >= vertex_dirty_.size()) {
+    vertex_dirty_.resize(std::max(v + 1, mesh_->vertex_count()), 0);
+  }
+  if (vertex_dirty_[v] == 0) {
+    vertex_dirty_[v] = 1;
+    dirty_vertices_.push_back(vertex);
+  }
+}
+
+void CorotationalFemModel::mark(const Tet& tet) {
+  for (VertexId v : tet) {
+    mark(v);
+  }
+}
+
+void CorotationalFemModel::on_vertex_added(const TetMesh&, VertexId vertex, const VertexOrigin&) {
+  mark(vertex);
+}
+
+void CorotationalFemModel::on_tet_added(const TetMesh& mesh, TetId tet) {
+  mark(mesh.tet(tet));
+}
+
+void CorotationalFemModel::on_tet_replaced(const TetMesh& mesh, TetId,
+                                           std::span<const TetId> children,
+                                           const Tet& parent_vertices) {
+  mark(parent_vertices);
+  for (TetId child : children) {
+    mark(mesh.tet(child));
+  }
+}
+
+void CorotationalFemModel::on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
+                                          const Tet& removed_vertices) {
+  mark(removed_vertices);
+  if (removed != moved_from) {
+    // The last tetrahedron took the removed one's id: its values moved with it in the
+    // attribute containers, but its vertices' incidences name it by its old id.
+    mark(mesh.tet(removed));
+  }
+}
+
+void CorotationalFemModel::on_tet_reconnected(const TetMesh& mesh, TetId tet,
+                                              const Tet& old_vertices) {
+  mark(old_vertices);
+  mark(mesh.tet(tet));
+}
+
+void CorotationalFemModel::on_tet_reshaped(const TetMesh& mesh, TetId tet,
+                                           const Tet& old_vertices) {
+  elements_[tet].valid = false;
+  on_tet_reconnected(mesh, tet, old_vertices);
+}
+
+void CorotationalFemModel::on_tet_absorbed(const TetMesh& mesh, TetId removed, TetId into,
+                                           TetId moved_from, const Tet& removed_vertices) {
+  on_tet_removed(mesh, removed, moved_from, removed_vertices);
+  mark(mesh.tet(into == moved_from ? removed : into));  // the absorber, wherever it lives now
+}
+
+void CorotationalFemModel::on_material_fraction_changed(const TetMesh& mesh, TetId tet) {
+  mark(mesh.tet(tet));
+  frequency_revision_ = kNoRevision;
+}
+
 void CorotationalFemModel::on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                                                const VertexOrigin&) {
   for (TetId t : mesh.vertex_tets(vertex)) {
     elements_[t].valid = false;
   }
+  mark(vertex);
 }
 
-void CorotationalFemModel::update_rest_data() {
+void CorotationalFemModel::update_element(TetId tet) {
+  FemElement& element = elements_[tet];
+  if (element.valid) {
+    return;
+  }
+  const TetMesh& mesh = *mesh_;
+  Corners rest;
+  for (int a = 0; a < 4; ++a) {
+    rest[a] = mesh.rest_position(mesh.tet(tet)[a]);
+  }
+  try {
+    element.shape = tet_rest_shape(rest, static_cast<std::int64_t>(tet));
+    element.valid = true;
+  } catch (const InputError&) {
+    // A sliver a cutter left behind: it carries mass but no stiffness, and validate()
+    // reports it.
+    element.shape = TetRestShape{};
+  }
+  if (tet_mass_[tet] == 0.0) {
+    tet_mass_[tet] = materials_.of(tet).density * element.shape.volume;  // a tet added afresh
+  }
+}
+
+void CorotationalFemModel::update_slots(TetId tet) {
+  const Tet& vertices = mesh_->tet(tet);
+  auto& slot = slots_[tet];
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 4; ++b) {
+      slot[4 * a + b] = static_cast<std::uint32_t>(stiffness_.find(vertices[a], vertices[b]));
+    }
+  }
+}
+
+template <typename Body>
+void CorotationalFemModel::for_each_incidence(VertexId vertex, const Body& body) const {
+  for (const Incidence& incidence : incidences_.row(static_cast<std::size_t>(vertex))) {
+    body(incidence.tet, incidence.corner);
+  }
+}
+
+void CorotationalFemModel::take_incidences(VertexId vertex, std::vector<Incidence>& row) const {
+  row.clear();
+  for (TetId tet : mesh_->vertex_tets(vertex)) {
+    row.push_back({tet, mesh_->local_index(tet, vertex)});
+  }
+}
+
+double CorotationalFemModel::vertex_mass(VertexId vertex) const {
+  double mass = 0.0;
+  for (TetId tet : mesh_->vertex_tets(vertex)) {
+    mass += 0.25 * tet_mass_[tet] * mesh_->material_fraction(tet);
+  }
+  return mass;
+}
+
+void CorotationalFemModel::rebuild_all() {
   const TetMesh& mesh = *mesh_;
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    const auto tet = static_cast<TetId>(t);
-    FemElement& element = elements_[tet];
-    if (element.valid) {
-      continue;
-    }
-    Corners rest;
-    for (int a = 0; a < 4; ++a) {
-      rest[a] = mesh.rest_position(mesh.tet(tet)[a]);
-    }
-    try {
-      element.shape = tet_rest_shape(rest, static_cast<std::int64_t>(t));
-      element.valid = true;
-    } catch (const InputError&) {
-      // A sliver a cutter left behind: it carries mass but no stiffness, and validate()
-      // reports it.
-      element.shape = TetRestShape{};
-    }
-    if (tet_mass_[tet] == 0.0) {
-      tet_mass_[tet] = materials_.of(tet).density * element.shape.volume;  // a tet added afresh
-    }
+    update_element(static_cast<TetId>(t));
   }
+  stiffness_.build_pattern(vertex_graph(mesh));
+  std::vector<Incidence> row;
+  incidences_.assign(mesh.vertex_count(), [&](std::size_t v) -> std::span<const Incidence> {
+    take_incidences(static_cast<VertexId>(v), row);
+    return row;
+  });
+  parallel_for(0, mesh.tet_count(), 1024, [&](std::size_t first, std::size_t last) {
+    for (std::size_t t = first; t != last; ++t) {
+      update_slots(static_cast<TetId>(t));
+    }
+  });
+  parallel_for(0, mesh.vertex_count(), 1024, [&](std::size_t first, std::size_t last) {
+    for (std::size_t v = first; v != last; ++v) {
+      masses_[static_cast<VertexId>(v)] = vertex_mass(static_cast<VertexId>(v));
+    }
+  });
 }
 
-void CorotationalFemModel::rebuild_topology() {
+void CorotationalFemModel::update_marked() {
   const TetMesh& mesh = *mesh_;
-  const std::size_t n = mesh.vertex_count();
-  const std::size_t tets = mesh.tet_count();
-  vertex_graph(mesh, graph_);
-  // Greedy colouring in tet order: deterministic.
-  std::vector<std::uint64_t> used(n, 0);
-  std::vector<std::uint8_t> colour(tets);
-  std::vector<std::size_t> count(kParallelColours + 1, 0);
-  for (std::size_t t = 0; t < tets; ++t) {
-    const Tet& tet = mesh.tet(static_cast<TetId>(t));
-    const std::uint64_t taken = used[tet[0]] | used[tet[1]] | used[tet[2]] | used[tet[3]];
-    std::size_t c = kParallelColours;
-    if (taken != ~std::uint64_t{0}) {
-      c = static_cast<std::size_t>(std::countr_one(taken));
-      for (VertexId v : tet) {
-        used[v] |= std::uint64_t{1} << c;
+  // The tetrahedra at the marked vertices, each once: every element whose rest shape, vertices
+  // or mass changed is among them (each such edit marked its vertices).
+  touched_tets_.clear();
+  for (VertexId v : dirty_vertices_) {
+    const auto tets = mesh.vertex_tets(v);
+    touched_tets_.insert(touched_tets_.end(), tets.begin(), tets.end());
+  }
+  std::sort(touched_tets_.begin(), touched_tets_.end());
+  touched_tets_.erase(std::unique(touched_tets_.begin(), touched_tets_.end()), touched_tets_.end());
+  for (TetId t : touched_tets_) {
+    update_element(t);
+  }
+  // Their rows: the vertex and every vertex of its tetrahedra (a vertex left without any
+  // keeps only its diagonal).
+  stiffness_.add_rows(mesh.vertex_count());
+  std::vector<VertexId> columns;
+  for (VertexId v : dirty_vertices_) {
+    columns.assign(1, v);
+    for (TetId t : mesh.vertex_tets(v)) {
+      const Tet& corners = mesh.tet(t);
+      columns.insert(columns.end(), corners.begin(), corners.end());
+    }
+    std::sort(columns.begin(), columns.end());
+    columns.erase(std::unique(columns.begin(), columns.end()), columns.end());
+    stiffness_.edit_row(v, columns);
+  }
+  if (stiffness_.compact_if_fragmented()) {
+    parallel_for(0, mesh.tet_count(), 1024, [&](std::size_t first, std::size_t last) {
+      for (std::size_t t = first; t != last; ++t) {
+        update_slots(static_cast<TetId>(t));
       }
-    }
-    colour[t] = static_cast<std::uint8_t>(c);
-    ++count[c];
-  }
-  std::size_t last = 0;
-  for (std::size_t c = 0; c <= kParallelColours; ++c) {
-    if (count[c] > 0) {
-      last = c + 1;
+    });
+  } else {
+    // A row that changed holds blocks of its tetrahedra only, all touched.
+    for (TetId t : touched_tets_) {
+      update_slots(t);
     }
   }
-  colour_start_.assign(last + 1, 0);
-  for (std::size_t c = 0; c < last; ++c) {
-    colour_start_[c + 1] = colour_start_[c] + count[c];
+  incidences_.add_rows(mesh.vertex_count());
+  std::vector<Incidence> row;
+  for (VertexId v : dirty_vertices_) {
+    take_incidences(v, row);
+    incidences_.set_row(static_cast<std::size_t>(v), row);
   }
-  coloured_tets_.resize(tets);
-  std::vector<std::size_t> cursor(colour_start_.begin(), colour_start_.end() - 1);
-  for (std::size_t t = 0; t < tets; ++t) {
-    coloured_tets_[cursor[colour[t]]++] = static_cast<TetId>(t);
+  (void)incidences_.compact_if_fragmented();
+  for (VertexId v : dirty_vertices_) {
+    masses_[v] = vertex_mass(v);
   }
-  // Vertex -> (element, corner) incidences, for assembly row by row.
-  incidence_start_.assign(n + 1, 0);
-  for (std::size_t t = 0; t < tets; ++t) {
-    for (VertexId v : mesh.tet(static_cast<TetId>(t))) {
-      ++incidence_start_[static_cast<std::size_t>(v) + 1];
-    }
-  }
-  for (std::size_t v = 0; v < n; ++v) {
-    incidence_start_[v + 1] += incidence_start_[v];
-  }
-  incidences_.resize(incidence_start_[n]);
-  std::vector<std::size_t> next(incidence_start_.begin(), incidence_start_.end() - 1);
-  for (std::size_t t = 0; t < tets; ++t) {
-    const Tet& tet = mesh.tet(static_cast<TetId>(t));
-    for (int a = 0; a < 4; ++a) {
-      incidences_[next[tet[a]]++] = {static_cast<TetId>(t), a};
-    }
-  }
-  // Matrix pattern and each element's slots in it.
-  stiffness_.build_pattern(graph_, mesh.revision());
-  slots_.resize(tets);
-  for (std::size_t t = 0; t < tets; ++t) {
-    const Tet& tet = mesh.tet(static_cast<TetId>(t));
-    for (int a = 0; a < 4; ++a) {
-      for (int b = 0; b < 4; ++b) {
-        slots_[t][4 * a + b] = static_cast<std::uint32_t>(stiffness_.find(tet[a], tet[b]));
-      }
-    }
-  }
-  assembled_ = false;
 }
 
 void CorotationalFemModel::refresh() {
   const TetMesh& mesh = *mesh_;
-  const bool topology_changed = topology_revision_ != mesh.revision();
-  if (!topology_changed && !masses_stale_) {
+  if (!rebuild_all_ && dirty_vertices_.empty() && topology_revision_ == mesh.revision()) {
     return;
   }
-  if (topology_changed) {
-    update_rest_data();
-    rebuild_topology();
-    topology_revision_ = mesh.revision();
+  if (rebuild_all_ || dirty_vertices_.empty()) {
+    // A change no event told of (the mesh moved on without marking anything): built again.
+    rebuild_all();
+  } else {
+    update_marked();
   }
-  // Lumped masses: a quarter of each adjacent element's mass, summed afresh.
-  masses_.fill(0.0);
-  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    const auto tet = static_cast<TetId>(t);
-    const double quarter = 0.25 * tet_mass_[tet] * mesh_->material_fraction(tet);
-    for (VertexId v : mesh.tet(tet)) {
-      masses_[v] += quarter;
-    }
+  for (VertexId v : dirty_vertices_) {
+    vertex_dirty_[static_cast<std::size_t>(v)] = 0;
   }
-  masses_stale_ = false;
+  dirty_vertices_.clear();
+  rebuild_all_ = false;
+  topology_revision_ = mesh.revision();
+  assembled_ = false;
   frequency_revision_ = kNoRevision;  // the bound is taken again when asked for
 }
 
 // ---- element loops --------------------------------------------------------------------------
-
-template <typename Body>
-void CorotationalFemModel::for_each_element(const Body& body) const {
-  for (std::size_t c = 0; c + 1 < colour_start_.size(); ++c) {
-    const std::size_t begin = colour_start_[c];
-    const std::size_t end = colour_start_[c + 1];
-    // Elements with a degenerate rest shape or no material contribute nothing.
-    auto visit = [&](std::size_t k) {
-      const TetId tet = coloured_tets_[k];
-      const FemElement& element = elements_[tet];
-      const double weight = mesh_->material_fraction(tet);
-      if (element.valid && weight != 0.0) {
-        body(tet, element, weight);
-      }
-    };
-    if (c >= kParallelColours) {
-      for (std::size_t k = begin; k < end; ++k) {
-        visit(k);
-      }
-      continue;
-    }
-    parallel_for(begin, end, 64, [&](std::size_t first, std::size_t last) {
-      for (std::size_t k = first; k != last; ++k) {
-        visit(k);
-      }
-    });
-  }
-}
 
 template <typename Body>
 void CorotationalFemModel::for_each_valid_element_in_order(const Body& body) const {
@@ -298,11 +363,10 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
   parallel_for(0, mesh.vertex_count(), 256, [&](std::size_t first, std::size_t last) {
     for (std::size_t i = first; i != last; ++i) {
       Vec3 sum = Vec3::Zero();
-      for (std::size_t k = incidence_start_[i]; k < incidence_start_[i + 1]; ++k) {
-        const auto [tet, corner] = incidences_[k];
+      for_each_incidence(static_cast<VertexId>(i), [&](TetId tet, int corner) {
         sum.noalias() +=
             scaled_stress_[static_cast<std::size_t>(tet)] * elements_[tet].shape.gradients[corner];
-      }
+      });
       f[i] += sum;
       if (parameters_.rayleigh_mass > 0.0) {
         f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
@@ -365,6 +429,10 @@ Vec3 CorotationalFemModel::vertex_force(VertexId vertex, const Vec3& x, const Ve
 }
 
 std::span<const VertexId> CorotationalFemModel::neighbors(VertexId vertex) const {
+  if (graph_revision_ != mesh_->revision()) {
+    vertex_graph(*mesh_, graph_);
+    graph_revision_ = mesh_->revision();
+  }
   return graph_.neighbors(vertex);
 }
 
@@ -408,13 +476,31 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
   if (assembled_) {
     stiffness_.multiply_add(stiffness_scale, p, y);
   } else {
-    for_each_element([&](TetId tet, const FemElement& element, double weight) {
-      const Mat3 dF = deformation_gradient(corners(tet, p), element.shape);
-      const Mat3 dP = (stiffness_scale * weight * element.shape.volume) *
-                      stress_differential(linearization_[tet], lame(tet), dF);
-      const Tet& vertices = mesh_->tet(tet);
-      for (int c = 0; c < 4; ++c) {
-        y[vertices[c]] += dP * element.shape.gradients[c];
+    // Per element dP (into scaled_stress_, free between force evaluations), then per vertex.
+    const TetMesh& mesh = *mesh_;
+    scaled_stress_.resize(mesh.tet_count());
+    parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
+      for (std::size_t t = first; t != last; ++t) {
+        const auto tet = static_cast<TetId>(t);
+        const FemElement& element = elements_[tet];
+        const double weight = mesh.material_fraction(tet);
+        if (!element.valid || weight == 0.0) {
+          scaled_stress_[t].setZero();
+          continue;
+        }
+        const Mat3 dF = deformation_gradient(corners(tet, p), element.shape);
+        scaled_stress_[t] = (stiffness_scale * weight * element.shape.volume) *
+                            stress_differential(linearization_[tet], lame(tet), dF);
+      }
+    });
+    parallel_for(0, mesh.vertex_count(), 256, [&](std::size_t first, std::size_t last) {
+      for (std::size_t i = first; i != last; ++i) {
+        Vec3 sum = Vec3::Zero();
+        for_each_incidence(static_cast<VertexId>(i), [&](TetId tet, int corner) {
+          sum.noalias() += scaled_stress_[static_cast<std::size_t>(tet)] *
+                           elements_[tet].shape.gradients[corner];
+        });
+        y[i] += sum;
       }
     });
   }
@@ -436,11 +522,16 @@ void CorotationalFemModel::add_linearized_diagonal(double a, double b,
       diagonal[i] += stiffness_scale * values[stiffness_.diagonal(static_cast<VertexId>(i))];
     }
   } else {
-    for_each_element([&](TetId tet, const FemElement& element, double weight) {
-      const Tet& vertices = mesh_->tet(tet);
-      for (int c = 0; c < 4; ++c) {
-        diagonal[vertices[c]] += stiffness_scale * stiffness_block(linearization_[tet], lame(tet),
-                                                                   element.shape, weight, c, c);
+    parallel_for(0, mesh_->vertex_count(), 256, [&](std::size_t first, std::size_t last) {
+      for (std::size_t i = first; i != last; ++i) {
+        for_each_incidence(static_cast<VertexId>(i), [&](TetId tet, int corner) {
+          const FemElement& element = elements_[tet];
+          const double weight = mesh_->material_fraction(tet);
+          if (element.valid && weight != 0.0) {
+            diagonal[i] += stiffness_scale * stiffness_block(linearization_[tet], lame(tet),
+                                                             element.shape, weight, corner, corner);
+          }
+        });
       }
     });
   }
@@ -482,21 +573,21 @@ bool CorotationalFemModel::assemble_linearization(double a, double b,
 void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) const {
   // Row by row: each thread owns whole block rows, so nothing is shared and the sum order per
   // block is fixed (deterministic); every element's blocks are computed once in all.
-  const auto row_start = stiffness_.row_start();
+  const auto row_begin = stiffness_.row_begin();
+  const auto row_end = stiffness_.row_end();
   const bool warped = parameters_.tangent == TangentKind::kWarped;
-  parallel_for(0, incidence_start_.size() - 1, 128, [&](std::size_t first, std::size_t last) {
+  parallel_for(0, mesh_->vertex_count(), 128, [&](std::size_t first, std::size_t last) {
     for (std::size_t row = first; row != last; ++row) {
-      for (std::size_t k = row_start[row]; k < row_start[row + 1]; ++k) {
+      for (std::size_t k = row_begin[row]; k < row_end[row]; ++k) {
         out[k].setZero();
       }
-      for (std::size_t k = incidence_start_[row]; k < incidence_start_[row + 1]; ++k) {
-        const auto [tet, a] = incidences_[k];
+      for_each_incidence(static_cast<VertexId>(row), [&](TetId tet, int a) {
         const FemElement& element = elements_[tet];
         const double weight = mesh_->material_fraction(tet);
         if (!element.valid || weight == 0.0) {
-          continue;
+          return;
         }
-        const auto& slot = slots_[static_cast<std::size_t>(tet)];
+        const auto& slot = slots_[tet];
         if (warped) {
           const auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
           const double factor = scale * weight * element.shape.volume;
@@ -508,14 +599,14 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
                 out[slot[4 * a + b]], lambda_a, mu_a, rotated[b],
                 factor * lame(tet).mu * gradient_a.dot(element.shape.gradients[b]));
           }
-          continue;
+          return;
         }
         const CorotatedLinearization& linearization = linearization_[tet];
         for (int b = 0; b < 4; ++b) {
           out[slot[4 * a + b]] +=
               stiffness_block(linearization, lame(tet), element.shape, scale * weight, a, b);
         }
-      }
+      });
     }
   });
 }

@@ -305,6 +305,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   check_step(dt);
   const auto step_start = Clock::now();
   system.refresh();
+  stats_.seconds_refresh = seconds_since(step_start);
   const std::size_t n = x.size();
   const auto masses = system.masses();
   const double end = t + dt;

@@ -177,7 +177,8 @@ void LinearizedSystemSolver::build_scalar_pattern() {
   }
   // Columns of the scalar matrix are the block rows' entries (the matrix is symmetric), so
   // column-major storage is filled row by row of blocks.
-  const auto row_start = assembled_.row_start();
+  const auto row_begin = assembled_.row_begin();
+  const auto row_end = assembled_.row_end();
   const auto columns = assembled_.columns();
   std::vector<int> outer(static_cast<std::size_t>(unknowns) + 1, 0);
   std::vector<int> inner;
@@ -188,7 +189,7 @@ void LinearizedSystemSolver::build_scalar_pattern() {
     }
     for (int component = 0; component < 3; ++component) {
       const int column = free_index_[i] + component;
-      for (std::size_t k = row_start[i]; k < row_start[i + 1]; ++k) {
+      for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
         const int other = free_index_[columns[k]];
         if (other < 0) {
           continue;
@@ -207,7 +208,8 @@ void LinearizedSystemSolver::build_scalar_pattern() {
   scalar_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
   std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
-  scalar_pattern_revision_ = assembled_.pattern_revision();
+  scalar_pattern_ = assembled_.pattern();
+  scalar_pattern_version_ = assembled_.pattern_version();
   scalar_constrained_.assign(constrained_.begin(), constrained_.end());
   if (direct_) {
     direct_->reset_pattern();
@@ -215,7 +217,8 @@ void LinearizedSystemSolver::build_scalar_pattern() {
 }
 
 void LinearizedSystemSolver::fill_scalar_values() {
-  if (scalar_pattern_revision_ != assembled_.pattern_revision() ||
+  if (scalar_pattern_ != assembled_.pattern() ||
+      scalar_pattern_version_ != assembled_.pattern_version() ||
       scalar_constrained_.size() != constrained_.size() ||
       !std::equal(constrained_.begin(), constrained_.end(), scalar_constrained_.begin())) {
     build_scalar_pattern();

@@ -5,9 +5,11 @@
 // parallel and deterministic (each row is summed in a fixed order by one thread).
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
+#include "incise/core/packed_rows.hpp"
 #include "incise/core/types.hpp"
 #include "incise/mesh/vertex_graph.hpp"
 
@@ -15,28 +17,61 @@ namespace incise {
 
 class TetMesh;
 
+/// Where each block row lives in a matrix's storage, shared by every matrix of that shape:
+/// sorted columns per row, packed so that an edit rewrites only the rows it touched (a row
+/// that grows moves to the end of the storage; see PackedRows).
+struct BlockPattern {
+  PackedRows<VertexId> columns;
+  std::vector<std::size_t> diagonal;  ///< storage index of each row's diagonal block
+  std::uint64_t version = 0;          ///< bumped on every change
+};
+
 class BlockSparseMatrix {
  public:
+  BlockSparseMatrix();
   /// Builds the pattern from the mesh's edges; values become zero.
   void build_pattern(const TetMesh& mesh);
-  /// The same from a vertex graph already at hand (taken at the mesh's current revision).
-  void build_pattern(const VertexGraph& graph, std::uint64_t revision);
-  /// Copies another matrix's pattern (values zero) unless it is already the same.
+  /// The same from a vertex graph already at hand. A fresh pattern: matrices that shared the
+  /// old one keep it until they match this one.
+  void build_pattern(const VertexGraph& graph);
+  /// Shares another matrix's pattern (an O(1) handover, however large the matrix); values
+  /// become zero where the pattern changed since this matrix last matched it. The pattern is
+  /// then edited through either matrix (edit_row, add_rows, compact) for both: only the model
+  /// that owns the mesh's pattern edits it, and other matrices match it again before use.
   void match_pattern(const BlockSparseMatrix& other);
   /// Sets every stored block to zero (keeping the storage).
   void zero_values();
-  /// Mesh revision the pattern was built for.
-  [[nodiscard]] std::uint64_t pattern_revision() const { return pattern_revision_; }
+  /// Changes whenever the pattern changes (a build or any edit); with pattern(), tells whether
+  /// two looks saw the same pattern (holding the pointer keeps its address from being reused).
+  [[nodiscard]] std::uint64_t pattern_version() const { return pattern_->version; }
+  [[nodiscard]] std::shared_ptr<const BlockPattern> pattern() const { return pattern_; }
 
-  [[nodiscard]] std::size_t rows() const { return row_start_.empty() ? 0 : row_start_.size() - 1; }
-  [[nodiscard]] std::size_t block_count() const { return columns_.size(); }
-  [[nodiscard]] std::span<const std::size_t> row_start() const { return row_start_; }
-  [[nodiscard]] std::span<const VertexId> columns() const { return columns_; }
+  // ---- edits after a mesh edit (values of edited rows are left unspecified) --------------
+  /// Appends rows up to `rows`; each new row holds only its diagonal block.
+  void add_rows(std::size_t rows);
+  /// Gives `row` these columns (sorted, the row itself among them). In place when they fit,
+  /// else the row moves to the end of the storage. Blocks of other rows keep their places.
+  void edit_row(VertexId row, std::span<const VertexId> sorted_columns);
+  /// Packs the rows again in vertex order once the storage left behind by moved rows reaches
+  /// a quarter of the whole. True when it did (every block then has a new place).
+  bool compact_if_fragmented();
+
+  [[nodiscard]] std::size_t rows() const { return pattern_->columns.rows(); }
+  /// Blocks in rows (what a product multiplies).
+  [[nodiscard]] std::size_t block_count() const { return pattern_->columns.live(); }
+  /// Row i's blocks are values()[row_begin()[i] .. row_end()[i]).
+  [[nodiscard]] std::span<const std::size_t> row_begin() const { return pattern_->columns.begin(); }
+  [[nodiscard]] std::span<const std::size_t> row_end() const { return pattern_->columns.end(); }
+  [[nodiscard]] std::span<const VertexId> columns() const { return pattern_->columns.storage(); }
+  [[nodiscard]] std::span<const VertexId> row_columns(VertexId row) const {
+    return pattern_->columns.row(static_cast<std::size_t>(row));
+  }
+  /// The whole storage, including what rows left behind (never read by products).
   [[nodiscard]] std::span<Mat3> values() { return values_; }
   [[nodiscard]] std::span<const Mat3> values() const { return values_; }
   /// Index of block (row, column) in values(); asserts that it is in the pattern.
   [[nodiscard]] std::size_t find(VertexId row, VertexId column) const;
-  [[nodiscard]] std::size_t diagonal(VertexId row) const { return diagonal_[row]; }
+  [[nodiscard]] std::size_t diagonal(VertexId row) const { return pattern_->diagonal[row]; }
 
   void set_zero();
   /// y = A p (parallel over rows; the result does not depend on the thread count).
@@ -51,11 +86,11 @@ class BlockSparseMatrix {
   /// store(row, (A p)_row) for every row, rows in parallel.
   template <typename Store>
   void for_each_row_product(std::span<const Vec3> p, const Store& store) const;
+  /// Sizes the values to the pattern's storage; new storage is zero.
+  void fit_values();
 
-  std::uint64_t pattern_revision_ = ~std::uint64_t{0};
-  std::vector<std::size_t> row_start_;
-  std::vector<VertexId> columns_;
-  std::vector<std::size_t> diagonal_;
+  std::shared_ptr<BlockPattern> pattern_;
+  std::uint64_t fitted_version_ = ~std::uint64_t{0};  ///< pattern version the values fit
   std::vector<Mat3> values_;
 };
 

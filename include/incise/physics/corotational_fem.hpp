@@ -4,13 +4,20 @@
 // masses, Rayleigh damping. Rest data, material fractions, masses and rotation warm starts live
 // in the mesh's attribute containers, so the model follows cuts without knowing about them.
 //
-// Element loops run in parallel over a greedy colouring of the tetrahedra (no two of one
-// colour share a vertex), so results are summed in a fixed order: the output does not depend
-// on the number of threads.
+// Element loops run in parallel in two passes: per element into per-element results, then per
+// vertex, gathering over the vertex's tetrahedra in the mesh's order. Each sum has a fixed
+// order, so the output does not depend on the number of threads, nor on whether the model was
+// built afresh or followed edits (a resumed run matches one that never stopped).
+//
+// After an edit the model updates only what the edit touched (the issue "An engine you can
+// step and cut at any size"): the mesh's events mark vertices, and refresh() takes again the
+// rest shapes of their tetrahedra, their rows of the matrix pattern, those tetrahedra's places
+// in it, and their lumped masses.
 
 #include <Eigen/Geometry>
 #include <vector>
 
+#include "incise/core/packed_rows.hpp"
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/vertex_graph.hpp"
 #include "incise/physics/block_sparse.hpp"
@@ -88,35 +95,61 @@ class CorotationalFemModel final : public ForceModel,
   [[nodiscard]] const CorotationalFemParameters& parameters() const { return parameters_; }
   void set_tangent(TangentKind kind) { parameters_.tangent = kind; }
   void set_assemble(bool assemble) { parameters_.assemble = assemble; }
-  /// Number of colours of the element colouring (parallel passes per element loop).
-  [[nodiscard]] std::size_t colour_count() const { return colour_start_.size() - 1; }
   /// Time (s) spent assembling since the last linearisation (K, or a system matrix a solver
   /// asked for).
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
+  /// Vertices whose tetrahedra, rows or masses changed since the last refresh (diagnostics).
+  [[nodiscard]] std::size_t pending_vertices() const { return dirty_vertices_.size(); }
+
+  // ---- following edits: each marks the vertices it touched --------------------------------
   void on_mesh_destroyed() override { mesh_ = nullptr; }
+  void on_vertex_added(const TetMesh& mesh, VertexId vertex, const VertexOrigin& origin) override;
+  void on_tet_added(const TetMesh& mesh, TetId tet) override;
+  void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
+                       const Tet& parent_vertices) override;
+  void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
+                      const Tet& removed_vertices) override;
+  void on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
   /// A collapse changed the tetrahedron's rest shape: its element is computed again.
-  void on_tet_reshaped(const TetMesh& /*mesh*/, TetId tet, const Tet& /*old_vertices*/) override {
-    elements_[tet].valid = false;
-  }
-  void on_material_fraction_changed(const TetMesh& /*mesh*/, TetId /*tet*/) override {
-    masses_stale_ = true;
-    frequency_revision_ = kNoRevision;
-  }
-  /// Its values live in attribute containers (restored on their own); the element order,
-  /// colouring, matrix pattern and masses are rebuilt from them.
-  void load_state(StateReader& /*in*/) override {
-    topology_revision_ = kNoRevision;
-    frequency_revision_ = kNoRevision;
-    masses_stale_ = true;
-  }
+  void on_tet_reshaped(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
+  /// The absorber's mass grew.
+  void on_tet_absorbed(const TetMesh& mesh, TetId removed, TetId into, TetId moved_from,
+                       const Tet& removed_vertices) override;
+  void on_material_fraction_changed(const TetMesh& mesh, TetId tet) override;
   /// The rest shapes of the vertex's tetrahedra changed: taken again at the next refresh.
   void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                            const VertexOrigin& origin) override;
+  /// Its values live in attribute containers (restored on their own); the matrix pattern,
+  /// element places and masses are built again from them.
+  void load_state(StateReader& /*in*/) override {
+    rebuild_all_ = true;
+    frequency_revision_ = kNoRevision;
+  }
 
  private:
-  void rebuild_topology();
-  void update_rest_data();
+  /// Everything from the mesh: at construction and after a restore.
+  void rebuild_all();
+  /// Only around the marked vertices.
+  void update_marked();
+  void mark(VertexId vertex);
+  void mark(const Tet& tet);
+  /// Takes the element's rest shape (and a new element's mass) again if it is not valid.
+  void update_element(TetId tet);
+  /// The element's 16 block places in the pattern.
+  void update_slots(TetId tet);
+  /// A quarter of the mass of each tetrahedron at the vertex, summed in the mesh's order.
+  [[nodiscard]] double vertex_mass(VertexId vertex) const;
+  struct Incidence {
+    TetId tet;
+    int corner;
+    bool operator==(const Incidence&) const = default;
+  };
+  /// Runs body(tet, corner) for each tetrahedron at the vertex, in the mesh's order.
+  template <typename Body>
+  void for_each_incidence(VertexId vertex, const Body& body) const;
+  /// The vertex's incidences from the mesh.
+  void take_incidences(VertexId vertex, std::vector<Incidence>& row) const;
   [[nodiscard]] Corners corners(TetId tet, std::span<const Vec3> x) const;
   void element_forces(std::span<const Vec3> x, std::span<const Vec3> v, std::span<Vec3> f,
                       bool linearize) const;
@@ -131,10 +164,6 @@ class CorotationalFemModel final : public ForceModel,
   /// blocks of consecutive elements (for loops that write only per-element data).
   template <typename Body>
   void for_each_valid_element_in_order(const Body& body) const;
-  /// Runs body(tet, element, weight) for every element with material, colour by colour, each
-  /// colour in parallel.
-  template <typename Body>
-  void for_each_element(const Body& body) const;
 
   TetMesh* mesh_;
   MaterialMap materials_;
@@ -145,13 +174,19 @@ class CorotationalFemModel final : public ForceModel,
   /// Rotation of each element at the last force evaluation: the warm start of the next.
   mutable TetData<Eigen::Quaterniond> rotations_;
   VertexData<double> masses_;
+  /// Per tet: the storage index of block (a, b) in stiffness_.
+  TetData<std::array<std::uint32_t, 16>> slots_;
 
-  std::uint64_t topology_revision_ = ~std::uint64_t{0};
-  bool masses_stale_ = true;
-  VertexGraph graph_;
-  std::vector<std::size_t> colour_start_;
-  std::vector<TetId> coloured_tets_;
   static constexpr std::uint64_t kNoRevision = ~std::uint64_t{0};
+  std::uint64_t topology_revision_ = kNoRevision;  ///< mesh revision refresh() last saw
+  bool rebuild_all_ = true;
+  std::vector<VertexId> dirty_vertices_;
+  std::vector<std::uint8_t> vertex_dirty_;  ///< 1 for the vertices in dirty_vertices_
+  std::vector<TetId> touched_tets_;         ///< refresh()'s scratch
+  /// Built from the mesh when neighbors() is first asked after an edit (explicit traversals
+  /// only; implicit schemes never ask).
+  mutable VertexGraph graph_;
+  mutable std::uint64_t graph_revision_ = kNoRevision;
   mutable double max_frequency_ = 0.0;
   mutable std::uint64_t frequency_revision_ = kNoRevision;  ///< mesh revision of the bound
 
@@ -160,13 +195,9 @@ class CorotationalFemModel final : public ForceModel,
   mutable std::vector<std::array<Vec3, 4>> rotated_gradients_;  ///< R grad N_a per element
   mutable std::vector<Mat3> scaled_stress_;  ///< -w V P per element (N m), gathered per vertex
   mutable BlockSparseMatrix stiffness_;
-  std::vector<std::array<std::uint32_t, 16>> slots_;  ///< per tet: block (a, b) in stiffness_
-  struct Incidence {
-    TetId tet;
-    int corner;
-  };
-  std::vector<std::size_t> incidence_start_;  ///< vertex -> its incidences (compressed rows)
-  std::vector<Incidence> incidences_;
+  /// Per vertex: its tetrahedra in the mesh's order and its corner in each (gathers read
+  /// these contiguously; rows rewritten only for marked vertices).
+  PackedRows<Incidence> incidences_;
   mutable bool assembled_ = false;
   mutable bool assembly_pending_ = false;
   mutable double assembly_seconds_ = 0.0;

@@ -26,6 +26,8 @@ struct IntegratorStats {
   double seconds_products = 0.0;
   double seconds_vector_updates = 0.0;
   double seconds_solver_start = 0.0;  ///< CG starting guesses from earlier solutions
+  /// The model following the last mesh edits (DynamicSystem::refresh) at the step's start.
+  double seconds_refresh = 0.0;
   double seconds_step = 0.0;
 };
 

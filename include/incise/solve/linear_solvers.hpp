@@ -113,7 +113,9 @@ class LinearizedSystemSolver {
   std::vector<Vec3> masked_;
   BlockSparseMatrix assembled_;
   // Scalar copy of the free rows and columns for LDL^T and incomplete Cholesky.
-  std::uint64_t scalar_pattern_revision_ = ~std::uint64_t{0};
+  /// The block pattern the scalar one was built from (held, so its address is not reused).
+  std::shared_ptr<const BlockPattern> scalar_pattern_;
+  std::uint64_t scalar_pattern_version_ = 0;
   std::vector<char> scalar_constrained_;
   std::vector<int> free_index_;             ///< vertex -> first scalar unknown, or -1
   std::vector<std::size_t> scalar_source_;  ///< scalar nonzero -> offset in the block values
