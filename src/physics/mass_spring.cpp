@@ -104,22 +104,62 @@ void MassSpringModel::load_state(StateReader& /*in*/) {
   for (std::size_t v = 0; v < mesh_->vertex_count(); ++v) {
     mark(static_cast<VertexId>(v));
   }
-  adjacency_revision_ = ~std::uint64_t{0};
+  rebuild_adjacency_ = true;
 }
 
 void MassSpringModel::rebuild_adjacency() {
-  vertex_graph(*mesh_, graph_);
-  adjacency_revision_ = mesh_->revision();
+  const VertexGraph graph = vertex_graph(*mesh_);
+  const std::size_t n = mesh_->vertex_count();
+  neighbours_.assign(n, [&](std::size_t v) { return graph.neighbors(static_cast<VertexId>(v)); });
+  edges_at_.assign(n, [&](std::size_t v) {
+    return std::span<const EdgeId>(graph.edge)
+        .subspan(graph.row_start[v], graph.row_start[v + 1] - graph.row_start[v]);
+  });
+}
+
+void MassSpringModel::update_adjacency() {
+  const TetMesh& mesh = *mesh_;
+  neighbours_.add_rows(mesh.vertex_count());
+  edges_at_.add_rows(mesh.vertex_count());
+  std::vector<EdgeId> edges;
+  std::vector<VertexId> neighbours;
+  for (VertexId v : dirty_) {
+    // The edges at v, in edge order as vertex_graph lists them (so the sums in vertex_force
+    // run in the same order as after a rebuild).
+    edges.clear();
+    for (TetId t : mesh.vertex_tets(v)) {
+      for (EdgeId e : mesh.tet_edges(t)) {
+        if (mesh.edge(e)[0] == v || mesh.edge(e)[1] == v) {
+          edges.push_back(e);
+        }
+      }
+    }
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    neighbours.clear();
+    for (EdgeId e : edges) {
+      neighbours.push_back(mesh.edge(e)[0] == v ? mesh.edge(e)[1] : mesh.edge(e)[0]);
+    }
+    edges_at_.set_row(static_cast<std::size_t>(v), edges);
+    neighbours_.set_row(static_cast<std::size_t>(v), neighbours);
+  }
+  (void)edges_at_.compact_if_fragmented();
+  (void)neighbours_.compact_if_fragmented();
 }
 
 void MassSpringModel::refresh() {
-  if (dirty_.empty() && adjacency_revision_ == mesh_->revision()) {
+  if (dirty_.empty() && !rebuild_adjacency_ && adjacency_revision_ == mesh_->revision()) {
     return;
   }
   const TetMesh& mesh = *mesh_;
-  if (adjacency_revision_ != mesh.revision()) {
+  if (rebuild_adjacency_ || dirty_.empty()) {
+    // At construction, after a restore, or after a change no event told of.
     rebuild_adjacency();
+    rebuild_adjacency_ = false;
+  } else {
+    update_adjacency();
   }
+  adjacency_revision_ = mesh.revision();
   // Masses of touched vertices, summed afresh so no error accumulates.
   for (VertexId v : dirty_) {
     double mass = 0.0;
@@ -133,8 +173,7 @@ void MassSpringModel::refresh() {
   // rest length; A. van Gelder, J. Graphics Tools 3(2), 1998). Each tetrahedron brings its
   // own material's E.
   for (VertexId v : dirty_) {
-    for (std::size_t k = graph_.row_start[v]; k < graph_.row_start[v + 1]; ++k) {
-      const EdgeId e = graph_.edge[k];
+    for (EdgeId e : edges_at_.row(static_cast<std::size_t>(v))) {
       const auto& ends = mesh.edge(e);
       const double length = (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
       double modulus_volume = 0.0;  // Pa m^3
@@ -185,17 +224,19 @@ void MassSpringModel::add_forces(std::span<const Vec3> x, std::span<const Vec3> 
 Vec3 MassSpringModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
                                    const NeighborState& neighbor) const {
   Vec3 force = Vec3::Zero();
-  for (std::size_t k = graph_.row_start[vertex]; k < graph_.row_start[vertex + 1]; ++k) {
+  const auto edges = edges_at_.row(static_cast<std::size_t>(vertex));
+  const auto neighbours = neighbours_.row(static_cast<std::size_t>(vertex));
+  for (std::size_t k = 0; k < edges.size(); ++k) {
     Vec3 xb;
     Vec3 vb;
-    neighbor(graph_.vertex[k], xb, vb);
-    force += spring_force(springs_[graph_.edge[k]], x, v, xb, vb);
+    neighbor(neighbours[k], xb, vb);
+    force += spring_force(springs_[edges[k]], x, v, xb, vb);
   }
   return force;
 }
 
 std::span<const VertexId> MassSpringModel::neighbors(VertexId vertex) const {
-  return graph_.neighbors(vertex);
+  return neighbours_.row(static_cast<std::size_t>(vertex));
 }
 
 void MassSpringModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
@@ -261,15 +302,17 @@ double MassSpringModel::max_vertex_frequency() const {
   // Gershgorin bound on the eigenvalues of M^-1/2 K M^-1/2 at rest: row i holds
   // sum_j k_ij / m_i on the diagonal and k_ij / sqrt(m_i m_j) off it.
   double highest = 0.0;
-  for (std::size_t v = 0; v + 1 < graph_.row_start.size(); ++v) {
+  for (std::size_t v = 0; v < neighbours_.rows(); ++v) {
     const double mv = masses_[static_cast<VertexId>(v)];
     if (mv <= 0.0) {
       continue;
     }
     double row = 0.0;
-    for (std::size_t k = graph_.row_start[v]; k < graph_.row_start[v + 1]; ++k) {
-      const double stiffness = springs_[graph_.edge[k]].stiffness;
-      const double mw = masses_[graph_.vertex[k]];
+    const auto edges = edges_at_.row(v);
+    const auto neighbours = neighbours_.row(v);
+    for (std::size_t k = 0; k < edges.size(); ++k) {
+      const double stiffness = springs_[edges[k]].stiffness;
+      const double mw = masses_[neighbours[k]];
       row += stiffness / mv + (mw > 0.0 ? stiffness / std::sqrt(mv * mw) : 0.0);
     }
     highest = std::max(highest, row);

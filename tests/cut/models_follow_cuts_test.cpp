@@ -61,6 +61,8 @@ struct ModelOutput {
   std::vector<double> masses;
   std::vector<Vec3> forces;
   std::vector<Vec3> product;
+  std::vector<Vec3> vertex_forces;  ///< one vertex at a time (explicit traversals)
+  std::vector<std::vector<VertexId>> neighbours;
   std::vector<std::vector<VertexId>> columns;
   std::vector<std::vector<Mat3>> blocks;
 };
@@ -74,6 +76,18 @@ ModelOutput output_of(ForceModel& model, ForceLinearization& linearization, cons
   const std::vector<Vec3> v = velocities(mesh);
   out.forces.assign(mesh.vertex_count(), Vec3::Zero());
   model.add_forces(x, v, out.forces);
+  if (const VertexForces* per_vertex = model.vertex_forces(); per_vertex != nullptr) {
+    const NeighborState state = [&](VertexId j, Vec3& xj, Vec3& vj) {
+      xj = x[static_cast<std::size_t>(j)];
+      vj = v[static_cast<std::size_t>(j)];
+    };
+    for (std::size_t i = 0; i < mesh.vertex_count(); ++i) {
+      const auto vertex = static_cast<VertexId>(i);
+      out.vertex_forces.push_back(per_vertex->vertex_force(vertex, x[i], v[i], state));
+      const auto around = per_vertex->neighbors(vertex);
+      out.neighbours.emplace_back(around.begin(), around.end());
+    }
+  }
   linearization.prepare_linearization(x, v);
   out.product.assign(mesh.vertex_count(), Vec3::Zero());
   linearization.add_linearized_product(1.0, 0.01, v, out.product);
@@ -115,6 +129,8 @@ void expect_same(const ModelOutput& followed, const ModelOutput& rebuilt,
     ASSERT_EQ(followed.forces[i], rebuilt.forces[i]) << where << ", force on vertex " << i;
     ASSERT_EQ(followed.product[i], rebuilt.product[i]) << where << ", product at vertex " << i;
   }
+  ASSERT_EQ(followed.vertex_forces, rebuilt.vertex_forces) << where;
+  ASSERT_EQ(followed.neighbours, rebuilt.neighbours) << where;
   ASSERT_EQ(followed.columns, rebuilt.columns) << where;
   for (std::size_t i = 0; i < followed.blocks.size(); ++i) {
     for (std::size_t k = 0; k < followed.blocks[i].size(); ++k) {
@@ -197,6 +213,20 @@ void check_random_edits(const MakeModel& make_model) {
 TEST(ModelsFollowCuts, CorotationalFemFollowsEveryKindOfEdit) {
   check_random_edits(
       [](TetMesh& mesh) { return std::make_unique<CorotationalFemModel>(mesh, tissue()); });
+}
+
+std::unique_ptr<MassSpringModel> mass_spring(TetMesh& mesh) {
+  MassSpringParameters parameters;
+  parameters.spring_damping_ratio = 0.1;
+  return std::make_unique<MassSpringModel>(mesh, tissue(), parameters);
+}
+
+TEST(ModelsFollowCuts, MassSpringUpdatedLocallyEqualsOneBuiltAfresh) {
+  check_followed_equals_rebuilt(mass_spring);
+}
+
+TEST(ModelsFollowCuts, MassSpringFollowsEveryKindOfEdit) {
+  check_random_edits(mass_spring);
 }
 
 TEST(ModelsFollowCuts, MatrixFreeFemProductsMatchTheAssembledOnesAfterCuts) {

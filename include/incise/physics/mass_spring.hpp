@@ -5,6 +5,7 @@
 
 #include <vector>
 
+#include "incise/core/packed_rows.hpp"
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/vertex_graph.hpp"
 #include "incise/physics/force_model.hpp"
@@ -79,6 +80,13 @@ class MassSpringModel final : public ForceModel,
   void on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
   void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                            const VertexOrigin& origin) override;
+  /// The last edge took the removed one's id: its ends' rows name it by the old one.
+  void on_edge_removed(const TetMesh& mesh, EdgeId removed, EdgeId moved_from) override {
+    if (removed != moved_from) {
+      mark(mesh.edge(removed)[0]);
+      mark(mesh.edge(removed)[1]);
+    }
+  }
   void on_mesh_destroyed() override { mesh_ = nullptr; }
   void on_material_fraction_changed(const TetMesh& mesh, TetId tet) override {
     mark(mesh.tet(tet));
@@ -91,6 +99,8 @@ class MassSpringModel final : public ForceModel,
   void mark(VertexId vertex);
   void mark(const Tet& tet);
   void rebuild_adjacency();
+  /// The marked vertices' rows of neighbours_ and edges_at_, from their tetrahedra's edges.
+  void update_adjacency();
   /// Spring force on vertex a from the spring to b (the force on b is its negative).
   [[nodiscard]] Vec3 spring_force(const Spring& spring, const Vec3& xa, const Vec3& va,
                                   const Vec3& xb, const Vec3& vb) const;
@@ -106,8 +116,12 @@ class MassSpringModel final : public ForceModel,
 
   std::vector<VertexId> dirty_;
   std::vector<char> is_dirty_;
-  std::uint64_t adjacency_revision_ = ~std::uint64_t{0};
-  VertexGraph graph_;  ///< vertex -> (neighbour, edge)
+  std::uint64_t adjacency_revision_ = ~std::uint64_t{0};  ///< mesh revision refresh() last saw
+  bool rebuild_adjacency_ = true;
+  /// Per vertex, in edge order: its neighbours and the edges to them (rows rewritten only for
+  /// marked vertices after an edit).
+  PackedRows<VertexId> neighbours_;
+  PackedRows<EdgeId> edges_at_;
   // Linearisation: per-edge stiffness and damping blocks.
   std::vector<Mat3> stiffness_blocks_;
   std::vector<Mat3> damping_blocks_;
