@@ -132,7 +132,6 @@ void CorotationalFemModel::on_tet_absorbed(const TetMesh& mesh, TetId removed, T
 
 void CorotationalFemModel::on_material_fraction_changed(const TetMesh& mesh, TetId tet) {
   mark(mesh.tet(tet));
-  frequency_revision_ = kNoRevision;
 }
 
 void CorotationalFemModel::on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
@@ -271,6 +270,9 @@ void CorotationalFemModel::update_marked() {
   for (VertexId v : dirty_vertices_) {
     masses_[v] = vertex_mass(v);
   }
+  if (frequency_kept_) {
+    update_frequency_rows(touched_tets_);
+  }
 }
 
 void CorotationalFemModel::refresh() {
@@ -281,6 +283,7 @@ void CorotationalFemModel::refresh() {
   if (rebuild_all_ || dirty_vertices_.empty()) {
     // A change no event told of (the mesh moved on without marking anything): built again.
     rebuild_all();
+    frequency_kept_ = false;
   } else {
     update_marked();
   }
@@ -291,7 +294,6 @@ void CorotationalFemModel::refresh() {
   rebuild_all_ = false;
   topology_revision_ = mesh.revision();
   assembled_ = false;
-  frequency_revision_ = kNoRevision;  // the bound is taken again when asked for
 }
 
 // ---- element loops --------------------------------------------------------------------------
@@ -628,46 +630,82 @@ double CorotationalFemModel::elastic_energy(std::span<const Vec3> x) const {
   return total;
 }
 
-double CorotationalFemModel::max_vertex_frequency() const {
-  // Gershgorin bound on M^-1/2 K M^-1/2 with the rest stiffness: a whole-body pass, so taken
-  // only when an explicit scheme asks (implicit ones never do), once per mesh revision.
-  if (frequency_revision_ == mesh_->revision()) {
-    return max_frequency_;
+double CorotationalFemModel::frequency_row(VertexId vertex) const {
+  // Row `vertex` of the Gershgorin bound on M^-1/2 K M^-1/2 with the rest stiffness (1/s^2).
+  const double ma = masses_[vertex];
+  if (ma <= 0.0) {
+    return 0.0;
   }
-  const TetMesh& mesh = *mesh_;
-  std::vector<double> row(mesh.vertex_count(), 0.0);
-  std::vector<CorotatedLinearization> rest_linearizations;  // per material
-  for (const LameParameters& lame : lames_) {
-    rest_linearizations.push_back(
-        corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame, TangentKind::kWarped));
-  }
-  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    const auto tet = static_cast<TetId>(t);
+  double row = 0.0;
+  for_each_incidence(vertex, [&](TetId tet, int a) {
     const FemElement& element = elements_[tet];
     if (!element.valid) {
-      continue;
+      return;
     }
-    const Tet& corners = mesh.tet(tet);
-    for (int a = 0; a < 4; ++a) {
-      const double ma = masses_[corners[a]];
-      if (ma <= 0.0) {
+    const Tet& corners = mesh_->tet(tet);
+    const CorotatedLinearization& rest =
+        rest_linearizations_[static_cast<std::size_t>(materials_.id(tet))];
+    for (int b = 0; b < 4; ++b) {
+      const double mb = masses_[corners[b]];
+      if (mb <= 0.0) {
         continue;
       }
-      for (int b = 0; b < 4; ++b) {
-        const double mb = masses_[corners[b]];
-        if (mb <= 0.0) {
-          continue;
-        }
-        const Mat3 block =
-            stiffness_block(rest_linearizations[static_cast<std::size_t>(materials_.id(tet))],
-                            lame(tet), element.shape, mesh_->material_fraction(tet), a, b);
-        row[corners[a]] += block.cwiseAbs().rowwise().sum().maxCoeff() / std::sqrt(ma * mb);
-      }
+      const Mat3 block =
+          stiffness_block(rest, lame(tet), element.shape, mesh_->material_fraction(tet), a, b);
+      row += block.cwiseAbs().rowwise().sum().maxCoeff() / std::sqrt(ma * mb);
+    }
+  });
+  return row;
+}
+
+void CorotationalFemModel::update_frequency_rows(std::span<const TetId> touched) {
+  // Rows read the vertex's elements and its neighbours' masses: the vertices of the touched
+  // elements hold every row an edit changed. The largest is kept, and searched for again over
+  // every row only when the row that held it shrank.
+  const std::size_t n = mesh_->vertex_count();
+  frequency_rows_.resize(n, 0.0);
+  bool lost_largest = false;
+  for (TetId t : touched) {
+    for (VertexId v : mesh_->tet(t)) {
+      const double old_row = frequency_rows_[static_cast<std::size_t>(v)];
+      const double row = frequency_row(v);
+      frequency_rows_[static_cast<std::size_t>(v)] = row;
+      lost_largest = lost_largest || (old_row == largest_row_ && row < old_row);
+      largest_row_ = std::max(largest_row_, row);
     }
   }
-  max_frequency_ = row.empty() ? 0.0 : std::sqrt(*std::max_element(row.begin(), row.end()));
-  frequency_revision_ = mesh.revision();
-  return max_frequency_;
+  // Marked vertices left without elements have a zero row now.
+  for (VertexId v : dirty_vertices_) {
+    if (mesh_->vertex_tets(v).empty()) {
+      lost_largest = lost_largest || frequency_rows_[static_cast<std::size_t>(v)] == largest_row_;
+      frequency_rows_[static_cast<std::size_t>(v)] = 0.0;
+    }
+  }
+  if (lost_largest) {
+    largest_row_ = *std::max_element(frequency_rows_.begin(), frequency_rows_.end());
+  }
+}
+
+double CorotationalFemModel::max_vertex_frequency() const {
+  // A whole-body pass the first time an explicit scheme asks (implicit ones never do); from
+  // then on refresh() updates the rows an edit changed.
+  if (!frequency_kept_) {
+    const std::size_t n = mesh_->vertex_count();
+    rest_linearizations_.clear();
+    for (const LameParameters& lame : lames_) {
+      rest_linearizations_.push_back(
+          corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame, TangentKind::kWarped));
+    }
+    frequency_rows_.assign(n, 0.0);
+    parallel_for(0, n, 512, [&](std::size_t first, std::size_t last) {
+      for (std::size_t v = first; v != last; ++v) {
+        frequency_rows_[v] = frequency_row(static_cast<VertexId>(v));
+      }
+    });
+    largest_row_ = n == 0 ? 0.0 : *std::max_element(frequency_rows_.begin(), frequency_rows_.end());
+    frequency_kept_ = true;
+  }
+  return std::sqrt(largest_row_);
 }
 
 }  // namespace incise

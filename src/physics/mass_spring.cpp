@@ -191,10 +191,66 @@ void MassSpringModel::refresh() {
           parameters_.spring_damping_ratio * 2.0 * std::sqrt(spring.stiffness * reduced);
     }
   }
+  update_frequency_rows();
   for (VertexId v : dirty_) {
     is_dirty_[v] = 0;
   }
   dirty_.clear();
+}
+
+double MassSpringModel::frequency_row(VertexId vertex) const {
+  // Row `vertex` of the Gershgorin bound on M^-1/2 K M^-1/2 at rest: sum_j k_ij / m_i on the
+  // diagonal and k_ij / sqrt(m_i m_j) off it (1/s^2).
+  const double mv = masses_[vertex];
+  if (mv <= 0.0) {
+    return 0.0;
+  }
+  double row = 0.0;
+  const auto edges = edges_at_.row(static_cast<std::size_t>(vertex));
+  const auto neighbours = neighbours_.row(static_cast<std::size_t>(vertex));
+  for (std::size_t k = 0; k < edges.size(); ++k) {
+    const double stiffness = springs_[edges[k]].stiffness;
+    const double mw = masses_[neighbours[k]];
+    row += stiffness / mv + (mw > 0.0 ? stiffness / std::sqrt(mv * mw) : 0.0);
+  }
+  return row;
+}
+
+void MassSpringModel::update_frequency_rows() {
+  // A vertex's row reads its springs and its neighbours' masses: the marked vertices' rows
+  // and their neighbours' change. The largest is kept; it is searched for again over every
+  // row only when the row that held it shrank.
+  const std::size_t n = mesh_->vertex_count();
+  const bool all = frequency_rows_.empty() || dirty_.size() == n;
+  frequency_rows_.resize(n, 0.0);
+  bool lost_largest = false;
+  const auto update = [&](VertexId v) {
+    const double old_row = frequency_rows_[static_cast<std::size_t>(v)];
+    const double row = frequency_row(v);
+    frequency_rows_[static_cast<std::size_t>(v)] = row;
+    lost_largest = lost_largest || (old_row == largest_row_ && row < old_row);
+    largest_row_ = std::max(largest_row_, row);
+  };
+  if (all) {
+    for (std::size_t v = 0; v < n; ++v) {
+      frequency_rows_[v] = frequency_row(static_cast<VertexId>(v));
+    }
+    lost_largest = true;
+  } else {
+    for (VertexId v : dirty_) {
+      update(v);
+      for (VertexId w : neighbours_.row(static_cast<std::size_t>(v))) {
+        if (is_dirty_[w] == 0) {
+          update(w);
+        }
+      }
+    }
+  }
+  if (lost_largest) {
+    largest_row_ = frequency_rows_.empty()
+                       ? 0.0
+                       : *std::max_element(frequency_rows_.begin(), frequency_rows_.end());
+  }
 }
 
 // ---- forces --------------------------------------------------------------------------------
@@ -299,25 +355,7 @@ double MassSpringModel::elastic_energy(std::span<const Vec3> x) const {
 }
 
 double MassSpringModel::max_vertex_frequency() const {
-  // Gershgorin bound on the eigenvalues of M^-1/2 K M^-1/2 at rest: row i holds
-  // sum_j k_ij / m_i on the diagonal and k_ij / sqrt(m_i m_j) off it.
-  double highest = 0.0;
-  for (std::size_t v = 0; v < neighbours_.rows(); ++v) {
-    const double mv = masses_[static_cast<VertexId>(v)];
-    if (mv <= 0.0) {
-      continue;
-    }
-    double row = 0.0;
-    const auto edges = edges_at_.row(v);
-    const auto neighbours = neighbours_.row(v);
-    for (std::size_t k = 0; k < edges.size(); ++k) {
-      const double stiffness = springs_[edges[k]].stiffness;
-      const double mw = masses_[neighbours[k]];
-      row += stiffness / mv + (mw > 0.0 ? stiffness / std::sqrt(mv * mw) : 0.0);
-    }
-    highest = std::max(highest, row);
-  }
-  return std::sqrt(highest);
+  return std::sqrt(largest_row_);  // kept up to date by refresh(), row by row
 }
 
 double MassSpringModel::total_mass() const {

@@ -193,9 +193,15 @@ void HierarchicalRungeKutta4::sweep(DynamicSystem& system, std::span<Vec3> x, st
                                     double t, double dt) {
   const std::size_t n = x.size();
   const double end = t + dt;
-  // Vertices created since the last step (a cut) start up to date.
+  // Vertices created since the last step (a cut) start up to date. Depths are cleared where
+  // the last sweep set them, not over the whole body.
   stamp_.resize(n, t);
-  depth_.assign(n, -1);
+  depth_.resize(n, -1);
+  for (VertexId vertex : order_) {
+    if (static_cast<std::size_t>(vertex) < n) {
+      depth_[static_cast<std::size_t>(vertex)] = -1;
+    }
+  }
   order_.clear();
 
   // Breadth-first order from the focus, or every vertex at depth 0 without one.

@@ -59,6 +59,7 @@ std::vector<Vec3> velocities(const TetMesh& mesh) {
 /// matrix row by row (columns and blocks).
 struct ModelOutput {
   std::vector<double> masses;
+  double frequency = 0.0;  ///< the bound explicit schemes ask for (1/s)
   std::vector<Vec3> forces;
   std::vector<Vec3> product;
   std::vector<Vec3> vertex_forces;  ///< one vertex at a time (explicit traversals)
@@ -72,6 +73,7 @@ ModelOutput output_of(ForceModel& model, ForceLinearization& linearization, cons
   model.refresh();
   ModelOutput out;
   out.masses.assign(model.masses().begin(), model.masses().end());
+  out.frequency = model.max_vertex_frequency();
   const std::vector<Vec3> x = deformed(mesh, phase);
   const std::vector<Vec3> v = velocities(mesh);
   out.forces.assign(mesh.vertex_count(), Vec3::Zero());
@@ -124,6 +126,7 @@ ModelOutput rebuilt_output_of(Model& model, const TetMesh& mesh, double phase = 
 void expect_same(const ModelOutput& followed, const ModelOutput& rebuilt,
                  const std::string& where) {
   ASSERT_EQ(followed.masses.size(), rebuilt.masses.size()) << where;
+  ASSERT_EQ(followed.frequency, rebuilt.frequency) << where;
   for (std::size_t i = 0; i < followed.masses.size(); ++i) {
     ASSERT_EQ(followed.masses[i], rebuilt.masses[i]) << where << ", mass of vertex " << i;
     ASSERT_EQ(followed.forces[i], rebuilt.forces[i]) << where << ", force on vertex " << i;

@@ -122,16 +122,16 @@ class CorotationalFemModel final : public ForceModel,
                            const VertexOrigin& origin) override;
   /// Its values live in attribute containers (restored on their own); the matrix pattern,
   /// element places and masses are built again from them.
-  void load_state(StateReader& /*in*/) override {
-    rebuild_all_ = true;
-    frequency_revision_ = kNoRevision;
-  }
+  void load_state(StateReader& /*in*/) override { rebuild_all_ = true; }
 
  private:
   /// Everything from the mesh: at construction and after a restore.
   void rebuild_all();
   /// Only around the marked vertices.
   void update_marked();
+  /// One vertex's row of the frequency bound, and the rows of the touched elements' vertices.
+  [[nodiscard]] double frequency_row(VertexId vertex) const;
+  void update_frequency_rows(std::span<const TetId> touched);
   void mark(VertexId vertex);
   void mark(const Tet& tet);
   /// Takes the element's rest shape (and a new element's mass) again if it is not valid.
@@ -187,8 +187,12 @@ class CorotationalFemModel final : public ForceModel,
   /// only; implicit schemes never ask).
   mutable VertexGraph graph_;
   mutable std::uint64_t graph_revision_ = kNoRevision;
-  mutable double max_frequency_ = 0.0;
-  mutable std::uint64_t frequency_revision_ = kNoRevision;  ///< mesh revision of the bound
+  /// The frequency bound, kept row by row once an explicit scheme asked for it: per vertex its
+  /// row (1/s^2), the largest, and the rest tangent per material.
+  mutable bool frequency_kept_ = false;
+  mutable std::vector<double> frequency_rows_;
+  mutable double largest_row_ = 0.0;
+  mutable std::vector<CorotatedLinearization> rest_linearizations_;
 
   // Written by the element loops (each element only by its own thread).
   mutable std::vector<CorotatedLinearization> linearization_;

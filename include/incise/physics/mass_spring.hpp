@@ -101,6 +101,9 @@ class MassSpringModel final : public ForceModel,
   void rebuild_adjacency();
   /// The marked vertices' rows of neighbours_ and edges_at_, from their tetrahedra's edges.
   void update_adjacency();
+  /// One vertex's row of the frequency bound, and the rows an edit changed.
+  [[nodiscard]] double frequency_row(VertexId vertex) const;
+  void update_frequency_rows();
   /// Spring force on vertex a from the spring to b (the force on b is its negative).
   [[nodiscard]] Vec3 spring_force(const Spring& spring, const Vec3& xa, const Vec3& va,
                                   const Vec3& xb, const Vec3& vb) const;
@@ -122,6 +125,10 @@ class MassSpringModel final : public ForceModel,
   /// marked vertices after an edit).
   PackedRows<VertexId> neighbours_;
   PackedRows<EdgeId> edges_at_;
+  /// Per vertex, its row of the Gershgorin bound on the squared frequencies (1/s^2), and the
+  /// largest: explicit schemes ask for the bound every step.
+  std::vector<double> frequency_rows_;
+  double largest_row_ = 0.0;
   // Linearisation: per-edge stiffness and damping blocks.
   std::vector<Mat3> stiffness_blocks_;
   std::vector<Mat3> damping_blocks_;
