@@ -25,7 +25,8 @@ CorotationalFemModel::CorotationalFemModel(TetMesh& mesh, const MaterialAssignme
       tet_mass_(mesh, 0.0, TetRule::kDefault),
       rotations_(mesh, Eigen::Quaterniond::Identity(), TetRule::kCopy),
       masses_(mesh, 0.0, VertexRule::kDefault),
-      slots_(mesh, {}, TetRule::kDefault) {
+      slots_(mesh, {}, TetRule::kDefault),
+      marks_(mesh) {
   for (const Material& material : materials_.table()) {
     lames_.push_back(lame_parameters(material.young_modulus, material.poisson_ratio));
   }
@@ -68,70 +69,8 @@ double CorotationalFemModel::total_mass() const {
 
 // ---- following edits ------------------------------------------------------------------------
 
-void CorotationalFemModel::mark(VertexId vertex) {
-  const auto v = static_cast<std::size_t>(vertex);
-  if (v >= vertex_dirty_.size()) {
-    vertex_dirty_.resize(std::max(v + 1, mesh_->vertex_count()), 0);
-  }
-  if (vertex_dirty_[v] == 0) {
-    vertex_dirty_[v] = 1;
-    dirty_vertices_.push_back(vertex);
-  }
-}
-
-void CorotationalFemModel::mark(const Tet& tet) {
-  for (VertexId v : tet) {
-    mark(v);
-  }
-}
-
-void CorotationalFemModel::on_vertex_added(const TetMesh&, VertexId vertex, const VertexOrigin&) {
-  mark(vertex);
-}
-
-void CorotationalFemModel::on_tet_added(const TetMesh& mesh, TetId tet) {
-  mark(mesh.tet(tet));
-}
-
-void CorotationalFemModel::on_tet_replaced(const TetMesh& mesh, TetId,
-                                           std::span<const TetId> children,
-                                           const Tet& parent_vertices) {
-  mark(parent_vertices);
-  for (TetId child : children) {
-    mark(mesh.tet(child));
-  }
-}
-
-void CorotationalFemModel::on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
-                                          const Tet& removed_vertices) {
-  mark(removed_vertices);
-  if (removed != moved_from) {
-    // The last tetrahedron took the removed one's id: its values moved with it in the
-    // attribute containers, but its vertices' incidences name it by its old id.
-    mark(mesh.tet(removed));
-  }
-}
-
-void CorotationalFemModel::on_tet_reconnected(const TetMesh& mesh, TetId tet,
-                                              const Tet& old_vertices) {
-  mark(old_vertices);
-  mark(mesh.tet(tet));
-}
-
-void CorotationalFemModel::on_tet_reshaped(const TetMesh& mesh, TetId tet,
-                                           const Tet& old_vertices) {
+void CorotationalFemModel::on_tet_reshaped(const TetMesh&, TetId tet, const Tet&) {
   elements_[tet].valid = false;
-  on_tet_reconnected(mesh, tet, old_vertices);
-}
-
-void CorotationalFemModel::on_tet_absorbed(const TetMesh& mesh, TetId removed, TetId into,
-                                           TetId moved_from, const Tet& removed_vertices) {
-  on_tet_removed(mesh, removed, moved_from, removed_vertices);
-  mark(mesh.tet(into == moved_from ? removed : into));  // the absorber, wherever it lives now
-}
-
-void CorotationalFemModel::on_material_fraction_changed(const TetMesh& mesh, TetId tet) {
-  mark(mesh.tet(tet));
 }
 
 void CorotationalFemModel::on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
@@ -139,7 +78,6 @@ void CorotationalFemModel::on_vertex_relocated(const TetMesh& mesh, VertexId ver
   for (TetId t : mesh.vertex_tets(vertex)) {
     elements_[t].valid = false;
   }
-  mark(vertex);
 }
 
 void CorotationalFemModel::update_element(TetId tet) {
@@ -225,7 +163,7 @@ void CorotationalFemModel::update_marked() {
   // The tetrahedra at the marked vertices, each once: every element whose rest shape, vertices
   // or mass changed is among them (each such edit marked its vertices).
   touched_tets_.clear();
-  for (VertexId v : dirty_vertices_) {
+  for (VertexId v : marks_.marked()) {
     const auto tets = mesh.vertex_tets(v);
     touched_tets_.insert(touched_tets_.end(), tets.begin(), tets.end());
   }
@@ -238,7 +176,7 @@ void CorotationalFemModel::update_marked() {
   // keeps only its diagonal).
   stiffness_.add_rows(mesh.vertex_count());
   std::vector<VertexId> columns;
-  for (VertexId v : dirty_vertices_) {
+  for (VertexId v : marks_.marked()) {
     columns.assign(1, v);
     for (TetId t : mesh.vertex_tets(v)) {
       const Tet& corners = mesh.tet(t);
@@ -262,12 +200,12 @@ void CorotationalFemModel::update_marked() {
   }
   incidences_.add_rows(mesh.vertex_count());
   std::vector<Incidence> row;
-  for (VertexId v : dirty_vertices_) {
+  for (VertexId v : marks_.marked()) {
     take_incidences(v, row);
     incidences_.set_row(static_cast<std::size_t>(v), row);
   }
   (void)incidences_.compact_if_fragmented();
-  for (VertexId v : dirty_vertices_) {
+  for (VertexId v : marks_.marked()) {
     masses_[v] = vertex_mass(v);
   }
   if (frequency_kept_) {
@@ -277,20 +215,17 @@ void CorotationalFemModel::update_marked() {
 
 void CorotationalFemModel::refresh() {
   const TetMesh& mesh = *mesh_;
-  if (!rebuild_all_ && dirty_vertices_.empty() && topology_revision_ == mesh.revision()) {
+  if (!rebuild_all_ && marks_.empty() && topology_revision_ == mesh.revision()) {
     return;
   }
-  if (rebuild_all_ || dirty_vertices_.empty()) {
+  if (rebuild_all_ || marks_.empty()) {
     // A change no event told of (the mesh moved on without marking anything): built again.
     rebuild_all();
     frequency_kept_ = false;
   } else {
     update_marked();
   }
-  for (VertexId v : dirty_vertices_) {
-    vertex_dirty_[static_cast<std::size_t>(v)] = 0;
-  }
-  dirty_vertices_.clear();
+  marks_.clear();
   rebuild_all_ = false;
   topology_revision_ = mesh.revision();
   assembled_ = false;
@@ -675,7 +610,7 @@ void CorotationalFemModel::update_frequency_rows(std::span<const TetId> touched)
     }
   }
   // Marked vertices left without elements have a zero row now.
-  for (VertexId v : dirty_vertices_) {
+  for (VertexId v : marks_.marked()) {
     if (mesh_->vertex_tets(v).empty()) {
       lost_largest = lost_largest || frequency_rows_[static_cast<std::size_t>(v)] == largest_row_;
       frequency_rows_[static_cast<std::size_t>(v)] = 0.0;

@@ -19,7 +19,8 @@ MassSpringModel::MassSpringModel(TetMesh& mesh, const MaterialAssignment& materi
       parameters_(parameters),
       tet_mass_(mesh, 0.0, TetRule::kDefault),
       masses_(mesh, 0.0, VertexRule::kDefault),
-      springs_(mesh, Spring{}, EdgeRule::kDefault) {
+      springs_(mesh, Spring{}, EdgeRule::kDefault),
+      marks_(mesh) {
   if (!(parameters_.prestrain >= 0.0 && parameters_.prestrain < 1.0)) {
     throw InputError("prestrain must lie in [0, 1)");
   }
@@ -33,10 +34,7 @@ MassSpringModel::MassSpringModel(TetMesh& mesh, const MaterialAssignment& materi
   }
   conserve_mass(tet_mass_, mesh_);
   mesh.add_observer(this);
-  is_dirty_.assign(mesh.vertex_count(), 0);
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    mark(static_cast<VertexId>(v));
-  }
+  marks_.mark_all();
   refresh();
 }
 
@@ -48,62 +46,12 @@ MassSpringModel::~MassSpringModel() {
 
 // ---- following edits ------------------------------------------------------------------------
 
-void MassSpringModel::mark(VertexId vertex) {
-  if (static_cast<std::size_t>(vertex) >= is_dirty_.size()) {
-    is_dirty_.resize(static_cast<std::size_t>(vertex) + 1, 0);
-  }
-  if (is_dirty_[vertex] == 0) {
-    is_dirty_[vertex] = 1;
-    dirty_.push_back(vertex);
-  }
-}
-
-void MassSpringModel::mark(const Tet& tet) {
-  for (VertexId v : tet) {
-    mark(v);
-  }
-}
-
-void MassSpringModel::on_vertex_added(const TetMesh&, VertexId vertex, const VertexOrigin&) {
-  mark(vertex);
-}
-
 void MassSpringModel::on_tet_added(const TetMesh& mesh, TetId tet) {
   tet_mass_[tet] = materials_.of(tet).density * std::abs(signed_volume(mesh, tet));
-  mark(mesh.tet(tet));
-}
-
-void MassSpringModel::on_tet_replaced(const TetMesh& mesh, TetId, std::span<const TetId> children,
-                                      const Tet& parent_vertices) {
-  mark(parent_vertices);
-  for (TetId child : children) {
-    mark(mesh.tet(child));
-  }
-}
-
-void MassSpringModel::on_tet_removed(const TetMesh&, TetId, TetId, const Tet& removed_vertices) {
-  mark(removed_vertices);
-}
-
-void MassSpringModel::on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) {
-  mark(old_vertices);
-  mark(mesh.tet(tet));
-}
-
-void MassSpringModel::on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
-                                          const VertexOrigin&) {
-  // Rest lengths at the vertex and stiffnesses of every edge of its tetrahedra changed.
-  for (TetId t : mesh.vertex_tets(vertex)) {
-    mark(mesh.tet(t));
-  }
 }
 
 void MassSpringModel::load_state(StateReader& /*in*/) {
-  dirty_.clear();
-  is_dirty_.assign(mesh_->vertex_count(), 0);
-  for (std::size_t v = 0; v < mesh_->vertex_count(); ++v) {
-    mark(static_cast<VertexId>(v));
-  }
+  marks_.mark_all();
   rebuild_adjacency_ = true;
 }
 
@@ -123,7 +71,7 @@ void MassSpringModel::update_adjacency() {
   edges_at_.add_rows(mesh.vertex_count());
   std::vector<EdgeId> edges;
   std::vector<VertexId> neighbours;
-  for (VertexId v : dirty_) {
+  for (VertexId v : marks_.marked()) {
     // The edges at v, in edge order as vertex_graph lists them (so the sums in vertex_force
     // run in the same order as after a rebuild).
     edges.clear();
@@ -148,11 +96,11 @@ void MassSpringModel::update_adjacency() {
 }
 
 void MassSpringModel::refresh() {
-  if (dirty_.empty() && !rebuild_adjacency_ && adjacency_revision_ == mesh_->revision()) {
+  if (marks_.empty() && !rebuild_adjacency_ && adjacency_revision_ == mesh_->revision()) {
     return;
   }
   const TetMesh& mesh = *mesh_;
-  if (rebuild_adjacency_ || dirty_.empty()) {
+  if (rebuild_adjacency_ || marks_.empty()) {
     // At construction, after a restore, or after a change no event told of.
     rebuild_adjacency();
     rebuild_adjacency_ = false;
@@ -161,7 +109,7 @@ void MassSpringModel::refresh() {
   }
   adjacency_revision_ = mesh.revision();
   // Masses of touched vertices, summed afresh so no error accumulates.
-  for (VertexId v : dirty_) {
+  for (VertexId v : marks_.marked()) {
     double mass = 0.0;
     for (TetId t : mesh.vertex_tets(v)) {
       mass += 0.25 * tet_mass_[t] * mesh.material_fraction(t);
@@ -172,7 +120,7 @@ void MassSpringModel::refresh() {
   // an edge is the sum of E times rest volume over the tetrahedra around it, over its squared
   // rest length; A. van Gelder, J. Graphics Tools 3(2), 1998). Each tetrahedron brings its
   // own material's E.
-  for (VertexId v : dirty_) {
+  for (VertexId v : marks_.marked()) {
     for (EdgeId e : edges_at_.row(static_cast<std::size_t>(v))) {
       const auto& ends = mesh.edge(e);
       const double length = (mesh.rest_position(ends[0]) - mesh.rest_position(ends[1])).norm();
@@ -192,10 +140,7 @@ void MassSpringModel::refresh() {
     }
   }
   update_frequency_rows();
-  for (VertexId v : dirty_) {
-    is_dirty_[v] = 0;
-  }
-  dirty_.clear();
+  marks_.clear();
 }
 
 double MassSpringModel::frequency_row(VertexId vertex) const {
@@ -221,7 +166,7 @@ void MassSpringModel::update_frequency_rows() {
   // and their neighbours' change. The largest is kept; it is searched for again over every
   // row only when the row that held it shrank.
   const std::size_t n = mesh_->vertex_count();
-  const bool all = frequency_rows_.empty() || dirty_.size() == n;
+  const bool all = frequency_rows_.empty() || marks_.size() == n;
   frequency_rows_.resize(n, 0.0);
   bool lost_largest = false;
   const auto update = [&](VertexId v) {
@@ -237,10 +182,10 @@ void MassSpringModel::update_frequency_rows() {
     }
     lost_largest = true;
   } else {
-    for (VertexId v : dirty_) {
+    for (VertexId v : marks_.marked()) {
       update(v);
       for (VertexId w : neighbours_.row(static_cast<std::size_t>(v))) {
-        if (is_dirty_[w] == 0) {
+        if (!marks_.is_marked(w)) {
           update(w);
         }
       }

@@ -20,6 +20,7 @@
 #include "incise/core/packed_rows.hpp"
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/vertex_graph.hpp"
+#include "incise/mesh/vertex_marks.hpp"
 #include "incise/physics/block_sparse.hpp"
 #include "incise/physics/corotational.hpp"
 #include "incise/physics/force_model.hpp"
@@ -100,23 +101,12 @@ class CorotationalFemModel final : public ForceModel,
   [[nodiscard]] double last_assembly_seconds() const { return assembly_seconds_; }
 
   /// Vertices whose tetrahedra, rows or masses changed since the last refresh (diagnostics).
-  [[nodiscard]] std::size_t pending_vertices() const { return dirty_vertices_.size(); }
+  [[nodiscard]] std::size_t pending_vertices() const { return marks_.size(); }
 
-  // ---- following edits: each marks the vertices it touched --------------------------------
+  // ---- following edits: marks_ collects the vertices; these change element data too ------
   void on_mesh_destroyed() override { mesh_ = nullptr; }
-  void on_vertex_added(const TetMesh& mesh, VertexId vertex, const VertexOrigin& origin) override;
-  void on_tet_added(const TetMesh& mesh, TetId tet) override;
-  void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
-                       const Tet& parent_vertices) override;
-  void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
-                      const Tet& removed_vertices) override;
-  void on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
   /// A collapse changed the tetrahedron's rest shape: its element is computed again.
   void on_tet_reshaped(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
-  /// The absorber's mass grew.
-  void on_tet_absorbed(const TetMesh& mesh, TetId removed, TetId into, TetId moved_from,
-                       const Tet& removed_vertices) override;
-  void on_material_fraction_changed(const TetMesh& mesh, TetId tet) override;
   /// The rest shapes of the vertex's tetrahedra changed: taken again at the next refresh.
   void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
                            const VertexOrigin& origin) override;
@@ -132,8 +122,6 @@ class CorotationalFemModel final : public ForceModel,
   /// One vertex's row of the frequency bound, and the rows of the touched elements' vertices.
   [[nodiscard]] double frequency_row(VertexId vertex) const;
   void update_frequency_rows(std::span<const TetId> touched);
-  void mark(VertexId vertex);
-  void mark(const Tet& tet);
   /// Takes the element's rest shape (and a new element's mass) again if it is not valid.
   void update_element(TetId tet);
   /// The element's 16 block places in the pattern.
@@ -180,9 +168,8 @@ class CorotationalFemModel final : public ForceModel,
   static constexpr std::uint64_t kNoRevision = ~std::uint64_t{0};
   std::uint64_t topology_revision_ = kNoRevision;  ///< mesh revision refresh() last saw
   bool rebuild_all_ = true;
-  std::vector<VertexId> dirty_vertices_;
-  std::vector<std::uint8_t> vertex_dirty_;  ///< 1 for the vertices in dirty_vertices_
-  std::vector<TetId> touched_tets_;         ///< refresh()'s scratch
+  VertexMarks marks_;                ///< the vertices edits touched since the last refresh
+  std::vector<TetId> touched_tets_;  ///< refresh()'s scratch
   /// Built from the mesh when neighbors() is first asked after an edit (explicit traversals
   /// only; implicit schemes never ask).
   mutable VertexGraph graph_;

@@ -8,6 +8,7 @@
 #include "incise/core/packed_rows.hpp"
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/vertex_graph.hpp"
+#include "incise/mesh/vertex_marks.hpp"
 #include "incise/physics/force_model.hpp"
 #include "incise/physics/material.hpp"
 #include "incise/physics/material_map.hpp"
@@ -70,34 +71,15 @@ class MassSpringModel final : public ForceModel,
   [[nodiscard]] const MaterialMap& materials() const { return materials_; }
   [[nodiscard]] const MaterialMap* material_map() const override { return &materials_; }
 
-  // MeshObserver: collects the vertices whose mass or springs an edit changed.
-  void on_vertex_added(const TetMesh& mesh, VertexId vertex, const VertexOrigin& origin) override;
+  // MeshObserver (marks_ collects the vertices whose mass or springs an edit changed): a
+  // tetrahedron added afresh gets its mass here.
   void on_tet_added(const TetMesh& mesh, TetId tet) override;
-  void on_tet_replaced(const TetMesh& mesh, TetId parent, std::span<const TetId> children,
-                       const Tet& parent_vertices) override;
-  void on_tet_removed(const TetMesh& mesh, TetId removed, TetId moved_from,
-                      const Tet& removed_vertices) override;
-  void on_tet_reconnected(const TetMesh& mesh, TetId tet, const Tet& old_vertices) override;
-  void on_vertex_relocated(const TetMesh& mesh, VertexId vertex,
-                           const VertexOrigin& origin) override;
-  /// The last edge took the removed one's id: its ends' rows name it by the old one.
-  void on_edge_removed(const TetMesh& mesh, EdgeId removed, EdgeId moved_from) override {
-    if (removed != moved_from) {
-      mark(mesh.edge(removed)[0]);
-      mark(mesh.edge(removed)[1]);
-    }
-  }
   void on_mesh_destroyed() override { mesh_ = nullptr; }
-  void on_material_fraction_changed(const TetMesh& mesh, TetId tet) override {
-    mark(mesh.tet(tet));
-  }
   /// Its values live in attribute containers (restored on their own); springs and masses are
   /// recomputed from them.
   void load_state(StateReader& in) override;
 
  private:
-  void mark(VertexId vertex);
-  void mark(const Tet& tet);
   void rebuild_adjacency();
   /// The marked vertices' rows of neighbours_ and edges_at_, from their tetrahedra's edges.
   void update_adjacency();
@@ -117,8 +99,7 @@ class MassSpringModel final : public ForceModel,
   VertexData<double> masses_;  ///< lumped: a quarter of each adjacent tetrahedron's mass
   EdgeData<Spring> springs_;
 
-  std::vector<VertexId> dirty_;
-  std::vector<char> is_dirty_;
+  VertexMarks marks_;  ///< the vertices edits touched since the last refresh
   std::uint64_t adjacency_revision_ = ~std::uint64_t{0};  ///< mesh revision refresh() last saw
   bool rebuild_adjacency_ = true;
   /// Per vertex, in edge order: its neighbours and the edges to them (rows rewritten only for
