@@ -114,6 +114,13 @@ int main(int argc, char** argv) {
     Means cutting;
     Means before;  // the whole body, not cut yet
     Means after;   // the cut body, the blade at rest in it
+    // The body's motion, not the edit, sets the CG iterations (they climb through the cut and
+    // fall back after it): the last cutting frames and the first after the cut find the body
+    // in nearly the same state.
+    Means last_cutting;  // frames 41-45
+    Means first_after;   // frames 46-50
+    std::size_t tets_before_cut = 0;
+    std::size_t tets_after_cut = 0;
     for (int frame = 0; frame < 65; ++frame) {
       if (!engine.step()) {
         std::fprintf(stderr, "%s\n", engine.divergence().c_str());
@@ -125,6 +132,16 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "n %d frame %d tets %zu cd %.2f gc %.2f update %.2f rx %.2f CG %zu\n",
                      n, r.frame, r.tets, 1e3 * r.cd, 1e3 * r.gc, 1e3 * stats.seconds_refresh,
                      1e3 * r.rx, stats.solver_iterations_last_step);
+      }
+      if (r.frame == 15) {
+        tets_before_cut = r.tets;
+      } else if (r.frame == 45) {
+        tets_after_cut = r.tets;
+      }
+      if (r.frame >= 41 && r.frame <= 45) {
+        last_cutting.add(r, stats);
+      } else if (r.frame >= 46 && r.frame <= 50) {
+        first_after.add(r, stats);
       }
       if (r.frame <= 10) {
         before.add(r, stats);
@@ -143,23 +160,32 @@ int main(int argc, char** argv) {
     const double edit = cutting.per_frame(cutting.cd + cutting.gc + cutting.refresh);
     const double extra_iterations =
         cutting.per_frame(cutting.iterations) - after.per_frame(after.iterations);
+    const double new_tets = static_cast<double>(tets_after_cut - tets_before_cut) / 30.0;
     where.push_back(fmt::format(
-        "| {} | {:.1f} ({:.1f} / {:.1f} / {:.1f}) | {:.1f} x {:.3f} = {:.1f} | {:.3f} | {:.1f} | "
-        "{:.1f} |",
+        "| {} | {:.1f} ({:.1f} / {:.1f} / {:.1f}) | {:.0f} / {:.3f} | {:.1f} x {:.3f} = {:.1f} | "
+        "{:.3f} | {:.1f} | {:.1f} | {:.1f} ({:.0f} CG) / {:.1f} ({:.0f} CG) = {:.2f} |",
         n, ms(edit), ms(cutting.per_frame(cutting.cd)), ms(cutting.per_frame(cutting.gc)),
-        ms(cutting.per_frame(cutting.refresh)), extra_iterations, ms(after.per_iteration()),
-        ms(extra_iterations * after.per_iteration()), ms(cutting.per_iteration()),
+        ms(cutting.per_frame(cutting.refresh)), new_tets, new_tets > 0 ? ms(edit) / new_tets : 0.0,
+        extra_iterations, ms(after.per_iteration()), ms(extra_iterations * after.per_iteration()),
+        ms(cutting.per_iteration()),
         ms(cutting.per_frame(cutting.forces + cutting.preconditioner) -
            after.per_frame(after.forces + after.preconditioner)),
-        ms(cutting.mean() - after.mean())));
+        ms(cutting.mean() - after.mean()), ms(last_cutting.mean()),
+        last_cutting.per_frame(last_cutting.iterations), ms(first_after.mean()),
+        first_after.per_frame(first_after.iterations),
+        first_after.mean() > 0 ? last_cutting.mean() / first_after.mean() : 0.0));
   }
   std::printf(
       "\nWhere the extra of a cutting frame goes (ms per frame): the edit (cd / gc / the model "
-      "following it), extra CG iterations at the after-frames' cost per iteration, the cutting "
-      "frames' cost per iteration, forces + preconditioner over the after-frames', all of it\n\n"
-      "| n | edit (cd / gc / model update) | extra CG iterations x ms each | ms per iteration "
-      "when cutting | forces + preconditioner extra | extra in all |\n"
-      "|---|---|---|---|---|---|\n");
+      "following it), the tetrahedra it adds and its cost per added tetrahedron, extra CG "
+      "iterations at the after-frames' cost per iteration, the cutting frames' cost per "
+      "iteration, forces + preconditioner over the after-frames', all of it; and the last five "
+      "cutting frames against the first five after the cut (the body in nearly the same "
+      "state)\n\n"
+      "| n | edit (cd / gc / model update) | tets added per frame / edit ms per tet | extra CG "
+      "iterations x ms each | ms per iteration when cutting | forces + preconditioner extra | "
+      "extra in all | frames 41-45 / 46-50 ms |\n"
+      "|---|---|---|---|---|---|---|---|\n");
   for (const std::string& row : where) {
     std::printf("%s\n", row.c_str());
   }
