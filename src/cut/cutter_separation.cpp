@@ -49,7 +49,27 @@ void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
     // Groups around a vertex that now touch only along edges come apart first.
     const auto first_copy = static_cast<VertexId>(mesh_.vertex_count());
     for (std::size_t i = 0, n = vertices.size(); i < n; ++i) {
-      stats_.vertices_duplicated += separate(vertices[i]);
+      const auto copies_from = static_cast<VertexId>(mesh_.vertex_count());
+      const std::size_t copies = separate(vertices[i]);
+      stats_.vertices_duplicated += copies;
+      if (copies == 0) {
+        continue;
+      }
+      // Parting a vertex can pinch an edge between two of its neighbours on the cut (found by
+      // the soak: tests/data/soak_findings/fixed/seed-30212, seed-31001): they are checked too.
+      std::vector<VertexId> parted{vertices[i]};
+      for (auto v = copies_from; static_cast<std::size_t>(v) < mesh_.vertex_count(); ++v) {
+        parted.push_back(v);
+      }
+      for (VertexId v : parted) {
+        for (TetId t : mesh_.vertex_tets(v)) {
+          for (VertexId u : mesh_.tet(t)) {
+            if (on_cut_[u] != 0) {
+              vertices.push_back(u);
+            }
+          }
+        }
+      }
     }
     for (auto v = first_copy; static_cast<std::size_t>(v) < mesh_.vertex_count(); ++v) {
       vertices.push_back(v);
