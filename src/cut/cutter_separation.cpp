@@ -37,6 +37,21 @@ std::size_t SubdivisionCutter::separate(VertexId vertex) {
   return copies.size();
 }
 
+void SubdivisionCutter::around_parted(VertexId vertex, VertexId first_copy,
+                                      std::vector<VertexId>& around) const {
+  around.clear();
+  const auto add = [&](VertexId v) {
+    for (TetId t : mesh_.vertex_tets(v)) {
+      const Tet& corners = mesh_.tet(t);
+      around.insert(around.end(), corners.begin(), corners.end());
+    }
+  };
+  add(vertex);
+  for (auto copy = first_copy; static_cast<std::size_t>(copy) < mesh_.vertex_count(); ++copy) {
+    add(copy);
+  }
+}
+
 void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
   // Where the cut surface covers an edge whose two ends both lie on the crack front, neither end
   // can be separated and two wedges stay pinched along the edge (four boundary faces meet
@@ -57,17 +72,10 @@ void SubdivisionCutter::resolve_pinched_edges(std::vector<VertexId> vertices) {
       }
       // Parting a vertex can pinch an edge between two of its neighbours on the cut (found by
       // the soak: tests/data/soak_findings/fixed/seed-30212, seed-31001): they are checked too.
-      std::vector<VertexId> parted{vertices[i]};
-      for (auto v = copies_from; static_cast<std::size_t>(v) < mesh_.vertex_count(); ++v) {
-        parted.push_back(v);
-      }
-      for (VertexId v : parted) {
-        for (TetId t : mesh_.vertex_tets(v)) {
-          for (VertexId u : mesh_.tet(t)) {
-            if (on_cut_[u] != 0) {
-              vertices.push_back(u);
-            }
-          }
+      around_parted(vertices[i], copies_from, scratch_vertices_);
+      for (VertexId u : scratch_vertices_) {
+        if (on_cut_[u] != 0) {
+          vertices.push_back(u);
         }
       }
     }

@@ -284,17 +284,11 @@ void SubdivisionCutter::open_cut(const std::vector<std::array<Vec3, 3>>& triangl
       continue;
     }
     stats_.vertices_duplicated += copies;
-    std::vector<VertexId> parted{vertex};
-    for (auto v = first_copy; static_cast<std::size_t>(v) < mesh_.vertex_count(); ++v) {
-      parted.push_back(v);  // copies made by the separation can be pinched too
-    }
-    for (VertexId v : parted) {
-      for (TetId t : mesh_.vertex_tets(v)) {
-        for (VertexId u : mesh_.tet(t)) {
-          if ((on_cut_[u] != 0 || u >= first_copy) && queued.insert(u).second) {
-            candidates.push_back(u);
-          }
-        }
+    // Copies made by the separation can be pinched too.
+    around_parted(vertex, first_copy, scratch_vertices_);
+    for (VertexId u : scratch_vertices_) {
+      if ((on_cut_[u] != 0 || u >= first_copy) && queued.insert(u).second) {
+        candidates.push_back(u);
       }
     }
   }

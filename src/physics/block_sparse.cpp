@@ -62,12 +62,7 @@ void BlockSparseMatrix::match_pattern(const BlockSparseMatrix& other) {
 }
 
 void BlockSparseMatrix::fit_values() {
-  const std::size_t size = pattern_->columns.storage().size();
-  if (fitted_version_ == pattern_->version && values_.size() == size) {
-    return;
-  }
-  grow_zero(values_, size);
-  fitted_version_ = pattern_->version;
+  grow_zero(values_, pattern_->columns.storage().size());
 }
 
 void BlockSparseMatrix::zero_values() {

@@ -127,14 +127,6 @@ void CorotationalFemModel::take_incidences(VertexId vertex, std::vector<Incidenc
   }
 }
 
-double CorotationalFemModel::vertex_mass(VertexId vertex) const {
-  double mass = 0.0;
-  for (TetId tet : mesh_->vertex_tets(vertex)) {
-    mass += 0.25 * tet_mass_[tet] * mesh_->material_fraction(tet);
-  }
-  return mass;
-}
-
 void CorotationalFemModel::rebuild_all() {
   const TetMesh& mesh = *mesh_;
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
@@ -153,7 +145,8 @@ void CorotationalFemModel::rebuild_all() {
   });
   parallel_for(0, mesh.vertex_count(), 1024, [&](std::size_t first, std::size_t last) {
     for (std::size_t v = first; v != last; ++v) {
-      masses_[static_cast<VertexId>(v)] = vertex_mass(static_cast<VertexId>(v));
+      masses_[static_cast<VertexId>(v)] =
+          vertex_lumped_mass(mesh, tet_mass_, static_cast<VertexId>(v));
     }
   });
 }
@@ -206,10 +199,10 @@ void CorotationalFemModel::update_marked() {
   }
   (void)incidences_.compact_if_fragmented();
   for (VertexId v : marks_.marked()) {
-    masses_[v] = vertex_mass(v);
+    masses_[v] = vertex_lumped_mass(mesh, tet_mass_, v);
   }
   if (frequency_kept_) {
-    update_frequency_rows(touched_tets_);
+    update_frequency_rows();
   }
 }
 
@@ -593,54 +586,35 @@ double CorotationalFemModel::frequency_row(VertexId vertex) const {
   return row;
 }
 
-void CorotationalFemModel::update_frequency_rows(std::span<const TetId> touched) {
-  // Rows read the vertex's elements and its neighbours' masses: the vertices of the touched
-  // elements hold every row an edit changed. The largest is kept, and searched for again over
-  // every row only when the row that held it shrank.
-  const std::size_t n = mesh_->vertex_count();
-  frequency_rows_.resize(n, 0.0);
-  bool lost_largest = false;
-  for (TetId t : touched) {
-    for (VertexId v : mesh_->tet(t)) {
-      const double old_row = frequency_rows_[static_cast<std::size_t>(v)];
-      const double row = frequency_row(v);
-      frequency_rows_[static_cast<std::size_t>(v)] = row;
-      lost_largest = lost_largest || (old_row == largest_row_ && row < old_row);
-      largest_row_ = std::max(largest_row_, row);
-    }
-  }
-  // Marked vertices left without elements have a zero row now.
+void CorotationalFemModel::update_frequency_rows() {
+  // Rows read the vertex's elements and its neighbours' masses: the marked vertices and the
+  // vertices of the touched elements hold every row an edit changed (a marked vertex left
+  // without elements has a zero row now).
+  frequency_.grow(mesh_->vertex_count());
   for (VertexId v : marks_.marked()) {
-    if (mesh_->vertex_tets(v).empty()) {
-      lost_largest = lost_largest || frequency_rows_[static_cast<std::size_t>(v)] == largest_row_;
-      frequency_rows_[static_cast<std::size_t>(v)] = 0.0;
+    frequency_.set(v, frequency_row(v));
+  }
+  for (TetId t : touched_tets_) {
+    for (VertexId v : mesh_->tet(t)) {
+      frequency_.set(v, frequency_row(v));
     }
   }
-  if (lost_largest) {
-    largest_row_ = *std::max_element(frequency_rows_.begin(), frequency_rows_.end());
-  }
+  frequency_.settle();
 }
 
 double CorotationalFemModel::max_vertex_frequency() const {
   // A whole-body pass the first time an explicit scheme asks (implicit ones never do); from
   // then on refresh() updates the rows an edit changed.
   if (!frequency_kept_) {
-    const std::size_t n = mesh_->vertex_count();
     rest_linearizations_.clear();
     for (const LameParameters& lame : lames_) {
       rest_linearizations_.push_back(
           corotated_linearization(Mat3::Identity(), Mat3::Identity(), lame, TangentKind::kWarped));
     }
-    frequency_rows_.assign(n, 0.0);
-    parallel_for(0, n, 512, [&](std::size_t first, std::size_t last) {
-      for (std::size_t v = first; v != last; ++v) {
-        frequency_rows_[v] = frequency_row(static_cast<VertexId>(v));
-      }
-    });
-    largest_row_ = n == 0 ? 0.0 : *std::max_element(frequency_rows_.begin(), frequency_rows_.end());
+    frequency_.fill(mesh_->vertex_count(), [this](VertexId v) { return frequency_row(v); });
     frequency_kept_ = true;
   }
-  return std::sqrt(largest_row_);
+  return std::sqrt(frequency_.largest());
 }
 
 }  // namespace incise

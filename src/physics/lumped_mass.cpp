@@ -63,4 +63,12 @@ void conserve_mass(TetData<double>& mass, TetMesh* const& mesh) {
   mass.set_absorb_hook(mass_absorbed());
 }
 
+double vertex_lumped_mass(const TetMesh& mesh, const TetData<double>& tet_mass, VertexId vertex) {
+  double mass = 0.0;
+  for (TetId tet : mesh.vertex_tets(vertex)) {
+    mass += 0.25 * tet_mass[tet] * mesh.material_fraction(tet);
+  }
+  return mass;
+}
+
 }  // namespace incise

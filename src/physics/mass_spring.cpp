@@ -110,11 +110,7 @@ void MassSpringModel::refresh() {
   adjacency_revision_ = mesh.revision();
   // Masses of touched vertices, summed afresh so no error accumulates.
   for (VertexId v : marks_.marked()) {
-    double mass = 0.0;
-    for (TetId t : mesh.vertex_tets(v)) {
-      mass += 0.25 * tet_mass_[t] * mesh.material_fraction(t);
-    }
-    masses_[v] = mass;
+    masses_[v] = vertex_lumped_mass(mesh, tet_mass_, v);
   }
   // Springs at touched vertices (van Gelder's rule, extended to tetrahedra: the stiffness of
   // an edge is the sum of E times rest volume over the tetrahedra around it, over its squared
@@ -163,39 +159,22 @@ double MassSpringModel::frequency_row(VertexId vertex) const {
 
 void MassSpringModel::update_frequency_rows() {
   // A vertex's row reads its springs and its neighbours' masses: the marked vertices' rows
-  // and their neighbours' change. The largest is kept; it is searched for again over every
-  // row only when the row that held it shrank.
+  // and their neighbours' change.
   const std::size_t n = mesh_->vertex_count();
-  const bool all = frequency_rows_.empty() || marks_.size() == n;
-  frequency_rows_.resize(n, 0.0);
-  bool lost_largest = false;
-  const auto update = [&](VertexId v) {
-    const double old_row = frequency_rows_[static_cast<std::size_t>(v)];
-    const double row = frequency_row(v);
-    frequency_rows_[static_cast<std::size_t>(v)] = row;
-    lost_largest = lost_largest || (old_row == largest_row_ && row < old_row);
-    largest_row_ = std::max(largest_row_, row);
-  };
-  if (all) {
-    for (std::size_t v = 0; v < n; ++v) {
-      frequency_rows_[v] = frequency_row(static_cast<VertexId>(v));
-    }
-    lost_largest = true;
-  } else {
-    for (VertexId v : marks_.marked()) {
-      update(v);
-      for (VertexId w : neighbours_.row(static_cast<std::size_t>(v))) {
-        if (!marks_.is_marked(w)) {
-          update(w);
-        }
+  if (frequency_.empty() || marks_.size() == n) {
+    frequency_.fill(n, [this](VertexId v) { return frequency_row(v); });
+    return;
+  }
+  frequency_.grow(n);
+  for (VertexId v : marks_.marked()) {
+    frequency_.set(v, frequency_row(v));
+    for (VertexId w : neighbours_.row(static_cast<std::size_t>(v))) {
+      if (!marks_.is_marked(w)) {
+        frequency_.set(w, frequency_row(w));
       }
     }
   }
-  if (lost_largest) {
-    largest_row_ = frequency_rows_.empty()
-                       ? 0.0
-                       : *std::max_element(frequency_rows_.begin(), frequency_rows_.end());
-  }
+  frequency_.settle();
 }
 
 // ---- forces --------------------------------------------------------------------------------
@@ -300,7 +279,7 @@ double MassSpringModel::elastic_energy(std::span<const Vec3> x) const {
 }
 
 double MassSpringModel::max_vertex_frequency() const {
-  return std::sqrt(largest_row_);  // kept up to date by refresh(), row by row
+  return std::sqrt(frequency_.largest());  // kept up to date by refresh(), row by row
 }
 
 double MassSpringModel::total_mass() const {

@@ -295,6 +295,10 @@ class SubdivisionCutter {
   /// The ancestry of a tetrahedron, assigning a new original to one added afresh.
   const Ancestry& ancestry(TetId tet);
   void resolve_pinched_edges(std::vector<VertexId> vertices);
+  /// Into `around`: the vertices of the tetrahedra at a vertex just parted and at its copies
+  /// (ids from `first_copy` on), with repeats: where parting it can change what is separable
+  /// or pinched.
+  void around_parted(VertexId vertex, VertexId first_copy, std::vector<VertexId>& around) const;
 
   /// A point carried by the material: barycentric weights on four vertices (or none, outside).
   struct MaterialPoint {
@@ -342,6 +346,7 @@ class SubdivisionCutter {
   std::vector<VertexId> separated_;
   /// Vertices put on the cut (or found on it) during this move.
   std::vector<VertexId> fresh_;
+  std::vector<VertexId> scratch_vertices_;  ///< around_parted's output, reused
   /// Faces marked by the last mark_cut_faces(): (tetrahedron, local face).
   std::vector<std::pair<TetId, int>> marked_;
   VertexData<char> on_cut_;

@@ -35,7 +35,8 @@ class BlockSparseMatrix {
   /// old one keep it until they match this one.
   void build_pattern(const VertexGraph& graph);
   /// Shares another matrix's pattern (an O(1) handover, however large the matrix); values
-  /// become zero where the pattern changed since this matrix last matched it. The pattern is
+  /// become zero when the pattern is another one, and storage the pattern grew by since this
+  /// matrix last matched it starts zero (edited rows are unspecified). The pattern is
   /// then edited through either matrix (edit_row, add_rows, compact) for both: only the model
   /// that owns the mesh's pattern edits it, and other matrices match it again before use.
   void match_pattern(const BlockSparseMatrix& other);
@@ -90,7 +91,6 @@ class BlockSparseMatrix {
   void fit_values();
 
   std::shared_ptr<BlockPattern> pattern_;
-  std::uint64_t fitted_version_ = ~std::uint64_t{0};  ///< pattern version the values fit
   std::vector<Mat3> values_;
 };
 

@@ -24,6 +24,7 @@
 #include "incise/physics/block_sparse.hpp"
 #include "incise/physics/corotational.hpp"
 #include "incise/physics/force_model.hpp"
+#include "incise/physics/frequency_rows.hpp"
 #include "incise/physics/material.hpp"
 #include "incise/physics/material_map.hpp"
 
@@ -119,15 +120,13 @@ class CorotationalFemModel final : public ForceModel,
   void rebuild_all();
   /// Only around the marked vertices.
   void update_marked();
-  /// One vertex's row of the frequency bound, and the rows of the touched elements' vertices.
+  /// One vertex's row of the frequency bound, and the rows an edit changed.
   [[nodiscard]] double frequency_row(VertexId vertex) const;
-  void update_frequency_rows(std::span<const TetId> touched);
+  void update_frequency_rows();
   /// Takes the element's rest shape (and a new element's mass) again if it is not valid.
   void update_element(TetId tet);
   /// The element's 16 block places in the pattern.
   void update_slots(TetId tet);
-  /// A quarter of the mass of each tetrahedron at the vertex, summed in the mesh's order.
-  [[nodiscard]] double vertex_mass(VertexId vertex) const;
   struct Incidence {
     TetId tet;
     int corner;
@@ -174,11 +173,10 @@ class CorotationalFemModel final : public ForceModel,
   /// only; implicit schemes never ask).
   mutable VertexGraph graph_;
   mutable std::uint64_t graph_revision_ = kNoRevision;
-  /// The frequency bound, kept row by row once an explicit scheme asked for it: per vertex its
-  /// row (1/s^2), the largest, and the rest tangent per material.
+  /// The frequency bound, kept row by row once an explicit scheme asked for it, and the rest
+  /// tangent per material its rows read.
   mutable bool frequency_kept_ = false;
-  mutable std::vector<double> frequency_rows_;
-  mutable double largest_row_ = 0.0;
+  mutable FrequencyRows frequency_;
   mutable std::vector<CorotatedLinearization> rest_linearizations_;
 
   // Written by the element loops (each element only by its own thread).

@@ -17,6 +17,12 @@ namespace incise {
 /// the subdivision cutter's meshes).
 [[nodiscard]] TetData<double>::AbsorbHook mass_absorbed();
 
+/// A vertex's lumped mass (kg): a quarter of each of its tetrahedra's mass times its material
+/// fraction, summed in the mesh's order (so the same whether a model was built afresh or
+/// followed edits).
+[[nodiscard]] double vertex_lumped_mass(const TetMesh& mesh, const TetData<double>& tet_mass,
+                                        VertexId vertex);
+
 /// Sets both hooks on a per-tetrahedron mass container.
 void conserve_mass(TetData<double>& mass, TetMesh* const& mesh);
 

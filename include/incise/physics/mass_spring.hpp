@@ -10,6 +10,7 @@
 #include "incise/mesh/vertex_graph.hpp"
 #include "incise/mesh/vertex_marks.hpp"
 #include "incise/physics/force_model.hpp"
+#include "incise/physics/frequency_rows.hpp"
 #include "incise/physics/material.hpp"
 #include "incise/physics/material_map.hpp"
 
@@ -106,10 +107,9 @@ class MassSpringModel final : public ForceModel,
   /// marked vertices after an edit).
   PackedRows<VertexId> neighbours_;
   PackedRows<EdgeId> edges_at_;
-  /// Per vertex, its row of the Gershgorin bound on the squared frequencies (1/s^2), and the
-  /// largest: explicit schemes ask for the bound every step.
-  std::vector<double> frequency_rows_;
-  double largest_row_ = 0.0;
+  /// The Gershgorin bound on the squared frequencies, row by row: explicit schemes ask for it
+  /// every step.
+  FrequencyRows frequency_;
   // Linearisation: per-edge stiffness and damping blocks.
   std::vector<Mat3> stiffness_blocks_;
   std::vector<Mat3> damping_blocks_;
