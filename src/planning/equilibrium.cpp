@@ -12,6 +12,7 @@
 #include "incise/planning/tissue_energy.hpp"
 #include "incise/solve/direct_factorization.hpp"
 #include "point_block_matrix.hpp"
+#include "tissue_pattern.hpp"
 
 namespace incise::planning {
 
@@ -34,10 +35,105 @@ double largest_soft_force(const LayeredTissue& tissue, std::span<const Vec3> f) 
   return largest;
 }
 
+double mean_skin_prestrain(const LayeredTissue& tissue) {
+  double strain_sum = 0.0;
+  int skin_springs = 0;
+  for (const Spring& spring : tissue.springs) {
+    if (spring.set == SpringSet::kLayer && spring.layer == 0) {
+      const double scanned = (tissue.rest[static_cast<std::size_t>(spring.a)] -
+                              tissue.rest[static_cast<std::size_t>(spring.b)])
+                                 .norm();
+      strain_sum += scanned / spring.rest_length - 1.0;
+      ++skin_springs;
+    }
+  }
+  return skin_springs > 0 ? strain_sum / skin_springs : 0.0;
+}
+
+/// Continuum elasticity: the rest shape of the tetrahedra is moved (the soft points' rest
+/// positions X) so that the scanned state x is in equilibrium; the skin membrane keeps its
+/// pre-strain exactly. With f(x; X) = -K (x - X) to first order, the chord iteration
+/// X <- X - K^-1 r (K the stiffness at the scanned state, factorised once and again only when
+/// the residual stops halving per step) converges linearly at the rate of the strains
+/// the load makes, which are small for tissue that carries its own weight.
+EquilibriumReport balance_continuum(LayeredTissue& tissue, const Vec3& gravity, double tolerance,
+                                    int max_iterations) {
+  EquilibriumReport report;
+  const std::size_t n = tissue.point_count();
+  const std::span<const Vec3> x = tissue.rest;
+  std::vector<Vec3> f(n);
+  TissueEnergy energy(tissue, gravity);
+  energy.forces(x, f);
+  report.residual_before = largest_soft_force(tissue, f);
+  report.residual_after = report.residual_before;
+  report.skin_prestrain_mean = mean_skin_prestrain(tissue);
+  std::vector<int> row(n, -1);
+  int rows = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (tissue.kind[i] == PointKind::kSoft) {
+      row[i] = rows;
+      rows += 3;
+    }
+  }
+  const CouplingPattern pattern = coupling_pattern(tissue);
+  PointBlockMatrix stiffness(row, rows, pattern.pairs);
+  DirectFactorization factorization;
+  std::vector<Vec3> rest(x.begin(), x.end());
+  bool factorised = false;
+  double previous_residual = report.residual_before;
+  for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    if (report.residual_after <= tolerance || rows == 0) {
+      break;
+    }
+    if (!factorised || report.residual_after > 0.5 * previous_residual) {
+      stiffness.clear();
+      // The exact tangent (positive definite near the scanned state), else its convex form.
+      add_tet_stiffness(tissue, pattern, x, false, stiffness);
+      if (!factorization.factorize_positive_definite(stiffness.matrix())) {
+        stiffness.clear();
+        add_tet_stiffness(tissue, pattern, x, true, stiffness);
+      }
+      if (!factorization.factorize(stiffness.matrix())) {
+        throw InputError(
+            "equilibrium initialisation: the tissue's stiffness could not be factorised (a soft "
+            "point in no tetrahedron?)");
+      }
+      factorised = true;
+    }
+    previous_residual = report.residual_after;
+    Eigen::VectorXd rhs(rows);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (row[i] >= 0) {
+        rhs.segment<3>(row[i]) = f[i];
+      }
+    }
+    const Eigen::VectorXd shift = factorization.solve(rhs);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (row[i] >= 0) {
+        rest[i] -= Vec3(shift.segment<3>(row[i]));
+      }
+    }
+    set_tet_rest_shapes(tissue, rest);
+    energy.forces(x, f);
+    report.residual_after = largest_soft_force(tissue, f);
+    report.iterations = iteration + 1;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    report.largest_rest_shift = std::max(report.largest_rest_shift, (rest[i] - x[i]).norm());
+    if (tissue.kind[i] != PointKind::kSoft) {
+      report.load_on_fixed_points += f[i];
+    }
+  }
+  return report;
+}
+
 }  // namespace
 
 EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
                                          double tolerance, int max_iterations) {
+  if (tissue.elasticity == TissueElasticity::kContinuum) {
+    return balance_continuum(tissue, gravity, tolerance, max_iterations);
+  }
   // Damped steps converge linearly: a few more of them than Gauss-Newton would need.
   EquilibriumReport report;
   const std::size_t n = tissue.point_count();
@@ -174,16 +270,7 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
       report.load_on_fixed_points += f[i];
     }
   }
-  double strain_sum = 0.0;
-  int skin_springs = 0;
-  for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
-    const Spring& spring = tissue.springs[s];
-    if (spring.set == SpringSet::kLayer && spring.layer == 0) {
-      strain_sum += scanned[s] / spring.rest_length - 1.0;
-      ++skin_springs;
-    }
-  }
-  report.skin_prestrain_mean = skin_springs > 0 ? strain_sum / skin_springs : 0.0;
+  report.skin_prestrain_mean = mean_skin_prestrain(tissue);
   return report;
 }
 

@@ -1,5 +1,7 @@
 #include "incise/planning/layered_tissue.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -41,8 +43,98 @@ void check_options(const LayeredTissueOptions& options) {
       !std::isfinite(options.nonlinearity) || !std::isfinite(options.volume_weight)) {
     throw InputError("nonlinearity and volume_weight must be finite and not negative");
   }
+  for (const LayerMaterial& m : options.materials) {
+    if (!(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5)) {
+      throw InputError("layer materials need a poisson_ratio in (-1, 0.5)");
+    }
+  }
+  if (!(options.skin_thickness >= 0.0) || !std::isfinite(options.skin_thickness)) {
+    throw InputError("skin_thickness must be finite and not negative");
+  }
+  if (options.elasticity == TissueElasticity::kContinuum && options.skin_prestrain != 0.0 &&
+      options.skin_thickness == 0.0) {
+    throw InputError(
+        "skin_prestrain needs a skin membrane with continuum elasticity: give skin_thickness");
+  }
   if (!(options.max_thickness > options.min_thickness) || !(options.min_thickness >= 0.0)) {
     throw InputError("max_thickness must exceed min_thickness (>= 0)");
+  }
+}
+
+/// Splits the prism over skin triangle t (its columns) into three tetrahedra: with the corners
+/// a < b < c by column, (a0 b0 c0 c1), (a0 b0 b1 c1), (a0 a1 b1 c1) (0: the prism's lower
+/// layer, 1: its upper), which cuts the side between columns u < v by the diagonal u0-v1
+/// whichever prism it bounds.
+void split_into_tets(const Triangle& t, Prism& prism) {
+  std::array<std::uint8_t, 3> order = {0, 1, 2};
+  std::sort(order.begin(), order.end(), [&](std::uint8_t i, std::uint8_t j) { return t[i] < t[j]; });
+  const std::uint8_t a = order[0];
+  const std::uint8_t b = order[1];
+  const std::uint8_t c = order[2];
+  const auto up = [](std::uint8_t i) { return static_cast<std::uint8_t>(i + 3); };
+  prism.tets[0].corners = {a, b, c, up(c)};
+  prism.tets[1].corners = {a, b, up(b), up(c)};
+  prism.tets[2].corners = {a, up(a), up(b), up(c)};
+}
+
+/// The skin membrane's springs (the continuum's layer-0 springs): k = E t (A1 + A2) / l0^2 over
+/// the one or two skin triangles beside the edge. On a mesh of equilateral triangles this gives
+/// the membrane an equibiaxial stiffness E t / (1 - nu) with the lattice's nu = 1/3, so a
+/// pre-strain e pulls with the tension E t e / (1 - nu) (N/m) whatever the layers. Stores
+/// E t (A1 + A2) in `spring_volume`; the caller divides by l0^2.
+void set_skin_membrane(const LayeredTissue& tissue, double modulus_thickness,
+                       const std::map<std::pair<int, int>, int>& spring_of,
+                       std::vector<double>& spring_volume) {
+  for (const Triangle& t : tissue.skin_triangles) {
+    const Vec3& p0 = tissue.rest[static_cast<std::size_t>(tissue.point(t[0], 0))];
+    const Vec3& p1 = tissue.rest[static_cast<std::size_t>(tissue.point(t[1], 0))];
+    const Vec3& p2 = tissue.rest[static_cast<std::size_t>(tissue.point(t[2], 0))];
+    const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
+    for (std::size_t e = 0; e < 3; ++e) {
+      const auto found = spring_of.find(
+          std::minmax(tissue.point(t[e], 0), tissue.point(t[(e + 1) % 3], 0)));
+      if (found != spring_of.end()) {
+        spring_volume[static_cast<std::size_t>(found->second)] += modulus_thickness * area;
+      }
+    }
+  }
+}
+
+/// See set_tet_rest_shapes; `orient` (at build) orders each tetrahedron's corners positively
+/// instead of refusing a negative one.
+void set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest, bool orient) {
+  for (std::size_t p = 0; p < tissue.prisms.size(); ++p) {
+    Prism& prism = tissue.prisms[p];
+    double size = 0.0;
+    for (std::size_t i = 1; i < 6; ++i) {
+      size = std::max(size, (rest[static_cast<std::size_t>(prism.points[i])] -
+                             rest[static_cast<std::size_t>(prism.points[0])])
+                                .norm());
+    }
+    for (PrismTet& tet : prism.tets) {
+      if (!orient && tet.rest.volume == 0.0) {
+        continue;  // empty since the build
+      }
+      const Corners c = tet_corners(prism, tet, rest);
+      double volume = (c[1] - c[0]).dot((c[2] - c[0]).cross(c[3] - c[0])) / 6.0;
+      if (orient && volume < 0.0) {
+        std::swap(tet.corners[2], tet.corners[3]);
+        volume = -volume;
+      }
+      // A tetrahedron of a column of no thickness (or a degenerate skin triangle) is empty.
+      if (orient && !(volume > 1e-9 * size * size * size)) {
+        tet.rest = TetRestShape{};
+        continue;
+      }
+      if (!(volume > 0.0)) {
+        throw InputError(fmt::format(
+            "the tissue's rest shape would invert a tetrahedron of prism {} (layer {}, points {} "
+            "{} {} {} {} {}): lower the load (gravity, skin pre-strain) or stiffen the layers",
+            p, prism.layer, prism.points[0], prism.points[1], prism.points[2], prism.points[3],
+            prism.points[4], prism.points[5]));
+      }
+      tet.rest = tet_rest_shape(tet_corners(prism, tet, rest), static_cast<std::int64_t>(p));
+    }
   }
 }
 
@@ -114,6 +206,7 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
     }
   }
   tissue.law.nonlinearity = options.nonlinearity;
+  tissue.elasticity = options.elasticity;
   tissue.volume_weight = options.volume_weight;
   tissue.skin_prestrain = options.skin_prestrain;
   const int layers = options.layers;
@@ -163,11 +256,18 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
             .norm();
     tissue.springs.push_back(s);
   };
+  const bool continuum = options.elasticity == TissueElasticity::kContinuum;
   for (const Triangle& t : tissue.skin_triangles) {
     for (int k = 0; k < layers; ++k) {
       for (int e = 0; e < 3; ++e) {
         const int u = t[static_cast<std::size_t>(e)];
         const int v = t[static_cast<std::size_t>((e + 1) % 3)];
+        if (continuum) {
+          if (k == 0 && options.skin_thickness > 0.0) {
+            add_spring(tissue.point(u, 0), tissue.point(v, 0), SpringSet::kLayer, 0);
+          }
+          continue;
+        }
         add_spring(tissue.point(u, k), tissue.point(v, k), SpringSet::kLayer, k);
         add_spring(tissue.point(u, k), tissue.point(u, k + 1), SpringSet::kConnecting, k);
         add_spring(tissue.point(u, k), tissue.point(v, k + 1), SpringSet::kDiagonal, k);
@@ -186,6 +286,9 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
             tissue.rest[static_cast<std::size_t>(prism.points[static_cast<std::size_t>(i)])];
       }
       prism.rest_volume = prism_volume(corners);
+      if (continuum) {
+        split_into_tets(t, prism);
+      }
       tissue.prisms.push_back(prism);
     }
   }
@@ -199,12 +302,17 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
                                          : options.materials[static_cast<std::size_t>(layer)];
   };
   std::vector<double> spring_volume(tissue.springs.size(), 0.0);
-  for (const Prism& prism : tissue.prisms) {
+  for (Prism& prism : tissue.prisms) {
     const LayerMaterial& material = material_of(prism.layer);
     const double volume = std::abs(prism.rest_volume);
     for (int i = 0; i < 6; ++i) {
       tissue.mass[static_cast<std::size_t>(prism.points[static_cast<std::size_t>(i)])] +=
           material.density * volume / 6.0;
+    }
+    if (continuum) {
+      prism.material =
+          stable_neo_hookean(lame_parameters(material.young_modulus, material.poisson_ratio));
+      continue;
     }
     const auto& p = prism.points;
     const std::array<std::pair<int, int>, 15> edges = {{{p[0], p[1]},
@@ -229,11 +337,17 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
       }
     }
   }
+  if (continuum) {
+    set_skin_membrane(tissue, material_of(0).young_modulus * options.skin_thickness, spring_of,
+                      spring_volume);
+  }
   for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
     Spring& spring = tissue.springs[s];
     const LayerMaterial& material = material_of(spring.layer);
     const double length = std::max(spring.rest_length, options.min_thickness / layers);
-    spring.stiffness = material.young_modulus * spring_volume[s] / (length * length);
+    // Continuum: spring_volume holds the membrane's E t (A1 + A2) (N m), set above.
+    spring.stiffness = (continuum ? 1.0 : material.young_modulus) * spring_volume[s] /
+                       (length * length);
     if (spring.set == SpringSet::kLayer && spring.layer == 0) {
       // Skin pre-strain: the scanned length is the stretched one.
       spring.rest_length /= 1.0 + options.skin_prestrain;
@@ -250,7 +364,22 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
       return tissue.kind[static_cast<std::size_t>(p)] == PointKind::kSoft;
     });
   });
+  if (continuum) {
+    set_tet_rest_shapes(tissue, tissue.rest, true);
+  }
   return tissue;
+}
+
+Corners tet_corners(const Prism& prism, const PrismTet& tet, std::span<const Vec3> x) {
+  Corners corners;
+  for (std::size_t i = 0; i < 4; ++i) {
+    corners[i] = x[static_cast<std::size_t>(prism.points[tet.corners[i]])];
+  }
+  return corners;
+}
+
+void set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest) {
+  set_tet_rest_shapes(tissue, rest, false);
 }
 
 }  // namespace incise::planning

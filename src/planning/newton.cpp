@@ -5,13 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include "incise/core/error.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/solve/direct_factorization.hpp"
 #include "point_block_matrix.hpp"
+#include "tissue_pattern.hpp"
 
 namespace incise::planning {
 
@@ -29,44 +29,6 @@ constexpr double kFirstShift = 1e-3;
 /// (an inexact Newton step: the line search and the next step correct the rest).
 constexpr int kLaggedIterations = 6;
 constexpr double kLaggedTolerance = 1e-2;
-
-std::uint64_t pair_key(int a, int b) {
-  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(std::min(a, b))) << 32U) |
-         static_cast<std::uint32_t>(std::max(a, b));
-}
-
-/// The point pairs the Hessian couples: every spring (pair s = spring s), then the prisms'
-/// corner pairs that no spring joins (after a soft-tissue cut, say). Per prism, the pair of
-/// each of its 15 corner pairs.
-struct CouplingPattern {
-  std::vector<std::pair<int, int>> pairs;
-  std::vector<std::size_t> prism_pairs;  ///< 15 per prism, (i, j) with i < j in row order
-};
-
-CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
-  CouplingPattern pattern;
-  std::unordered_map<std::uint64_t, std::size_t> index;
-  index.reserve(tissue.springs.size() * 2);
-  for (const Spring& spring : tissue.springs) {
-    index.emplace(pair_key(spring.a, spring.b), pattern.pairs.size());
-    pattern.pairs.emplace_back(spring.a, spring.b);
-  }
-  pattern.prism_pairs.reserve(tissue.prisms.size() * 15);
-  for (const Prism& prism : tissue.prisms) {
-    for (std::size_t i = 0; i < 6; ++i) {
-      for (std::size_t j = i + 1; j < 6; ++j) {
-        const int a = prism.points[i];
-        const int b = prism.points[j];
-        const auto [it, added] = index.emplace(pair_key(a, b), pattern.pairs.size());
-        if (added) {
-          pattern.pairs.emplace_back(a, b);
-        }
-        pattern.prism_pairs.push_back(it->second);
-      }
-    }
-  }
-  return pattern;
-}
 
 /// The Hessian of the energy over the free points, the volume term's curvature left out; with
 /// `convex`, also the transverse term of compressed springs (negative: they buckle), which makes
@@ -92,6 +54,9 @@ void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& patter
     hessian.add_diagonal(spring.a, block);
     hessian.add_diagonal(spring.b, block);
     hessian.add_coupling(s, -block);
+  }
+  if (tissue.elasticity == TissueElasticity::kContinuum) {
+    add_tet_stiffness(tissue, pattern, x, convex, hessian);
   }
   if (!(tissue.volume_weight > 0.0)) {
     return;

@@ -47,10 +47,21 @@ CutPlane parse_plane(const Context& context, const Json& value, const std::strin
   return plane;
 }
 
-LayerMaterial parse_material(const ObjectReader& reader) {
+LayerMaterial parse_material(const Context& context, const ObjectReader& reader,
+                             TissueElasticity elasticity) {
   LayerMaterial material;
   material.young_modulus = reader.positive("young_modulus", material.young_modulus);
   material.density = reader.positive("density", material.density);
+  if (reader.has("poisson_ratio")) {
+    if (elasticity != TissueElasticity::kContinuum) {
+      context.fail(reader.child("poisson_ratio"),
+                   "belongs with \"elasticity\": \"continuum\" (a spring lattice has its own)");
+    }
+    material.poisson_ratio = reader.number("poisson_ratio", material.poisson_ratio);
+    if (!(material.poisson_ratio > -1.0 && material.poisson_ratio < 0.5)) {
+      context.fail(reader.child("poisson_ratio"), "must lie in (-1, 0.5)");
+    }
+  }
   return material;
 }
 
@@ -68,8 +79,10 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
                           "decimation",
                           "skin_edge_length",
                           "layers",
+                          "elasticity",
                           "materials",
                           "skin_prestrain",
+                          "skin_thickness",
                           "nonlinear",
                           "volume_weight",
                           "gravity",
@@ -139,14 +152,37 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
     plan.skin_edge_length = top.positive("skin_edge_length", 1.0) * kMillimetre;
   }
   plan.tissue.layers = top.integer("layers", plan.tissue.layers, 1, 64);
+  if (top.has("elasticity")) {
+    const std::string elasticity = top.string("elasticity", "");
+    if (elasticity == "springs") {
+      plan.tissue.elasticity = TissueElasticity::kSprings;
+    } else if (elasticity == "continuum") {
+      plan.tissue.elasticity = TissueElasticity::kContinuum;
+    } else {
+      context.fail("elasticity",
+                   "unknown elasticity '" + elasticity + "' (known: continuum, springs)");
+    }
+  }
+  const bool continuum = plan.tissue.elasticity == TissueElasticity::kContinuum;
+  if (top.has("skin_thickness")) {
+    if (!continuum) {
+      context.fail("skin_thickness",
+                   "belongs with \"elasticity\": \"continuum\" (the springs' skin is their "
+                   "outer layer)");
+    }
+    plan.tissue.skin_thickness =
+        top.non_negative("skin_thickness", plan.tissue.skin_thickness / kMillimetre) *
+        kMillimetre;
+  }
   if (top.has("materials")) {
     const Json& materials = top.at("materials");
     plan.tissue.materials.clear();
     if (materials.is_array()) {
       for (std::size_t i = 0; i < materials.size(); ++i) {
         const ObjectReader reader(context, materials[i], "materials[" + std::to_string(i) + "]",
-                                  {"young_modulus", "density"});
-        plan.tissue.materials.push_back(parse_material(reader));
+                                  {"young_modulus", "density", "poisson_ratio"});
+        plan.tissue.materials.push_back(
+            parse_material(context, reader, plan.tissue.elasticity));
       }
       if (plan.tissue.materials.size() != 1 &&
           plan.tissue.materials.size() != static_cast<std::size_t>(plan.tissue.layers)) {
@@ -154,13 +190,17 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
                                       std::to_string(plan.tissue.layers) + ")");
       }
     } else {
-      const ObjectReader reader(context, materials, "materials", {"young_modulus", "density"});
-      plan.tissue.materials.push_back(parse_material(reader));
+      const ObjectReader reader(context, materials, "materials",
+                                {"young_modulus", "density", "poisson_ratio"});
+      plan.tissue.materials.push_back(parse_material(context, reader, plan.tissue.elasticity));
     }
   }
   plan.tissue.skin_prestrain = top.number("skin_prestrain", plan.tissue.skin_prestrain);
   if (!(plan.tissue.skin_prestrain > -0.5 && plan.tissue.skin_prestrain < 1.0)) {
     context.fail("skin_prestrain", "must lie in (-0.5, 1)");
+  }
+  if (continuum && plan.tissue.skin_prestrain != 0.0 && plan.tissue.skin_thickness == 0.0) {
+    context.fail("skin_prestrain", "needs a skin membrane: skin_thickness must be positive");
   }
   plan.tissue.nonlinearity = top.non_negative("nonlinear", plan.tissue.nonlinearity);
   plan.tissue.volume_weight = top.non_negative("volume_weight", plan.tissue.volume_weight);

@@ -365,8 +365,20 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
   report["boundary_points"] = tissue.count(PointKind::kBoundary);
   report["instrument_points"] = held;
   report["skin_triangles_left_out"] = tissue.skin_triangles_dropped;
+  report["elasticity"] =
+      tissue.elasticity == TissueElasticity::kContinuum ? "continuum" : "springs";
   report["springs"] = tissue.springs.size();
   report["prisms"] = tissue.prisms.size();
+  if (tissue.elasticity == TissueElasticity::kContinuum) {
+    std::size_t tetrahedra = 0;
+    for (const Prism& prism : tissue.prisms) {
+      for (const PrismTet& tet : prism.tets) {
+        tetrahedra += tet.rest.volume > 0.0 ? 1 : 0;
+      }
+    }
+    report["tetrahedra"] = tetrahedra;
+    report["skin_thickness"] = plan.tissue.skin_thickness / kMillimetre;
+  }
   report["skin_prestrain"] = tissue.skin_prestrain;
   report["nonlinear"] = tissue.law.nonlinearity;
   report["volume_weight"] = tissue.volume_weight;
@@ -381,7 +393,11 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
   report["residual_force_before"] = balance.residual_before;
   report["residual_force_after_equilibrium"] = balance.residual_after;
   report["equilibrium_iterations"] = balance.iterations;
-  report["largest_rest_length_change"] = balance.largest_relative_change;
+  if (tissue.elasticity == TissueElasticity::kContinuum) {
+    report["largest_rest_shift"] = balance.largest_rest_shift / kMillimetre;
+  } else {
+    report["largest_rest_length_change"] = balance.largest_relative_change;
+  }
   report["load_on_bone_and_boundary"] = {balance.load_on_fixed_points.x(),
                                          balance.load_on_fixed_points.y(),
                                          balance.load_on_fixed_points.z()};

@@ -51,24 +51,54 @@ std::array<Vec3, 6> prism_volume_gradient(const PrismPoints& p) {
 }
 
 PrismHessian prism_volume_hessian(const PrismPoints& p) {
-  double size = 0.0;
-  for (std::size_t i = 1; i < 6; ++i) {
-    size = std::max(size, (p[i] - p[0]).norm());
+  // V = d . S / 12 with d = (top sum - bottom sum) / 3 (linear) and S = N0 + 4 Nm + N1
+  // (quadratic), so d^2V/dp_a dp_b = (s_a / 3 dS/dp_b + s_b / 3 (dS/dp_a)^T + d.d^2S) / 12,
+  // s = -1 for the bottom, +1 for the top. For N = (q - p) x (r - p): dN/dp = [r - q]x
+  // (cyclically), and d.N has the block -[d]x at (p, q), (q, r), (r, p) and its transpose at
+  // the mirrored places. A mid-triangle corner m_i = (p_i + p_{i+3}) / 2 takes half of each
+  // derivative, and Nm carries the weight 4.
+  const auto cross_matrix = [](const Vec3& v) {
+    Mat3 m;
+    m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+    return m;
+  };
+  const Vec3 d = (p[3] + p[4] + p[5] - p[0] - p[1] - p[2]) / 3.0;
+  const std::array<Vec3, 3> m = {0.5 * (p[0] + p[3]), 0.5 * (p[1] + p[4]), 0.5 * (p[2] + p[5])};
+  std::array<Mat3, 6> jacobian;  // dS/dp_a
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::size_t j = (i + 1) % 3;
+    const std::size_t k = (i + 2) % 3;
+    const Mat3 mid = 2.0 * cross_matrix(m[k] - m[j]);
+    jacobian[i] = cross_matrix(p[k] - p[j]) + mid;
+    jacobian[i + 3] = cross_matrix(p[k + 3] - p[j + 3]) + mid;
   }
-  const double h = size > 0.0 ? size : 1.0;
   PrismHessian hessian;
-  for (int column = 0; column < 18; ++column) {
-    PrismPoints plus = p;
-    PrismPoints minus = p;
-    plus[static_cast<std::size_t>(column / 3)][column % 3] += h;
-    minus[static_cast<std::size_t>(column / 3)][column % 3] -= h;
-    const std::array<Vec3, 6> gp = prism_volume_gradient(plus);
-    const std::array<Vec3, 6> gm = prism_volume_gradient(minus);
-    for (std::size_t i = 0; i < 6; ++i) {
-      hessian.block<3, 1>(static_cast<Eigen::Index>(3 * i), column) = (gp[i] - gm[i]) / (2.0 * h);
+  for (std::size_t a = 0; a < 6; ++a) {
+    const double sa = a < 3 ? -1.0 : 1.0;
+    for (std::size_t b = 0; b < 6; ++b) {
+      const double sb = b < 3 ? -1.0 : 1.0;
+      hessian.block<3, 3>(static_cast<Eigen::Index>(3 * a), static_cast<Eigen::Index>(3 * b)) =
+          (sa / 3.0) * jacobian[b] + (sb / 3.0) * jacobian[a].transpose();
     }
   }
-  return 0.5 * (hessian + hessian.transpose());
+  const Mat3 twist = cross_matrix(d);
+  const auto add = [&](std::size_t a, std::size_t b, const Mat3& block) {
+    hessian.block<3, 3>(static_cast<Eigen::Index>(3 * a), static_cast<Eigen::Index>(3 * b)) +=
+        block;
+    hessian.block<3, 3>(static_cast<Eigen::Index>(3 * b), static_cast<Eigen::Index>(3 * a)) +=
+        block.transpose();
+  };
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::size_t j = (i + 1) % 3;
+    add(i, j, -twist);          // N0
+    add(i + 3, j + 3, -twist);  // N1
+    // 4 Nm: each of the four pairs of corners behind (m_i, m_j) takes 4 / 4 of -[d]x.
+    add(i, j, -twist);
+    add(i, j + 3, -twist);
+    add(i + 3, j, -twist);
+    add(i + 3, j + 3, -twist);
+  }
+  return hessian / 12.0;
 }
 
 }  // namespace incise::planning

@@ -14,7 +14,17 @@ TissueEnergy::TissueEnergy(const LayeredTissue& tissue, const Vec3& gravity)
   for (const Spring& s : tissue.springs) {
     sum += s.stiffness;
   }
-  mean_stiffness_ = tissue.springs.empty() ? 0.0 : sum / static_cast<double>(tissue.springs.size());
+  std::size_t count = tissue.springs.size();
+  // A tetrahedron's stiffness scale (N/m): (2 mu + lambda) times its size.
+  for (const Prism& prism : tissue.prisms) {
+    for (const PrismTet& tet : prism.tets) {
+      if (tet.rest.volume > 0.0) {
+        sum += (2.0 * prism.material.mu + prism.material.lambda) * std::cbrt(tet.rest.volume);
+        ++count;
+      }
+    }
+  }
+  mean_stiffness_ = count == 0 ? 0.0 : sum / static_cast<double>(count);
 }
 
 double TissueEnergy::spring_energy(std::span<const Vec3> x) const {
@@ -25,6 +35,34 @@ double TissueEnergy::spring_energy(std::span<const Vec3> x) const {
     energy += tissue_.law.energy(length, s.rest_length, s.stiffness);
   }
   return energy;
+}
+
+double TissueEnergy::elastic_energy(std::span<const Vec3> x) const {
+  double energy = 0.0;
+  add_elastic(x, {}, energy);
+  return energy;
+}
+
+void TissueEnergy::add_elastic(std::span<const Vec3> x, std::span<Vec3> gradient,
+                               double& energy) const {
+  if (tissue_.elasticity != TissueElasticity::kContinuum) {
+    return;
+  }
+  for (const Prism& prism : tissue_.prisms) {
+    for (const PrismTet& tet : prism.tets) {
+      if (tet.rest.volume == 0.0) {
+        continue;
+      }
+      const Corners corners = tet_corners(prism, tet, x);
+      energy += neo_hookean_energy(corners, tet.rest, prism.material);
+      if (!gradient.empty()) {
+        const ElementForces f = neo_hookean_forces(corners, tet.rest, prism.material);
+        for (std::size_t i = 0; i < 4; ++i) {
+          gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -= f[i];
+        }
+      }
+    }
+  }
 }
 
 double TissueEnergy::volume_energy(std::span<const Vec3> x) const {
@@ -87,6 +125,7 @@ double TissueEnergy::energy(std::span<const Vec3> x, std::span<Vec3> gradient) c
     }
   }
   add_volume(x, gradient, 1.0, energy);
+  add_elastic(x, gradient, energy);
   return energy;
 }
 
@@ -101,6 +140,15 @@ void TissueEnergy::forces(std::span<const Vec3> x, std::span<Vec3> f) const {
       const Vec3 g = (tissue_.law.tension(length, s.rest_length, s.stiffness) / length) * d;
       f[static_cast<std::size_t>(s.a)] -= g;
       f[static_cast<std::size_t>(s.b)] += g;
+    }
+  }
+  if (tissue_.elasticity == TissueElasticity::kContinuum) {
+    // The tetrahedra's forces are -grad of their energy.
+    std::vector<Vec3> gradient(x.size(), Vec3::Zero());
+    double unused = 0.0;
+    add_elastic(x, gradient, unused);
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      f[i] -= gradient[i];
     }
   }
 }
@@ -136,6 +184,27 @@ double TissueEnergy::force_objective(std::span<const Vec3> x, std::span<const ch
       const Vec3 kw = slope * along * u + (tension / length) * (w - along * u);
       gradient[a] -= 2.0 * kw;
       gradient[b] += 2.0 * kw;
+    }
+    if (tissue_.elasticity == TissueElasticity::kContinuum) {
+      for (const Prism& prism : tissue_.prisms) {
+        for (const PrismTet& tet : prism.tets) {
+          if (tet.rest.volume == 0.0) {
+            continue;
+          }
+          const ElementMatrix k =
+              neo_hookean_stiffness(tet_corners(prism, tet, x), tet.rest, prism.material, false);
+          Eigen::Matrix<double, 12, 1> w;
+          for (std::size_t i = 0; i < 4; ++i) {
+            w.segment<3>(static_cast<Eigen::Index>(3 * i)) =
+                f[static_cast<std::size_t>(prism.points[tet.corners[i]])];
+          }
+          const Eigen::Matrix<double, 12, 1> kw = k * w;
+          for (std::size_t i = 0; i < 4; ++i) {
+            gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -=
+                2.0 * Vec3(kw.segment<3>(static_cast<Eigen::Index>(3 * i)));
+          }
+        }
+      }
     }
   }
   add_volume(x, gradient, mean_stiffness_, objective);

@@ -21,51 +21,13 @@
 #include "incise/planning/plan.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/planning/tissue_energy.hpp"
+#include "spheres.hpp"
 
 namespace {
 
 using namespace incise;
 using namespace incise::planning;
-
-/// An icosphere of `levels` subdivisions (outward triangles), radius r (m), centre c.
-SurfaceMesh sphere(double r, int levels, const Vec3& c = Vec3::Zero()) {
-  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  SurfaceMesh s;
-  s.points = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
-              {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  s.triangles = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                 {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                 {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                 {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
-  for (int level = 0; level < levels; ++level) {
-    std::map<std::pair<int, int>, int> middle;
-    auto mid = [&](int a, int b) {
-      const auto key = std::minmax(a, b);
-      const auto found = middle.find(key);
-      if (found != middle.end()) {
-        return found->second;
-      }
-      s.points.push_back(
-          0.5 * (s.points[static_cast<std::size_t>(a)] + s.points[static_cast<std::size_t>(b)]));
-      return middle[key] = static_cast<int>(s.points.size()) - 1;
-    };
-    std::vector<Triangle> finer;
-    for (const Triangle& tri : s.triangles) {
-      const int ab = mid(tri[0], tri[1]);
-      const int bc = mid(tri[1], tri[2]);
-      const int ca = mid(tri[2], tri[0]);
-      finer.push_back({tri[0], ab, ca});
-      finer.push_back({tri[1], bc, ab});
-      finer.push_back({tri[2], ca, bc});
-      finer.push_back({ab, bc, ca});
-    }
-    s.triangles = finer;
-  }
-  for (Vec3& p : s.points) {
-    p = c + r * p.normalized();
-  }
-  return s;
-}
+using incise::testing::sphere;
 
 /// A 5 cm head: skin sphere over a 4 cm bone sphere.
 struct Head {
@@ -73,8 +35,10 @@ struct Head {
   SurfaceMesh bone = sphere(0.04, 3);
 };
 
+/// The seed's spring lattice (the continuum has continuum_test.cpp).
 LayeredTissueOptions options(int layers = 2) {
   LayeredTissueOptions o;
+  o.elasticity = TissueElasticity::kSprings;
   o.layers = layers;
   o.materials = {LayerMaterial{2e4, 1050.0}};
   o.skin_prestrain = 0.05;
@@ -382,10 +346,13 @@ TEST(Prediction, EnergyDecreasesMonotonicallyAndBothMinimisersAgree) {
 
 TEST(Prediction, ForceMinimisationReachesTheSameRestState) {
   // Without volume preservation both objectives have the same minimiser (zero forces); with
-  // it they differ (F_F + k F_V is not an energy).
+  // it they differ (F_F + k F_V is not an energy). Both elasticities.
+  for (TissueElasticity elasticity : {TissueElasticity::kSprings, TissueElasticity::kContinuum}) {
+  SCOPED_TRACE(elasticity == TissueElasticity::kSprings ? "springs" : "continuum");
   Balanced model;
-  model.tissue = build_layered_tissue(model.head.skin, model.head.bone, [] {
+  model.tissue = build_layered_tissue(model.head.skin, model.head.bone, [&] {
     LayeredTissueOptions o = options(2);
+    o.elasticity = elasticity;
     o.volume_weight = 0.0;
     return o;
   }());
@@ -434,6 +401,7 @@ TEST(Prediction, ForceMinimisationReachesTheSameRestState) {
       EXPECT_NEAR(g[static_cast<std::size_t>(i)][k], numeric,
                   1e-5 * std::max(1.0, std::abs(numeric)));
     }
+  }
   }
 }
 
@@ -535,6 +503,22 @@ TEST(Plan, MalformedPlansNameTheKey) {
             std::string::npos);
   EXPECT_NE(plan_error(R"({"image": "ct.mhd"})").find("iso"), std::string::npos);
   EXPECT_NE(plan_error(R"({"layers": 2})").find("'image'"), std::string::npos);
+  // Continuum and spring elasticity: each key where it belongs.
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "elasticity": "fem"})").find("continuum, springs"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "materials": {"poisson_ratio": 0.5}})")
+                .find("materials.poisson_ratio"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "elasticity": "springs",
+      "materials": [{"poisson_ratio": 0.3}]})")
+                .find("materials[0].poisson_ratio"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "elasticity": "springs", "skin_thickness": 2})")
+                .find("skin_thickness"),
+            std::string::npos);
+  EXPECT_NE(plan_error("{" + surfaces + R"(, "skin_thickness": 0, "skin_prestrain": 0.05})")
+                .find("skin_prestrain"),
+            std::string::npos);
   EXPECT_NE(plan_error("{\n" + surfaces + ",\n \"skin_prestrain\": 2}").find("plan.json:3"),
             std::string::npos)
       << "the line of the key";
@@ -568,7 +552,10 @@ TEST(Plan, EveryExamplePlanParsesAndNamesExistingSurfaces) {
 TEST(Plan, RunsFromSurfacesToAPrediction) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_test");
-  const std::string text = R"({
+  for (const char* elasticity : {"continuum", "springs"}) {
+  SCOPED_TRACE(elasticity);
+  const std::string text = std::string(R"({
+    "elasticity": ")") + elasticity + R"(",
     "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
     "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
     "skin_prestrain": 0.05, "volume_weight": 10000,
@@ -610,6 +597,7 @@ TEST(Plan, RunsFromSurfacesToAPrediction) {
   } catch (const InputError& error) {
     EXPECT_NE(std::string(error.what()).find("interpenetrate"), std::string::npos);
     EXPECT_NE(std::string(error.what()).find("mm deep"), std::string::npos);
+  }
   }
   std::filesystem::remove_all(dir);
 }

@@ -18,13 +18,14 @@ struct EquilibriumReport {
   double residual_before = 0.0;  ///< N: largest resulting force on a soft-tissue point
   double residual_after = 0.0;   ///< N
   int iterations = 0;
-  double largest_relative_change = 0.0;  ///< of a rest length
+  double largest_relative_change = 0.0;  ///< of a rest length (springs)
+  double largest_rest_shift = 0.0;       ///< m: of a rest position (continuum)
   int limited_changes = 0;           ///< steps held to half a rest length (summed over iterations)
   double skin_prestrain_mean = 0.0;  ///< of the skin layer's springs, after
   Vec3 load_on_fixed_points = Vec3::Zero();  ///< N: sum of forces diverted to bone and boundary
 };
 
-/// Changes `tissue`'s rest lengths (each Gauss-Newton step by at most half of one); throws
+/// Changes `tissue`'s rest lengths (springs) or its tetrahedra's rest shapes (continuum) (each Gauss-Newton step by at most half of one); throws
 /// InputError when the forces cannot be balanced (a rest length would have to fall below 5 %
 /// of its scanned length). A residual above the tolerance after max_iterations is reported,
 /// not thrown.

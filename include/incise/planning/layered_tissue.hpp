@@ -12,19 +12,36 @@
 // points, fixed in space. Columns thinner than `min_thickness` lie on the bone and move with
 // it.
 //
+// Two elasticities over the same prisms:
+//   kSprings    the seed's: layer, connecting and diagonal springs with k = E V_s / l0^2, the
+//               skin layer's springs pre-strained. A spring lattice carries the elasticity
+//               tensor its directions make (sum of k l^2 n n n n), so its stiffness changes with
+//               the prisms' aspect ratio: results drift as layers are added (BENCHMARKS.md).
+//   kContinuum  each prism split into three linear tetrahedra of stable Neo-Hookean material
+//               (physics/stable_neo_hookean: smooth through inversion, which a bone's step
+//               under thin tissue can force) with Young's modulus and Poisson's ratio per layer, and the skin a pre-strained
+//               membrane of springs of its own thickness on the outer surface. Both pass the
+//               patch test, so results converge as layers are added (tested against Lame's
+//               thick spherical shell).
+// The volume term, gravity and masses are the same in both.
+//
 // Units: SI inside (m, kg, N, Pa); plans and their outputs convert from and to millimetres.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "incise/core/types.hpp"
 #include "incise/io/mesh_io.hpp"
+#include "incise/physics/corotational.hpp"
+#include "incise/physics/stable_neo_hookean.hpp"
 #include "incise/planning/spring_law.hpp"
 
 namespace incise::planning {
 
 enum class PointKind : std::uint8_t { kSoft, kBone, kBoundary };
 enum class SpringSet : std::uint8_t { kLayer, kConnecting, kDiagonal };
+enum class TissueElasticity : std::uint8_t { kSprings, kContinuum };
 
 struct Spring {
   int a = 0;
@@ -35,22 +52,41 @@ struct Spring {
   int layer = 0;  ///< the layer it lies in (layer springs) or starts from (the others)
 };
 
+/// One of a prism's three tetrahedra (continuum elasticity): its corners as indices 0-5 into
+/// the prism's points, positively oriented at rest, and its rest shape. An empty one (a column
+/// of no thickness) has zero rest volume and acts on nothing.
+struct PrismTet {
+  std::array<std::uint8_t, 4> corners{};
+  TetRestShape rest;
+};
+
 struct Prism {
   std::array<int, 6> points{};  ///< bottom (outer layer) triangle, then the top (inner) one
   double rest_volume = 0.0;     ///< m^3, signed (see prism.hpp)
   int layer = 0;
+  /// Continuum elasticity only: the prism split into three tetrahedra. The quadrilateral side
+  /// between columns u < v is cut by its diagonal from u's lower-layer point to v's upper-layer
+  /// one, so neighbouring prisms split their shared side alike and the tetrahedra conform.
+  std::array<PrismTet, 3> tets{};
+  NeoHookeanParameters material;
 };
 
 struct LayerMaterial {
   double young_modulus = 1.5e4;  ///< Pa
   double density = 1050.0;       ///< kg/m^3
+  double poisson_ratio = 0.45;   ///< continuum elasticity only (springs have their own, 1/4)
 };
 
 struct LayeredTissueOptions {
   int layers = 3;  ///< soft-tissue layers between skin and bone
   /// One per layer from the skin inwards, or one for all layers.
   std::vector<LayerMaterial> materials = {LayerMaterial{}};
+  /// The default converges as layers are added; kSprings is the seed's model.
+  TissueElasticity elasticity = TissueElasticity::kContinuum;
   double skin_prestrain = 0.0;  ///< initial strain of the skin layer's springs
+  /// m: continuum elasticity's skin membrane (epidermis and dermis over the layers, with the
+  /// outer layer's Young's modulus), which carries the pre-strain; 0: no membrane.
+  double skin_thickness = 2e-3;
   double nonlinearity = 0.0;    ///< the spring law's a (spring_law.hpp)
   double volume_weight = 0.0;   ///< Pa: stiffness of the prisms' volume preservation
   double max_thickness = 0.03;  ///< m: thicker columns are boundary (fixed)
@@ -73,6 +109,7 @@ struct LayeredTissue {
   std::size_t skin_triangles_dropped = 0;  ///< longer than max_edge
   std::vector<int> column_bone_triangle;   ///< nearest bone triangle of each column
   SpringLaw law;
+  TissueElasticity elasticity = TissueElasticity::kSprings;
   double volume_weight = 0.0;  ///< Pa
   double skin_prestrain = 0.0;
 
@@ -87,5 +124,14 @@ struct LayeredTissue {
 /// Builds the model; throws InputError on an empty surface or bad options.
 [[nodiscard]] LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& bone,
                                                  const LayeredTissueOptions& options);
+
+/// The corners of one of a prism's tetrahedra at positions x.
+[[nodiscard]] Corners tet_corners(const Prism& prism, const PrismTet& tet,
+                                  std::span<const Vec3> x);
+
+/// Continuum elasticity: the tetrahedra's rest shapes from the given rest positions of every
+/// point (the equilibrium initialisation moves the soft points' ones). Tetrahedra of no volume
+/// are left empty; throws InputError naming the prism if one would be inverted.
+void set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest);
 
 }  // namespace incise::planning

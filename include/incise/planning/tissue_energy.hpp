@@ -1,11 +1,13 @@
 #pragma once
 // The functions of Teschner et al. that a prediction minimises, over the positions x (m) of
 // every point of a LayeredTissue:
-//   F_E  spring energy (J), the sum of the spring law's energies;
+//   F_E  elastic energy (J): the sum of the spring law's energies, and with continuum
+//        elasticity the corotated tetrahedra's energies;
 //   F_V  volume preservation (J), sum over prisms of kappa |V0| ((V - V0) / V0)^2 / 2;
 //   F_G  gravity's potential (J), -sum m_i g . (x_i - X_i) from the scanned positions X;
-//   F_F  resulting forces, sum over free points of |f_i|^2 (N^2), f_i the spring forces plus
-//        gravity on point i (the seed sums absolute values; squares make it smooth).
+//   F_F  resulting forces, sum over free points of |f_i|^2 (N^2), f_i the spring (and
+//        tetrahedra's) forces plus gravity on point i (the seed sums absolute values; squares
+//        make it smooth).
 // Energy minimisation minimises F_E + F_V + F_G; force minimisation F_F + k F_V (k, the mean
 // spring stiffness, makes the units agree). Gradients are exact; the seed's F_F gradient is
 // -2 H f with H the springs' Hessian, applied spring by spring.
@@ -28,7 +30,10 @@ class TissueEnergy {
   /// The parts of energy() (J).
   [[nodiscard]] double spring_energy(std::span<const Vec3> x) const;
   [[nodiscard]] double volume_energy(std::span<const Vec3> x) const;
-  /// Spring forces plus gravity on every point (N), volume forces left out (the seed's f_i).
+  /// The continuum's tetrahedra (J); 0 with spring elasticity.
+  [[nodiscard]] double elastic_energy(std::span<const Vec3> x) const;
+  /// Spring (and tetrahedra's) forces plus gravity on every point (N), volume forces left out
+  /// (the seed's f_i).
   void forces(std::span<const Vec3> x, std::span<Vec3> f) const;
   /// F_F + k F_V over the points marked free, and its gradient when not empty.
   double force_objective(std::span<const Vec3> x, std::span<const char> free,
@@ -42,6 +47,7 @@ class TissueEnergy {
  private:
   void add_volume(std::span<const Vec3> x, std::span<Vec3> gradient, double scale,
                   double& energy) const;
+  void add_elastic(std::span<const Vec3> x, std::span<Vec3> gradient, double& energy) const;
   const LayeredTissue& tissue_;
   Vec3 gravity_;
   double mean_stiffness_ = 0.0;

@@ -1,0 +1,50 @@
+#pragma once
+// Element maths of the stable Neo-Hookean material (Smith, de Goes and Kim 2018, "Stable
+// Neo-Hookean Flesh Simulation"), as pure functions of the deformation gradient and of corner
+// positions and rest data, testable without a mesh:
+//   Psi(F) = mu / 2 (I_C - 3) + lambda / 2 (J - alpha)^2 - mu / 2 log(I_C + 1) - Psi0   (J/m^3)
+// with I_C = |F|^2, J = det F, alpha = 1 + 3 mu / (4 lambda) (no stress at rest) and Psi0 the
+// constant that makes Psi(I) = 0. Unlike the corotated model it is smooth for every F,
+// inverted ones included (no polar decomposition whose branch can jump), and it stiffens
+// under compression, so Newton's method converges where a step in a bone's motion crushes and
+// shears thin tissue. Its linearisation at rest is linear elasticity with the Lame parameters
+// it was made from (mu = 4/3 mu_L, lambda = lambda_L + 5/6 mu_L).
+//
+// Tangent: dP/dF = c1 I + c2 f f^T + lambda g g^T + lambda (J - alpha) H_J (f = vec F, g =
+// vec cof F, H_J the Hessian of det, c1 = mu (1 - 1 / (I_C + 1)) >= 0, c2 = 2 mu / (I_C+1)^2).
+// Only the last term is indefinite; the convex form leaves it out (positive semi-definite by
+// construction, exact where J = alpha). Vectors of F are column-major: F(i, k) at i + 3 k.
+
+#include <Eigen/Core>
+
+#include "incise/physics/corotational.hpp"
+
+namespace incise {
+
+struct NeoHookeanParameters {
+  double mu = 0.0;      ///< Pa
+  double lambda = 0.0;  ///< Pa
+};
+
+/// The parameters whose linearisation has these Lame parameters (Pa).
+[[nodiscard]] NeoHookeanParameters stable_neo_hookean(const LameParameters& lame);
+
+using Mat9 = Eigen::Matrix<double, 9, 9>;
+
+[[nodiscard]] double neo_hookean_energy_density(const Mat3& F, const NeoHookeanParameters& p);
+/// First Piola-Kirchhoff stress dPsi/dF (Pa).
+[[nodiscard]] Mat3 neo_hookean_stress(const Mat3& F, const NeoHookeanParameters& p);
+/// dP/dF (Pa), exact or its convex form.
+[[nodiscard]] Mat9 neo_hookean_tangent(const Mat3& F, const NeoHookeanParameters& p,
+                                       bool convex);
+
+/// Element energy (J) and nodal forces -dE/dx (N) of a linear tetrahedron.
+[[nodiscard]] double neo_hookean_energy(const Corners& x, const TetRestShape& rest,
+                                        const NeoHookeanParameters& p);
+[[nodiscard]] ElementForces neo_hookean_forces(const Corners& x, const TetRestShape& rest,
+                                               const NeoHookeanParameters& p);
+/// d^2E/dx^2 (N/m), corners in order, x, y, z per corner: exact, or positive semi-definite.
+[[nodiscard]] ElementMatrix neo_hookean_stiffness(const Corners& x, const TetRestShape& rest,
+                                                  const NeoHookeanParameters& p, bool convex);
+
+}  // namespace incise

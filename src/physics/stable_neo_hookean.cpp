@@ -1,0 +1,122 @@
+#include "incise/physics/stable_neo_hookean.hpp"
+
+#include <array>
+#include <cmath>
+
+namespace incise {
+
+namespace {
+
+double alpha(const NeoHookeanParameters& p) { return 1.0 + 0.75 * p.mu / p.lambda; }
+
+/// The cofactor matrix dJ/dF: its columns are f1 x f2, f2 x f0, f0 x f1.
+Mat3 cofactor(const Mat3& F) {
+  Mat3 c;
+  c.col(0) = F.col(1).cross(F.col(2));
+  c.col(1) = F.col(2).cross(F.col(0));
+  c.col(2) = F.col(0).cross(F.col(1));
+  return c;
+}
+
+Mat3 cross_matrix(const Vec3& v) {
+  Mat3 m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+Eigen::Map<const Eigen::Matrix<double, 9, 1>> as_vector(const Mat3& m) {
+  return Eigen::Map<const Eigen::Matrix<double, 9, 1>>(m.data());
+}
+
+}  // namespace
+
+NeoHookeanParameters stable_neo_hookean(const LameParameters& lame) {
+  return {4.0 / 3.0 * lame.mu, lame.lambda + 5.0 / 6.0 * lame.mu};
+}
+
+double neo_hookean_energy_density(const Mat3& F, const NeoHookeanParameters& p) {
+  // Written in H = F - I so that nothing of the order of mu cancels (the constants of Psi and
+  // its terms linear in H cancel analytically): a minimiser compares energies that differ by
+  // far less than mu times the volume.
+  const Mat3 h = F - Mat3::Identity();
+  const double trace = h.trace();
+  const double ic_minus_3 = 2.0 * trace + h.squaredNorm();
+  // J - 1 = tr H + (tr^2 H - tr H^2) / 2 + det H.
+  const double j_minus_1 = trace + 0.5 * (trace * trace - (h * h).trace()) + h.determinant();
+  const double delta = alpha(p) - 1.0;
+  return 0.5 * p.mu * ic_minus_3 - 0.5 * p.mu * std::log1p(0.25 * ic_minus_3) +
+         0.5 * p.lambda * j_minus_1 * (j_minus_1 - 2.0 * delta);
+}
+
+Mat3 neo_hookean_stress(const Mat3& F, const NeoHookeanParameters& p) {
+  const double ic = F.squaredNorm();
+  return p.mu * (1.0 - 1.0 / (ic + 1.0)) * F +
+         p.lambda * (F.determinant() - alpha(p)) * cofactor(F);
+}
+
+Mat9 neo_hookean_tangent(const Mat3& F, const NeoHookeanParameters& p, bool convex) {
+  const double ic = F.squaredNorm();
+  const Mat3 cof = cofactor(F);
+  Mat9 h = p.mu * (1.0 - 1.0 / (ic + 1.0)) * Mat9::Identity();
+  h.noalias() += (2.0 * p.mu / ((ic + 1.0) * (ic + 1.0))) * as_vector(F) * as_vector(F).transpose();
+  h.noalias() += p.lambda * as_vector(cof) * as_vector(cof).transpose();
+  if (!convex) {
+    // H_J: block (k, l) = d(column k of cof F) / d(column l of F).
+    const double s = p.lambda * (F.determinant() - alpha(p));
+    const Mat3 x0 = s * cross_matrix(F.col(0));
+    const Mat3 x1 = s * cross_matrix(F.col(1));
+    const Mat3 x2 = s * cross_matrix(F.col(2));
+    h.block<3, 3>(0, 3) -= x2;
+    h.block<3, 3>(0, 6) += x1;
+    h.block<3, 3>(3, 0) += x2;
+    h.block<3, 3>(3, 6) -= x0;
+    h.block<3, 3>(6, 0) -= x1;
+    h.block<3, 3>(6, 3) += x0;
+  }
+  return h;
+}
+
+double neo_hookean_energy(const Corners& x, const TetRestShape& rest,
+                          const NeoHookeanParameters& p) {
+  return rest.volume * neo_hookean_energy_density(deformation_gradient(x, rest), p);
+}
+
+ElementForces neo_hookean_forces(const Corners& x, const TetRestShape& rest,
+                                 const NeoHookeanParameters& p) {
+  const Mat3 stress = neo_hookean_stress(deformation_gradient(x, rest), p);
+  ElementForces f;
+  for (std::size_t a = 0; a < 4; ++a) {
+    f[a] = -rest.volume * (stress * rest.gradients[a]);
+  }
+  return f;
+}
+
+ElementMatrix neo_hookean_stiffness(const Corners& x, const TetRestShape& rest,
+                                    const NeoHookeanParameters& p, bool convex) {
+  const Mat9 h = neo_hookean_tangent(deformation_gradient(x, rest), p, convex);
+  // K_ab = V B_a^T h B_b with dvec(F)/dx_b = B_b = [g_b(0) I; g_b(1) I; g_b(2) I] (F(i, k) =
+  // sum_b x_b(i) g_b(k)), in two contractions of 3x3 blocks.
+  std::array<Eigen::Matrix<double, 9, 3>, 4> hb;
+  for (std::size_t b = 0; b < 4; ++b) {
+    const Vec3& g = rest.gradients[b];
+    hb[b] = g[0] * h.block<9, 3>(0, 0) + g[1] * h.block<9, 3>(0, 3) + g[2] * h.block<9, 3>(0, 6);
+  }
+  ElementMatrix k;
+  for (std::size_t a = 0; a < 4; ++a) {
+    const Vec3& g = rest.gradients[a];
+    for (std::size_t b = a; b < 4; ++b) {
+      const Mat3 block = rest.volume * (g[0] * hb[b].block<3, 3>(0, 0) +
+                                        g[1] * hb[b].block<3, 3>(3, 0) +
+                                        g[2] * hb[b].block<3, 3>(6, 0));
+      const auto ia = static_cast<Eigen::Index>(3 * a);
+      const auto ib = static_cast<Eigen::Index>(3 * b);
+      k.block<3, 3>(ia, ib) = block;
+      if (b != a) {
+        k.block<3, 3>(ib, ia) = block.transpose();
+      }
+    }
+  }
+  return k;
+}
+
+}  // namespace incise
