@@ -7,7 +7,9 @@ namespace incise {
 
 namespace {
 
-double alpha(const NeoHookeanParameters& p) { return 1.0 + 0.75 * p.mu / p.lambda; }
+double alpha(const NeoHookeanParameters& p) {
+  return 1.0 + 0.75 * p.mu / p.lambda;
+}
 
 /// The cofactor matrix dJ/dF: its columns are f1 x f2, f2 x f0, f0 x f1.
 Mat3 cofactor(const Mat3& F) {
@@ -105,9 +107,9 @@ ElementMatrix neo_hookean_stiffness(const Corners& x, const TetRestShape& rest,
   for (std::size_t a = 0; a < 4; ++a) {
     const Vec3& g = rest.gradients[a];
     for (std::size_t b = a; b < 4; ++b) {
-      const Mat3 block = rest.volume * (g[0] * hb[b].block<3, 3>(0, 0) +
-                                        g[1] * hb[b].block<3, 3>(3, 0) +
-                                        g[2] * hb[b].block<3, 3>(6, 0));
+      const Mat3 block =
+          rest.volume * (g[0] * hb[b].block<3, 3>(0, 0) + g[1] * hb[b].block<3, 3>(3, 0) +
+                         g[2] * hb[b].block<3, 3>(6, 0));
       const auto ia = static_cast<Eigen::Index>(3 * a);
       const auto ib = static_cast<Eigen::Index>(3 * b);
       k.block<3, 3>(ia, ib) = block;

@@ -67,7 +67,8 @@ void check_options(const LayeredTissueOptions& options) {
 /// whichever prism it bounds.
 void split_into_tets(const Triangle& t, Prism& prism) {
   std::array<std::uint8_t, 3> order = {0, 1, 2};
-  std::sort(order.begin(), order.end(), [&](std::uint8_t i, std::uint8_t j) { return t[i] < t[j]; });
+  std::sort(order.begin(), order.end(),
+            [&](std::uint8_t i, std::uint8_t j) { return t[i] < t[j]; });
   const std::uint8_t a = order[0];
   const std::uint8_t b = order[1];
   const std::uint8_t c = order[2];
@@ -91,8 +92,8 @@ void set_skin_membrane(const LayeredTissue& tissue, double modulus_thickness,
     const Vec3& p2 = tissue.rest[static_cast<std::size_t>(tissue.point(t[2], 0))];
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
     for (std::size_t e = 0; e < 3; ++e) {
-      const auto found = spring_of.find(
-          std::minmax(tissue.point(t[e], 0), tissue.point(t[(e + 1) % 3], 0)));
+      const auto found =
+          spring_of.find(std::minmax(tissue.point(t[e], 0), tissue.point(t[(e + 1) % 3], 0)));
       if (found != spring_of.end()) {
         spring_volume[static_cast<std::size_t>(found->second)] += modulus_thickness * area;
       }
@@ -346,8 +347,8 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
     const LayerMaterial& material = material_of(spring.layer);
     const double length = std::max(spring.rest_length, options.min_thickness / layers);
     // Continuum: spring_volume holds the membrane's E t (A1 + A2) (N m), set above.
-    spring.stiffness = (continuum ? 1.0 : material.young_modulus) * spring_volume[s] /
-                       (length * length);
+    spring.stiffness =
+        (continuum ? 1.0 : material.young_modulus) * spring_volume[s] / (length * length);
     if (spring.set == SpringSet::kLayer && spring.layer == 0) {
       // Skin pre-strain: the scanned length is the stretched one.
       spring.rest_length /= 1.0 + options.skin_prestrain;

@@ -171,8 +171,7 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
                    "outer layer)");
     }
     plan.tissue.skin_thickness =
-        top.non_negative("skin_thickness", plan.tissue.skin_thickness / kMillimetre) *
-        kMillimetre;
+        top.non_negative("skin_thickness", plan.tissue.skin_thickness / kMillimetre) * kMillimetre;
   }
   if (top.has("materials")) {
     const Json& materials = top.at("materials");
@@ -181,8 +180,7 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
       for (std::size_t i = 0; i < materials.size(); ++i) {
         const ObjectReader reader(context, materials[i], "materials[" + std::to_string(i) + "]",
                                   {"young_modulus", "density", "poisson_ratio"});
-        plan.tissue.materials.push_back(
-            parse_material(context, reader, plan.tissue.elasticity));
+        plan.tissue.materials.push_back(parse_material(context, reader, plan.tissue.elasticity));
       }
       if (plan.tissue.materials.size() != 1 &&
           plan.tissue.materials.size() != static_cast<std::size_t>(plan.tissue.layers)) {

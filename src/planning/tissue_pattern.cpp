@@ -66,8 +66,8 @@ void add_tet_stiffness(const LayeredTissue& tissue, const CouplingPattern& patte
               pattern.prism_pairs[p * 15 + prism_pair_index(std::min(ia, ib), std::max(ia, ib))];
           // The block at (first, second) of the pair as stored.
           const bool same_order = pattern.pairs[pair].first == prism.points[ia];
-          matrix.add_coupling(pair, same_order ? Mat3(k.block<3, 3>(ba, bb))
-                                               : Mat3(k.block<3, 3>(bb, ba)));
+          matrix.add_coupling(
+              pair, same_order ? Mat3(k.block<3, 3>(ba, bb)) : Mat3(k.block<3, 3>(bb, ba)));
         }
       }
     }

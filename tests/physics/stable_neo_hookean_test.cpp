@@ -85,8 +85,8 @@ TEST(StableNeoHookean, RotationInvariantAndLinearElasticForSmallStrains) {
   e << 2, 1, 0, 1, -1, 3, 0, 3, 1;
   for (double scale : {1e-3, 1e-4}) {
     const Mat3 strain = scale * e;
-    const double linear = kLame.mu * strain.squaredNorm() +
-                          0.5 * kLame.lambda * strain.trace() * strain.trace();
+    const double linear =
+        kLame.mu * strain.squaredNorm() + 0.5 * kLame.lambda * strain.trace() * strain.trace();
     // Relative error O(strain).
     EXPECT_NEAR(neo_hookean_energy_density(Mat3::Identity() + strain, p), linear,
                 20.0 * scale * linear);

@@ -130,8 +130,8 @@ TEST(ContinuumTissue, ConvergesToLamesThickShellAsLayersAreAdded) {
       ASSERT_EQ(tissue.count(PointKind::kBoundary), 0U);
       MinimizeResult result;
       const std::vector<Vec3> x = predict(
-          tissue, Vec3::Zero(),
-          [&](const Vec3& p) { return Vec3(p * (1.0 + delta / p.norm())); }, 1e-12, result);
+          tissue, Vec3::Zero(), [&](const Vec3& p) { return Vec3(p * (1.0 + delta / p.norm())); },
+          1e-12, result);
       ASSERT_TRUE(result.converged) << result.message;
       double outer = 0.0;
       for (int c = 0; c < tissue.columns; ++c) {
@@ -142,9 +142,9 @@ TEST(ContinuumTissue, ConvergesToLamesThickShellAsLayersAreAdded) {
       const double exact =
           lame_outer_displacement(kBoneRadius, kSkinRadius, delta, lame.lambda + kappa, lame.mu);
       errors.push_back(std::abs(outer - exact) / exact);
-      RecordProperty("kappa_" + std::to_string(static_cast<int>(kappa)) + "_layers_" +
-                         std::to_string(layers),
-                     std::to_string(outer / exact));
+      RecordProperty(
+          "kappa_" + std::to_string(static_cast<int>(kappa)) + "_layers_" + std::to_string(layers),
+          std::to_string(outer / exact));
     }
     for (std::size_t i = 1; i < errors.size(); ++i) {
       EXPECT_LT(errors[i], errors[i - 1]) << "kappa " << kappa << ", step " << i;
@@ -177,8 +177,8 @@ TEST(ContinuumTissue, ScannedStateBalancesAndTheSkinKeepsItsPrestrain) {
   EXPECT_NEAR(report.skin_prestrain_mean, 0.05, 1e-12);
   // The scanned state is then the minimum: nothing moves while the bone stays.
   MinimizeResult result;
-  const std::vector<Vec3> x =
-      predict(tissue, gravity, [](const Vec3& p) { return p; }, 1e-6 * largest_weight, result);
+  const std::vector<Vec3> x = predict(
+      tissue, gravity, [](const Vec3& p) { return p; }, 1e-6 * largest_weight, result);
   EXPECT_TRUE(result.converged);
   for (std::size_t i = 0; i < x.size(); ++i) {
     EXPECT_LT((x[i] - tissue.rest[i]).norm(), 1e-9) << i;

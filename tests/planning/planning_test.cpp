@@ -348,60 +348,60 @@ TEST(Prediction, ForceMinimisationReachesTheSameRestState) {
   // Without volume preservation both objectives have the same minimiser (zero forces); with
   // it they differ (F_F + k F_V is not an energy). Both elasticities.
   for (TissueElasticity elasticity : {TissueElasticity::kSprings, TissueElasticity::kContinuum}) {
-  SCOPED_TRACE(elasticity == TissueElasticity::kSprings ? "springs" : "continuum");
-  Balanced model;
-  model.tissue = build_layered_tissue(model.head.skin, model.head.bone, [&] {
-    LayeredTissueOptions o = options(2);
-    o.elasticity = elasticity;
-    o.volume_weight = 0.0;
-    return o;
-  }());
-  (void)initialise_equilibrium(model.tissue, model.gravity, 1e-12);
-  std::vector<Vec3> x = model.tissue.rest;
-  // Hold one bone point column's skin with an instrument-like displacement of 2 mm inwards.
-  std::vector<char> free = free_points(model.tissue);
-  const int held = model.tissue.point(0, 0);
-  x[static_cast<std::size_t>(held)] *= 0.96;
-  free[static_cast<std::size_t>(held)] = 0;
-  const TissueEnergy energy(model.tissue, model.gravity);
-  MinimizeOptions o;
-  o.gradient_tolerance = 1e-4 * largest_weight(model.tissue, 9.81);
-  std::vector<Vec3> by_energy = x;
-  const MinimizeResult e =
-      minimize([&](std::span<const Vec3> at, std::span<Vec3> g) { return energy.energy(at, g); },
-               by_energy, free, o);
-  EXPECT_TRUE(e.converged);
-  std::vector<Vec3> by_force = x;
-  o.gradient_tolerance *= 1e-2 * energy.mean_stiffness();
-  o.max_iterations = 200000;
-  const MinimizeResult f =
-      minimize([&](std::span<const Vec3> at,
-                   std::span<Vec3> g) { return energy.force_objective(at, free, g); },
-               by_force, free, o);
-  double largest = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    largest = std::max(largest, (by_force[i] - by_energy[i]).norm());
-  }
-  // Force minimisation converges more slowly (the seed found so too).
-  EXPECT_LT(largest, 2e-5) << f.message;  // m: within 20 micrometres of 2 mm
-  EXPECT_LT(f.final_value, 1e-4 * f.initial_value);
-  std::printf("to the same tolerance: energy %d iterations, force %d iterations (%s)\n",
-              e.iterations, f.iterations, f.message.c_str());
-  // The gradient of the force objective against central differences.
-  std::vector<Vec3> g(x.size());
-  (void)energy.force_objective(by_energy, free, g);
-  for (int i : {held + 1, model.tissue.point(5, 1)}) {
-    for (int k = 0; k < 3; ++k) {
-      std::vector<Vec3> plus = by_energy;
-      std::vector<Vec3> minus = by_energy;
-      plus[static_cast<std::size_t>(i)][k] += 1e-8;
-      minus[static_cast<std::size_t>(i)][k] -= 1e-8;
-      const double numeric =
-          (energy.force_objective(plus, free) - energy.force_objective(minus, free)) / 2e-8;
-      EXPECT_NEAR(g[static_cast<std::size_t>(i)][k], numeric,
-                  1e-5 * std::max(1.0, std::abs(numeric)));
+    SCOPED_TRACE(elasticity == TissueElasticity::kSprings ? "springs" : "continuum");
+    Balanced model;
+    model.tissue = build_layered_tissue(model.head.skin, model.head.bone, [&] {
+      LayeredTissueOptions o = options(2);
+      o.elasticity = elasticity;
+      o.volume_weight = 0.0;
+      return o;
+    }());
+    (void)initialise_equilibrium(model.tissue, model.gravity, 1e-12);
+    std::vector<Vec3> x = model.tissue.rest;
+    // Hold one bone point column's skin with an instrument-like displacement of 2 mm inwards.
+    std::vector<char> free = free_points(model.tissue);
+    const int held = model.tissue.point(0, 0);
+    x[static_cast<std::size_t>(held)] *= 0.96;
+    free[static_cast<std::size_t>(held)] = 0;
+    const TissueEnergy energy(model.tissue, model.gravity);
+    MinimizeOptions o;
+    o.gradient_tolerance = 1e-4 * largest_weight(model.tissue, 9.81);
+    std::vector<Vec3> by_energy = x;
+    const MinimizeResult e =
+        minimize([&](std::span<const Vec3> at, std::span<Vec3> g) { return energy.energy(at, g); },
+                 by_energy, free, o);
+    EXPECT_TRUE(e.converged);
+    std::vector<Vec3> by_force = x;
+    o.gradient_tolerance *= 1e-2 * energy.mean_stiffness();
+    o.max_iterations = 200000;
+    const MinimizeResult f =
+        minimize([&](std::span<const Vec3> at,
+                     std::span<Vec3> g) { return energy.force_objective(at, free, g); },
+                 by_force, free, o);
+    double largest = 0.0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      largest = std::max(largest, (by_force[i] - by_energy[i]).norm());
     }
-  }
+    // Force minimisation converges more slowly (the seed found so too).
+    EXPECT_LT(largest, 2e-5) << f.message;  // m: within 20 micrometres of 2 mm
+    EXPECT_LT(f.final_value, 1e-4 * f.initial_value);
+    std::printf("to the same tolerance: energy %d iterations, force %d iterations (%s)\n",
+                e.iterations, f.iterations, f.message.c_str());
+    // The gradient of the force objective against central differences.
+    std::vector<Vec3> g(x.size());
+    (void)energy.force_objective(by_energy, free, g);
+    for (int i : {held + 1, model.tissue.point(5, 1)}) {
+      for (int k = 0; k < 3; ++k) {
+        std::vector<Vec3> plus = by_energy;
+        std::vector<Vec3> minus = by_energy;
+        plus[static_cast<std::size_t>(i)][k] += 1e-8;
+        minus[static_cast<std::size_t>(i)][k] -= 1e-8;
+        const double numeric =
+            (energy.force_objective(plus, free) - energy.force_objective(minus, free)) / 2e-8;
+        EXPECT_NEAR(g[static_cast<std::size_t>(i)][k], numeric,
+                    1e-5 * std::max(1.0, std::abs(numeric)));
+      }
+    }
   }
 }
 
@@ -553,9 +553,10 @@ TEST(Plan, RunsFromSurfacesToAPrediction) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_test");
   for (const char* elasticity : {"continuum", "springs"}) {
-  SCOPED_TRACE(elasticity);
-  const std::string text = std::string(R"({
-    "elasticity": ")") + elasticity + R"(",
+    SCOPED_TRACE(elasticity);
+    const std::string text = std::string(R"({
+    "elasticity": ")") + elasticity +
+                             R"(",
     "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
     "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
     "skin_prestrain": 0.05, "volume_weight": 10000,
@@ -564,40 +565,40 @@ TEST(Plan, RunsFromSurfacesToAPrediction) {
     "instruments": [{"near": [50, 0, 0], "radius": 6, "translate": [-1, 0, 0]}],
     "cuts": [{"point": [0, -50, 0], "normal": [1, 0, 0], "radius": 12}]
   })";
-  { std::ofstream(dir / "plan.json") << text; }
-  const PlanDescription plan = load_plan(dir / "plan.json");
-  const PlanSummary summary = run_plan(plan, dir / "out");
-  EXPECT_TRUE(summary.prediction.converged) << summary.prediction.message;
-  EXPECT_EQ(summary.segments, 2);
-  EXPECT_EQ(summary.moved_segments, 1);
-  EXPECT_GT(summary.max_displacement, 1.0);  // mm: the skin over the lifted cap follows
-  EXPECT_LT(summary.max_displacement, 3.5);
-  for (const char* name : {"skin_before.vtp", "skin_after.vtp", "bone_before.vtp", "bone_after.vtp",
-                           "tissue.vtu", "report.json"}) {
-    EXPECT_TRUE(std::filesystem::exists(dir / "out" / name)) << name;
-  }
-  const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "out" / "report.json"));
-  for (const char* key :
-       {"units", "points", "springs", "prisms", "layers", "skin_triangles_full", "skin_triangles",
-        "bone_triangles_full", "bone_triangles", "hausdorff_skin", "hausdorff_bone", "segments",
-        "residual_force_before", "residual_force_after", "iterations", "seconds",
-        "max_displacement", "gap"}) {
-    EXPECT_TRUE(report.contains(key)) << key;
-  }
-  EXPECT_EQ(report["units"]["length"], "mm");
-  EXPECT_GT(report["gap"]["max"].get<double>(), 0.0) << "the pre-strained skin opens the cut";
-  EXPECT_GT(report["instrument_points"].get<int>(), 0);
-  // Pushing the cap into the rest of the skull is refused, naming the segments.
-  std::string pushed = text;
-  pushed.replace(pushed.find("[0, 0, 3]"), 9, "[0, 0, -6]");
-  { std::ofstream(dir / "pushed.json") << pushed; }
-  try {
-    (void)run_plan(load_plan(dir / "pushed.json"), dir / "out_pushed");
-    ADD_FAILURE() << "interpenetrating segments were accepted";
-  } catch (const InputError& error) {
-    EXPECT_NE(std::string(error.what()).find("interpenetrate"), std::string::npos);
-    EXPECT_NE(std::string(error.what()).find("mm deep"), std::string::npos);
-  }
+    { std::ofstream(dir / "plan.json") << text; }
+    const PlanDescription plan = load_plan(dir / "plan.json");
+    const PlanSummary summary = run_plan(plan, dir / "out");
+    EXPECT_TRUE(summary.prediction.converged) << summary.prediction.message;
+    EXPECT_EQ(summary.segments, 2);
+    EXPECT_EQ(summary.moved_segments, 1);
+    EXPECT_GT(summary.max_displacement, 1.0);  // mm: the skin over the lifted cap follows
+    EXPECT_LT(summary.max_displacement, 3.5);
+    for (const char* name : {"skin_before.vtp", "skin_after.vtp", "bone_before.vtp",
+                             "bone_after.vtp", "tissue.vtu", "report.json"}) {
+      EXPECT_TRUE(std::filesystem::exists(dir / "out" / name)) << name;
+    }
+    const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "out" / "report.json"));
+    for (const char* key :
+         {"units", "points", "springs", "prisms", "layers", "skin_triangles_full", "skin_triangles",
+          "bone_triangles_full", "bone_triangles", "hausdorff_skin", "hausdorff_bone", "segments",
+          "residual_force_before", "residual_force_after", "iterations", "seconds",
+          "max_displacement", "gap"}) {
+      EXPECT_TRUE(report.contains(key)) << key;
+    }
+    EXPECT_EQ(report["units"]["length"], "mm");
+    EXPECT_GT(report["gap"]["max"].get<double>(), 0.0) << "the pre-strained skin opens the cut";
+    EXPECT_GT(report["instrument_points"].get<int>(), 0);
+    // Pushing the cap into the rest of the skull is refused, naming the segments.
+    std::string pushed = text;
+    pushed.replace(pushed.find("[0, 0, 3]"), 9, "[0, 0, -6]");
+    { std::ofstream(dir / "pushed.json") << pushed; }
+    try {
+      (void)run_plan(load_plan(dir / "pushed.json"), dir / "out_pushed");
+      ADD_FAILURE() << "interpenetrating segments were accepted";
+    } catch (const InputError& error) {
+      EXPECT_NE(std::string(error.what()).find("interpenetrate"), std::string::npos);
+      EXPECT_NE(std::string(error.what()).find("mm deep"), std::string::npos);
+    }
   }
   std::filesystem::remove_all(dir);
 }

@@ -35,8 +35,7 @@ using Mat9 = Eigen::Matrix<double, 9, 9>;
 /// First Piola-Kirchhoff stress dPsi/dF (Pa).
 [[nodiscard]] Mat3 neo_hookean_stress(const Mat3& F, const NeoHookeanParameters& p);
 /// dP/dF (Pa), exact or its convex form.
-[[nodiscard]] Mat9 neo_hookean_tangent(const Mat3& F, const NeoHookeanParameters& p,
-                                       bool convex);
+[[nodiscard]] Mat9 neo_hookean_tangent(const Mat3& F, const NeoHookeanParameters& p, bool convex);
 
 /// Element energy (J) and nodal forces -dE/dx (N) of a linear tetrahedron.
 [[nodiscard]] double neo_hookean_energy(const Corners& x, const TetRestShape& rest,

@@ -25,10 +25,11 @@ struct EquilibriumReport {
   Vec3 load_on_fixed_points = Vec3::Zero();  ///< N: sum of forces diverted to bone and boundary
 };
 
-/// Changes `tissue`'s rest lengths (springs) or its tetrahedra's rest shapes (continuum) (each Gauss-Newton step by at most half of one); throws
-/// InputError when the forces cannot be balanced (a rest length would have to fall below 5 %
-/// of its scanned length). A residual above the tolerance after max_iterations is reported,
-/// not thrown.
+/// Springs: changes `tissue`'s rest lengths (each Gauss-Newton step by at most half of one);
+/// throws InputError when the forces cannot be balanced (a rest length would have to fall below
+/// 5 % of its scanned length). Continuum: changes its tetrahedra's rest shapes; throws
+/// InputError when one would invert. A residual above the tolerance (N) after max_iterations is
+/// reported, not thrown.
 EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
                                          double tolerance = 1e-9, int max_iterations = 30);
 

@@ -19,10 +19,10 @@
 //               the prisms' aspect ratio: results drift as layers are added (BENCHMARKS.md).
 //   kContinuum  each prism split into three linear tetrahedra of stable Neo-Hookean material
 //               (physics/stable_neo_hookean: smooth through inversion, which a bone's step
-//               under thin tissue can force) with Young's modulus and Poisson's ratio per layer, and the skin a pre-strained
-//               membrane of springs of its own thickness on the outer surface. Both pass the
-//               patch test, so results converge as layers are added (tested against Lame's
-//               thick spherical shell).
+//               under thin tissue can force) with Young's modulus and Poisson's ratio per layer,
+//               and the skin a pre-strained membrane of springs of its own thickness on the outer
+//               surface. Both pass the patch test, so results converge as layers are added (tested
+//               against Lame's thick spherical shell).
 // The volume term, gravity and masses are the same in both.
 //
 // Units: SI inside (m, kg, N, Pa); plans and their outputs convert from and to millimetres.
@@ -126,8 +126,7 @@ struct LayeredTissue {
                                                  const LayeredTissueOptions& options);
 
 /// The corners of one of a prism's tetrahedra at positions x.
-[[nodiscard]] Corners tet_corners(const Prism& prism, const PrismTet& tet,
-                                  std::span<const Vec3> x);
+[[nodiscard]] Corners tet_corners(const Prism& prism, const PrismTet& tet, std::span<const Vec3> x);
 
 /// Continuum elasticity: the tetrahedra's rest shapes from the given rest positions of every
 /// point (the equilibrium initialisation moves the soft points' ones). Tetrahedra of no volume
