@@ -56,6 +56,20 @@ Mat3 neo_hookean_stress(const Mat3& F, const NeoHookeanParameters& p) {
          p.lambda * (F.determinant() - alpha(p)) * cofactor(F);
 }
 
+Mat3 neo_hookean_stress_differential(const Mat3& F, const Mat3& dF, const NeoHookeanParameters& p) {
+  const double ic = F.squaredNorm();
+  const Mat3 cof = cofactor(F);
+  // d(cof F): d(f1 x f2) = df1 x f2 + f1 x df2, cyclically.
+  Mat3 dcof;
+  dcof.col(0) = dF.col(1).cross(F.col(2)) + F.col(1).cross(dF.col(2));
+  dcof.col(1) = dF.col(2).cross(F.col(0)) + F.col(2).cross(dF.col(0));
+  dcof.col(2) = dF.col(0).cross(F.col(1)) + F.col(0).cross(dF.col(1));
+  return p.mu * (1.0 - 1.0 / (ic + 1.0)) * dF +
+         (2.0 * p.mu / ((ic + 1.0) * (ic + 1.0)) * F.cwiseProduct(dF).sum()) * F +
+         (p.lambda * cof.cwiseProduct(dF).sum()) * cof +
+         (p.lambda * (F.determinant() - alpha(p))) * dcof;
+}
+
 Mat9 neo_hookean_tangent(const Mat3& F, const NeoHookeanParameters& p, bool convex) {
   const double ic = F.squaredNorm();
   const Mat3 cof = cofactor(F);
@@ -91,6 +105,20 @@ ElementForces neo_hookean_forces(const Corners& x, const TetRestShape& rest,
     f[a] = -rest.volume * (stress * rest.gradients[a]);
   }
   return f;
+}
+
+ElementForces neo_hookean_stiffness_product(const Corners& x, const TetRestShape& rest,
+                                            const NeoHookeanParameters& p, const ElementForces& w) {
+  Mat3 dF = Mat3::Zero();
+  for (std::size_t a = 0; a < 4; ++a) {
+    dF.noalias() += w[a] * rest.gradients[a].transpose();
+  }
+  const Mat3 dP = neo_hookean_stress_differential(deformation_gradient(x, rest), dF, p);
+  ElementForces kw;
+  for (std::size_t a = 0; a < 4; ++a) {
+    kw[a] = rest.volume * (dP * rest.gradients[a]);
+  }
+  return kw;
 }
 
 ElementMatrix neo_hookean_stiffness(const Corners& x, const TetRestShape& rest,

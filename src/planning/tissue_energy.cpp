@@ -191,17 +191,14 @@ double TissueEnergy::force_objective(std::span<const Vec3> x, std::span<const ch
           if (tet.rest.volume == 0.0) {
             continue;
           }
-          const ElementMatrix k =
-              neo_hookean_stiffness(tet_corners(prism, tet, x), tet.rest, prism.material, false);
-          Eigen::Matrix<double, 12, 1> w;
+          ElementForces w;
           for (std::size_t i = 0; i < 4; ++i) {
-            w.segment<3>(static_cast<Eigen::Index>(3 * i)) =
-                f[static_cast<std::size_t>(prism.points[tet.corners[i]])];
+            w[i] = f[static_cast<std::size_t>(prism.points[tet.corners[i]])];
           }
-          const Eigen::Matrix<double, 12, 1> kw = k * w;
+          const ElementForces kw = neo_hookean_stiffness_product(tet_corners(prism, tet, x),
+                                                                 tet.rest, prism.material, w);
           for (std::size_t i = 0; i < 4; ++i) {
-            gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -=
-                2.0 * Vec3(kw.segment<3>(static_cast<Eigen::Index>(3 * i)));
+            gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -= 2.0 * kw[i];
           }
         }
       }

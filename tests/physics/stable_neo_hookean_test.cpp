@@ -105,6 +105,17 @@ TEST(StableNeoHookean, ElementForcesAndStiffnessAreDerivativesOfTheEnergy) {
   EXPECT_LT((f[0] + f[1] + f[2] + f[3]).norm(), 1e-12);
   const ElementMatrix k = neo_hookean_stiffness(x, rest, p, false);
   EXPECT_LT((k - k.transpose()).norm(), 1e-9 * k.norm());
+  // The product without the matrix.
+  const ElementForces w = {Vec3(1, -2, 0.5), Vec3(0.3, 0.1, -1), Vec3(-2, 1, 1), Vec3(0, 0.4, 2)};
+  const ElementForces kw = neo_hookean_stiffness_product(x, rest, p, w);
+  for (std::size_t b = 0; b < 4; ++b) {
+    Vec3 expected = Vec3::Zero();
+    for (std::size_t a = 0; a < 4; ++a) {
+      expected +=
+          k.block<3, 3>(static_cast<Eigen::Index>(3 * b), static_cast<Eigen::Index>(3 * a)) * w[a];
+    }
+    EXPECT_LT((kw[b] - expected).norm(), 1e-9 * k.norm());
+  }
   const double h = 1e-8;
   for (std::size_t a = 0; a < 4; ++a) {
     for (int d = 0; d < 3; ++d) {

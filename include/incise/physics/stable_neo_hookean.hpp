@@ -34,6 +34,10 @@ using Mat9 = Eigen::Matrix<double, 9, 9>;
 [[nodiscard]] double neo_hookean_energy_density(const Mat3& F, const NeoHookeanParameters& p);
 /// First Piola-Kirchhoff stress dPsi/dF (Pa).
 [[nodiscard]] Mat3 neo_hookean_stress(const Mat3& F, const NeoHookeanParameters& p);
+/// dP for a change dF of the deformation gradient (Pa), exact: the tangent applied without
+/// forming it.
+[[nodiscard]] Mat3 neo_hookean_stress_differential(const Mat3& F, const Mat3& dF,
+                                                   const NeoHookeanParameters& p);
 /// dP/dF (Pa), exact or its convex form.
 [[nodiscard]] Mat9 neo_hookean_tangent(const Mat3& F, const NeoHookeanParameters& p, bool convex);
 
@@ -42,6 +46,11 @@ using Mat9 = Eigen::Matrix<double, 9, 9>;
                                         const NeoHookeanParameters& p);
 [[nodiscard]] ElementForces neo_hookean_forces(const Corners& x, const TetRestShape& rest,
                                                const NeoHookeanParameters& p);
+/// The stiffness applied to corner displacements w: (d^2E/dx^2) w (N), exact.
+[[nodiscard]] ElementForces neo_hookean_stiffness_product(const Corners& x,
+                                                          const TetRestShape& rest,
+                                                          const NeoHookeanParameters& p,
+                                                          const ElementForces& w);
 /// d^2E/dx^2 (N/m), corners in order, x, y, z per corner: exact, or positive semi-definite.
 [[nodiscard]] ElementMatrix neo_hookean_stiffness(const Corners& x, const TetRestShape& rest,
                                                   const NeoHookeanParameters& p, bool convex);
