@@ -35,6 +35,19 @@ double largest_soft_force(const LayeredTissue& tissue, std::span<const Vec3> f) 
   return largest;
 }
 
+/// The first of each soft point's three rows in `row` (-1 for the others); returns the rows.
+int soft_rows(const LayeredTissue& tissue, std::vector<int>& row) {
+  row.assign(tissue.point_count(), -1);
+  int rows = 0;
+  for (std::size_t i = 0; i < row.size(); ++i) {
+    if (tissue.kind[i] == PointKind::kSoft) {
+      row[i] = rows;
+      rows += 3;
+    }
+  }
+  return rows;
+}
+
 double mean_skin_prestrain(const LayeredTissue& tissue) {
   double strain_sum = 0.0;
   int skin_springs = 0;
@@ -67,14 +80,8 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const Vec3& gravity, 
   report.residual_before = largest_soft_force(tissue, f);
   report.residual_after = report.residual_before;
   report.skin_prestrain_mean = mean_skin_prestrain(tissue);
-  std::vector<int> row(n, -1);
-  int rows = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (tissue.kind[i] == PointKind::kSoft) {
-      row[i] = rows;
-      rows += 3;
-    }
-  }
+  std::vector<int> row;
+  const int rows = soft_rows(tissue, row);
   const CouplingPattern pattern = coupling_pattern(tissue);
   PointBlockMatrix stiffness(row, rows, pattern.pairs);
   DirectFactorization factorization;
@@ -146,14 +153,8 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
   // triangulation a uniform pre-strain leaves in-plane forces that only in-plane springs can
   // balance (through the nearly radial springs below it would take huge changes); their mean
   // pre-strain stays close to the given one (reported).
-  std::vector<int> row(n, -1);
-  int rows = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (tissue.kind[i] == PointKind::kSoft) {
-      row[i] = rows;
-      rows += 3;
-    }
-  }
+  std::vector<int> row;
+  const int rows = soft_rows(tissue, row);
   std::vector<double> scanned(tissue.springs.size());
   for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
     scanned[s] = (x[static_cast<std::size_t>(tissue.springs[s].a)] -

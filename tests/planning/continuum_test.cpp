@@ -18,12 +18,13 @@
 #include "incise/planning/osteotomy.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/planning/tissue_energy.hpp"
-#include "spheres.hpp"
+#include "tissue_support.hpp"
 
 namespace {
 
 using namespace incise;
 using namespace incise::planning;
+using incise::testing::free_points;
 using incise::testing::sphere;
 
 constexpr double kBoneRadius = 0.04;  // m
@@ -39,12 +40,13 @@ LayeredTissueOptions continuum(int layers, double poisson_ratio = 0.3) {
   return o;
 }
 
-std::vector<char> free_points(const LayeredTissue& tissue) {
-  std::vector<char> free(tissue.point_count(), 0);
-  for (std::size_t i = 0; i < free.size(); ++i) {
-    free[i] = tissue.kind[i] == PointKind::kSoft ? 1 : 0;
-  }
-  return free;
+/// With a 2 mm skin membrane pre-strained 5 %, and volume preservation.
+LayeredTissueOptions with_skin(int layers, double poisson_ratio) {
+  LayeredTissueOptions o = continuum(layers, poisson_ratio);
+  o.skin_prestrain = 0.05;
+  o.skin_thickness = 0.002;
+  o.volume_weight = 3e4;
+  return o;
 }
 
 /// Newton's prediction with every fixed point at `fixed(rest)`.
@@ -156,11 +158,7 @@ TEST(ContinuumTissue, ConvergesToLamesThickShellAsLayersAreAdded) {
 TEST(ContinuumTissue, ScannedStateBalancesAndTheSkinKeepsItsPrestrain) {
   const SurfaceMesh skin = sphere(kSkinRadius, 3);
   const SurfaceMesh bone = sphere(kBoneRadius, 3);
-  LayeredTissueOptions o = continuum(3, 0.45);
-  o.skin_prestrain = 0.05;
-  o.skin_thickness = 0.002;
-  o.volume_weight = 3e4;
-  LayeredTissue tissue = build_layered_tissue(skin, bone, o);
+  LayeredTissue tissue = build_layered_tissue(skin, bone, with_skin(3, 0.45));
   const Vec3 gravity(0, 0, -9.81);
   double mass = 0.0;
   double largest_weight = 0.0;
@@ -188,11 +186,7 @@ TEST(ContinuumTissue, ScannedStateBalancesAndTheSkinKeepsItsPrestrain) {
 TEST(ContinuumTissue, RigidMovesOfTheBoneMoveTheTissueRigidly) {
   const SurfaceMesh skin = sphere(kSkinRadius, 2);
   const SurfaceMesh bone = sphere(kBoneRadius, 2);
-  LayeredTissueOptions o = continuum(2, 0.45);
-  o.skin_prestrain = 0.05;
-  o.skin_thickness = 0.002;
-  o.volume_weight = 3e4;
-  LayeredTissue tissue = build_layered_tissue(skin, bone, o);
+  LayeredTissue tissue = build_layered_tissue(skin, bone, with_skin(2, 0.45));
   (void)initialise_equilibrium(tissue, Vec3::Zero(), 1e-12);
   RigidMove turn;
   turn.axis = Vec3(1, 1, 0);

@@ -21,12 +21,13 @@
 #include "incise/planning/plan.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/planning/tissue_energy.hpp"
-#include "spheres.hpp"
+#include "tissue_support.hpp"
 
 namespace {
 
 using namespace incise;
 using namespace incise::planning;
+using incise::testing::free_points;
 using incise::testing::sphere;
 
 /// A 5 cm head: skin sphere over a 4 cm bone sphere.
@@ -45,14 +46,6 @@ LayeredTissueOptions options(int layers = 2) {
   o.volume_weight = 1e4;
   o.max_thickness = 0.03;
   return o;
-}
-
-std::vector<char> free_points(const LayeredTissue& tissue) {
-  std::vector<char> free(tissue.point_count(), 0);
-  for (std::size_t i = 0; i < free.size(); ++i) {
-    free[i] = tissue.kind[i] == PointKind::kSoft ? 1 : 0;
-  }
-  return free;
 }
 
 double largest_weight(const LayeredTissue& tissue, double g) {

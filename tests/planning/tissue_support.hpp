@@ -1,5 +1,6 @@
 #pragma once
-// Icospheres for the planning tests: concentric skin and bone surfaces.
+// What the planning tests share: icospheres (concentric skin and bone surfaces) and the free
+// points of a tissue.
 
 #include <cmath>
 #include <map>
@@ -7,6 +8,7 @@
 #include <vector>
 
 #include "incise/io/mesh_io.hpp"
+#include "incise/planning/layered_tissue.hpp"
 
 namespace incise::testing {
 
@@ -48,6 +50,15 @@ inline SurfaceMesh sphere(double r, int levels, const Vec3& c = Vec3::Zero()) {
     p = c + r * p.normalized();
   }
   return s;
+}
+
+/// Soft points are free; bone and boundary points are held.
+inline std::vector<char> free_points(const planning::LayeredTissue& tissue) {
+  std::vector<char> free(tissue.point_count(), 0);
+  for (std::size_t i = 0; i < free.size(); ++i) {
+    free[i] = tissue.kind[i] == planning::PointKind::kSoft ? 1 : 0;
+  }
+  return free;
 }
 
 }  // namespace incise::testing
