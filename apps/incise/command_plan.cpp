@@ -1,4 +1,5 @@
-// incise plan PLAN.json [--out DIR]: surgical planning (Teschner et al.).
+// incise plan PLAN.json [--out DIR] [--render DIR [--size WxH]]: surgical planning (Teschner
+// et al.), and pictures of the prediction.
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -7,9 +8,14 @@
 #include <iostream>
 #include <memory>
 
+#include "command_options.hpp"
 #include "commands.hpp"
 #include "incise/core/error.hpp"
 #include "incise/planning/plan.hpp"
+#include "plan_pictures.hpp"
+#ifdef INCISE_HAVE_GL
+#include "incise/render/offscreen.hpp"
+#endif
 
 namespace incise::app {
 
@@ -58,9 +64,27 @@ Runner add_plan_command(CLI::App& app) {
   auto out = std::make_shared<std::string>();
   command->add_option("plan", *plan_path, "Plan file (JSON)")->required()->check(CLI::ExistingFile);
   command->add_option("--out", *out, "Output folder (default: out/<plan name>)");
-  return [plan_path, out]() {
+  auto render_dir = std::make_shared<std::string>();
+  auto size = std::make_shared<std::string>("800x600");
+  auto* render_option = command->add_option(
+      "--render", *render_dir,
+      "Draw the skin before and after, and after coloured by its displacement (0 mm blue to "
+      "the largest red), offscreen to DIR/skin_*.png");
+  command->add_option("--size", *size, "Picture size WxH in pixels (default 800x600)")
+      ->needs(render_option);
+  return [plan_path, out, render_dir, size]() {
     PlanProgressBar bar;
     try {
+      // Picture options are checked before the plan runs.
+      const auto [width, height] = parse_size(*size);
+      std::unique_ptr<ImageRenderer> renderer;
+      if (!render_dir->empty()) {
+#ifdef INCISE_HAVE_GL
+        renderer = std::make_unique<OffscreenRenderer>();
+#else
+        throw InputError("--render: this incise was built without OpenGL (-DINCISE_WITH_GL=ON)");
+#endif
+      }
       const planning::PlanDescription plan = planning::load_plan(*plan_path);
       const std::filesystem::path dir = out->empty()
                                             ? std::filesystem::path("out") / plan.file.stem()
@@ -78,6 +102,14 @@ Runner add_plan_command(CLI::App& app) {
           summary.prediction.iterations, summary.prediction.evaluations,
           summary.prediction.converged ? "converged" : summary.prediction.message,
           summary.prediction.seconds, summary.max_displacement, summary.seconds, dir.string());
+      if (renderer) {
+        const PlanPictures pictures =
+            write_plan_pictures(summary, *render_dir, width, height, *renderer);
+        std::cout << fmt::format(
+            "pictures in {}: skin_before.png, skin_after.png, skin_displacement.png (0 mm blue "
+            "to {:.3f} mm red)\n",
+            *render_dir, pictures.largest_displacement_mm);
+      }
       return summary.prediction.converged ? 0 : kExitDiverged;
     } catch (const InputError& error) {
       bar.interrupt();

@@ -349,6 +349,9 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
   write_bone_mm(out_dir / "bone_after.vtp", bone.surface, segments, segment_moves);
   write_tissue_vtu_mm(out_dir / "tissue.vtu", tissue, x);
   seconds["write"] = seconds_since(stage);
+  summary.skin_triangles = tissue.skin_triangles;
+  summary.skin_before = skin_before;
+  summary.skin_after = skin_after;
 
   std::vector<double> gaps;
   for (const auto& [a, b] : cut_skin_springs) {

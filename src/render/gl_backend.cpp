@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "incise/core/error.hpp"
+#include "incise/render/colour_map.hpp"
 #include "incise/render/solid_texture.hpp"
 
 namespace incise {
@@ -114,6 +115,24 @@ GLuint make_texture(const SolidTexture& texture) {
   return id;
 }
 
+/// The colour map as a 3-D texture one texel high and deep, clamped at its ends.
+GLuint make_colour_map_texture() {
+  constexpr int kTexels = 256;
+  const std::vector<std::uint8_t> texels = colour_map_texels(kTexels);
+  GLuint id = 0;
+  glGenTextures(1, &id);
+  glBindTexture(GL_TEXTURE_3D, id);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  glTexImage3D(GL_TEXTURE_3D, 0, GL_RGB8, kTexels, 1, 1, 0, GL_RGB, GL_UNSIGNED_BYTE,
+               texels.data());
+  for (GLenum axis : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) {
+    glTexParameteri(GL_TEXTURE_3D, axis, GL_CLAMP_TO_EDGE);
+  }
+  glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  return id;
+}
+
 void* byte_offset(std::size_t bytes) {
   return reinterpret_cast<void*>(bytes);  // NOLINT: OpenGL's buffer offsets are pointers
 }
@@ -150,13 +169,14 @@ GlBackend::GlBackend() {
   glBindVertexArray(0);
   textures_[0] = make_texture(make_tissue_texture(TissueLook::kExterior));
   textures_[1] = make_texture(make_tissue_texture(TissueLook::kCut));
+  textures_[2] = make_colour_map_texture();
   if (glGetError() != GL_NO_ERROR) {
     throw Error("OpenGL refused to set up incise's buffers and textures");
   }
 }
 
 GlBackend::~GlBackend() {
-  glDeleteTextures(2, textures_.data());
+  glDeleteTextures(static_cast<GLsizei>(textures_.size()), textures_.data());
   const std::array<GLuint, 4> buffers{position_buffer_, texture_coordinate_buffer_, index_buffer_,
                                       overlay_buffer_};
   glDeleteBuffers(static_cast<GLsizei>(buffers.size()), buffers.data());
@@ -221,10 +241,10 @@ void GlBackend::draw(const DrawCall& call) {
     glPolygonOffset(1.0F, 1.0F);
   }
   if (call.mode != RenderMode::kCut) {
-    glBindTexture(GL_TEXTURE_3D, textures_[0]);
+    glBindTexture(GL_TEXTURE_3D, textures_[call.colour_mapped ? 2 : 0]);
     draw_triangles(0, exterior_triangles_);
   }
-  glBindTexture(GL_TEXTURE_3D, textures_[1]);
+  glBindTexture(GL_TEXTURE_3D, textures_[call.colour_mapped ? 2 : 1]);
   draw_triangles(exterior_triangles_, cut_triangles_);
   glDisable(GL_POLYGON_OFFSET_FILL);
   if (call.mode == RenderMode::kWire) {

@@ -1,5 +1,6 @@
 #include "incise/render/renderer.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
@@ -60,11 +61,14 @@ std::optional<RenderMode> parse_render_mode(std::string_view name) {
   return std::nullopt;
 }
 
-SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_period) {
+SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_period,
+                                     std::array<double, 2> scalar_range) {
   INCISE_ASSERT(input.on_cut.size() == input.triangles.size(), "one cut mark per triangle");
   INCISE_ASSERT(texture_period > 0.0, "texture period must be positive");
   SurfaceBuffers buffers;
   buffers.revision = input.surface_revision;
+  buffers.colour_mapped = !input.scalars.empty();
+  const double span = scalar_range[1] - scalar_range[0];
   const std::size_t vertex_count = input.positions.size();
   std::vector<std::uint32_t> slot(vertex_count, ~std::uint32_t{0});
   const auto slot_of = [&](std::size_t triangle, VertexId v) {
@@ -81,8 +85,19 @@ SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_pe
       }
       s = static_cast<std::uint32_t>(buffers.vertices.size());
       buffers.vertices.push_back(v);
-      // Texture coordinates in tiles of the solid texture (it repeats).
-      push(buffers.texture_coordinates, rest / texture_period);
+      if (buffers.colour_mapped) {
+        if (static_cast<std::size_t>(v) >= input.scalars.size()) {
+          throw InputError("surface triangle " + std::to_string(triangle) + " refers to vertex " +
+                           std::to_string(v) + ", which has no scalar");
+        }
+        const double value = input.scalars[static_cast<std::size_t>(v)];
+        const double t = span > 0.0 ? (value - scalar_range[0]) / span : 0.5;
+        push(buffers.texture_coordinates,
+             Vec3(std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.0, 0.5, 0.5));
+      } else {
+        // Texture coordinates in tiles of the solid texture (it repeats).
+        push(buffers.texture_coordinates, rest / texture_period);
+      }
     }
     return s;
   };
@@ -122,11 +137,14 @@ Bounds surface_bounds(std::span<const Triangle> triangles, std::span<const Vec3>
 
 void Renderer::render(const RenderInput& input, const RenderOptions& options) {
   if (!uploaded_ || buffers_.revision != input.surface_revision ||
-      uploaded_period_ != options.texture_period) {
-    buffers_ = build_surface_buffers(input, options.texture_period);
+      uploaded_period_ != options.texture_period ||
+      buffers_.colour_mapped != !input.scalars.empty() ||
+      (buffers_.colour_mapped && uploaded_range_ != options.scalar_range)) {
+    buffers_ = build_surface_buffers(input, options.texture_period, options.scalar_range);
     backend_->upload_surface(buffers_);
     uploaded_ = true;
     uploaded_period_ = options.texture_period;
+    uploaded_range_ = options.scalar_range;
   }
   // The surface's box from its own vertices, each once.
   Bounds scene;
@@ -158,6 +176,7 @@ void Renderer::render(const RenderInput& input, const RenderOptions& options) {
           .cast<float>();
   call.eye = options.camera.eye.cast<float>();
   call.background = options.background;
+  call.colour_mapped = buffers_.colour_mapped;
   if (options.draw_blade && input.blade) {
     call.blade_quad = blade_ribbon(*input.blade, options.camera.eye, 0.02 * scene.radius());
   }

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "incise/render/image.hpp"
+#include "planning/tissue_support.hpp"
 #include "test_support.hpp"
 
 namespace incise {
@@ -492,6 +493,62 @@ TEST(Cli, RunRendersPicturesOfTheDefaultScene) {
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "png" / "frame_000001.png"));
   EXPECT_NE(run.out.find("pictures: 3"), std::string::npos) << run.out;
+}
+
+/// An icosphere written as OBJ (mm).
+void write_sphere_obj(const std::filesystem::path& path, double radius_mm) {
+  const SurfaceMesh sphere = testing::sphere(radius_mm, 3);
+  std::ofstream out(path);
+  for (const Vec3& p : sphere.points) {
+    out << "v " << p.x() << " " << p.y() << " " << p.z() << "\n";
+  }
+  for (const Triangle& t : sphere.triangles) {
+    out << "f " << t[0] + 1 << " " << t[1] + 1 << " " << t[2] + 1 << "\n";
+  }
+}
+
+TEST(Cli, PlanDrawsTheSkinBeforeAfterAndColouredByItsDisplacement) {
+  const auto dir = test::scratch_dir("plan-render");
+  write_sphere_obj(dir / "skin.obj", 50.0);
+  write_sphere_obj(dir / "bone.obj", 40.0);
+  // The upper cap of the skull lifted 3 mm: the skin over it moves, the rest stays.
+  std::ofstream(dir / "plan.json") << R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"}, "layers": 2,
+    "osteotomies": [{"point": [0, 0, 20], "normal": [0, 0, 1]}],
+    "moves": [{"segment_near": [0, 0, 40], "translate": [0, 0, 3]}]
+  })";
+  const CommandResult run =
+      incise("plan " + (dir / "plan.json").string() + " --out " + (dir / "out").string() +
+             " --render " + (dir / "png").string() + " --size 200x150");
+  if (run.code != 0 && run.err.find("offscreen rendering") != std::string::npos &&
+      std::getenv("INCISE_REQUIRE_GL") == nullptr) {
+    GTEST_SKIP() << "no OpenGL here: " << run.err;
+  }
+  ASSERT_EQ(run.code, 0) << run.err;
+  for (const char* name : {"skin_before.png", "skin_after.png", "skin_displacement.png"}) {
+    EXPECT_EQ(png_size(dir / "png" / name), std::make_pair(200, 150)) << name;
+  }
+  EXPECT_NE(run.out.find("mm red"), std::string::npos) << run.out;
+  // The camera faces the moved skin: red in the middle, over the lifted cap, blue towards the
+  // rim, where the skin beside the cut stays.
+  const Image picture = read_png(dir / "png" / "skin_displacement.png");
+  const Rgba middle = picture.at(100, 75);
+  EXPECT_GT(middle.r, middle.b + 60);
+  std::size_t red = 0;
+  std::size_t blue = 0;
+  for (const Rgba& p : picture.pixels()) {
+    red += p.r > p.b + 60 ? 1 : 0;
+    blue += p.b > p.r + 20 ? 1 : 0;  // the background is greyer
+  }
+  EXPECT_GT(red, 2000U);
+  EXPECT_GT(blue, 50U);
+  // Picture options are checked before anything runs.
+  const CommandResult bad =
+      incise("plan " + (dir / "plan.json").string() + " --out " + (dir / "out2").string() +
+             " --render " + (dir / "png2").string() + " --size 10x");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("--size"), std::string::npos) << bad.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out2" / "report.json"));
 }
 
 TEST(Cli, RunRefusesBadPictureOptionsByName) {

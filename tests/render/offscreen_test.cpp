@@ -124,6 +124,36 @@ TEST(Offscreen, FacesModeChangesWhereTheCutOpened) {
   EXPECT_GT(count(last, cut_coloured), count(first, cut_coloured));
 }
 
+TEST(Offscreen, AScalarIsDrawnInTheColourMapBlueLowRedHigh) {
+  REQUIRE_RENDERER(renderer);
+  // A square facing the camera, its left half at the low end of the range, its right at the
+  // high end.
+  const std::vector<Vec3> positions{Vec3(-1, 0, -1), Vec3(0, 0, -1), Vec3(1, 0, -1),
+                                    Vec3(-1, 0, 1),  Vec3(0, 0, 1),  Vec3(1, 0, 1)};
+  const std::vector<Triangle> triangles{{0, 1, 4}, {0, 4, 3}, {1, 2, 5}, {1, 5, 4}};
+  const std::vector<std::uint8_t> on_cut(triangles.size(), 0);
+  const std::vector<double> scalars{0.0, 0.5, 1.0, 0.0, 0.5, 1.0};
+  RenderInput input;
+  input.triangles = triangles;
+  input.on_cut = on_cut;
+  input.positions = positions;
+  input.rest_positions = positions;
+  input.scalars = scalars;
+  RenderOptions options;
+  options.width = 200;
+  options.height = 100;
+  Bounds box;
+  for (const Vec3& p : positions) {
+    box.add(p);
+  }
+  options.camera = fit_camera(box, 2.0, -Vec3::UnitY(), Vec3::UnitZ(), 1.0);
+  const Image image = renderer->render(input, options);
+  const Rgba left = image.at(20, 50);
+  const Rgba right = image.at(180, 50);
+  EXPECT_GT(left.b, left.r + 40) << "the low end is blue";
+  EXPECT_GT(right.r, right.b + 40) << "the high end is red";
+}
+
 TEST(Offscreen, TheSameFrameGivesTheSamePictureAtAnySizeAsked) {
   REQUIRE_RENDERER(renderer);
   Engine engine(default_scene());

@@ -8,6 +8,7 @@
 
 #include "incise/cut/subdivision_cutter.hpp"
 #include "incise/render/camera.hpp"
+#include "incise/render/colour_map.hpp"
 #include "incise/render/image.hpp"
 #include "incise/render/renderer.hpp"
 #include "incise/render/solid_texture.hpp"
@@ -201,6 +202,77 @@ TEST(Renderer, ATriangleOutsideThePositionsIsAnErrorNamingIt) {
     FAIL() << "a triangle with a vertex that has no position";
   } catch (const InputError& error) {
     EXPECT_NE(std::string(error.what()).find("triangle 1"), std::string::npos) << error.what();
+  }
+}
+
+TEST(ColourMap, CoolToWarmRunsFromBlueThroughGreyToRedAndClamps) {
+  EXPECT_EQ(cool_to_warm(0.0), (Rgba{59, 76, 192, 255}));
+  EXPECT_EQ(cool_to_warm(0.5), (Rgba{221, 221, 221, 255}));
+  EXPECT_EQ(cool_to_warm(1.0), (Rgba{180, 4, 38, 255}));
+  EXPECT_EQ(cool_to_warm(-3.0), cool_to_warm(0.0));
+  EXPECT_EQ(cool_to_warm(7.0), cool_to_warm(1.0));
+  EXPECT_EQ(cool_to_warm(std::nan("")), cool_to_warm(0.0));
+  // Diverging: blue below the middle, red above it, lightest in the middle.
+  const auto lightness = [](const Rgba& c) { return c.r + c.g + c.b; };
+  for (double t = 0.0; t < 0.99; t += 0.05) {
+    const Rgba a = cool_to_warm(t);
+    const Rgba b = cool_to_warm(t + 0.05);
+    if (t < 0.45) {
+      EXPECT_GT(a.b, a.r) << t;
+      EXPECT_LT(lightness(a), lightness(b)) << t;
+    } else if (t > 0.55) {
+      EXPECT_GT(a.r, a.b) << t;
+      EXPECT_GT(lightness(a), lightness(b)) << t;
+    }
+  }
+  const std::vector<std::uint8_t> texels = colour_map_texels(5);
+  ASSERT_EQ(texels.size(), 15U);
+  EXPECT_EQ(texels[6], 221);  // the middle texel is the grey
+}
+
+TEST(Renderer, AScalarColoursTheSurfaceThroughTheColourMapAndFollowsItsRange) {
+  const std::vector<Vec3> positions{Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
+  const std::vector<Triangle> triangles{{0, 1, 2}, {0, 2, 3}};
+  const std::vector<std::uint8_t> on_cut{0, 0};
+  const std::vector<double> scalars{0.0, 2.0, 4.0, 9.0};
+  RenderInput input;
+  input.triangles = triangles;
+  input.on_cut = on_cut;
+  input.positions = positions;
+  input.rest_positions = positions;
+  input.scalars = scalars;
+  NullBackend backend;
+  Renderer renderer(backend);
+  RenderOptions options;
+  options.scalar_range = {0.0, 4.0};
+  renderer.render(input, options);
+  ASSERT_TRUE(backend.surface.colour_mapped);
+  EXPECT_TRUE(backend.last_call.colour_mapped);
+  for (std::size_t k = 0; k < backend.surface.vertices.size(); ++k) {
+    const double expected =
+        std::min(scalars[static_cast<std::size_t>(backend.surface.vertices[k])] / 4.0, 1.0);
+    EXPECT_FLOAT_EQ(backend.surface.texture_coordinates[3 * k], static_cast<float>(expected));
+    EXPECT_FLOAT_EQ(backend.surface.texture_coordinates[3 * k + 1], 0.5F);
+  }
+  // A new range is a new upload; the same one is not.
+  renderer.render(input, options);
+  EXPECT_EQ(backend.surface_uploads, 1);
+  options.scalar_range = {0.0, 9.0};
+  renderer.render(input, options);
+  EXPECT_EQ(backend.surface_uploads, 2);
+  // Without scalars, textured again.
+  input.scalars = {};
+  renderer.render(input, options);
+  EXPECT_EQ(backend.surface_uploads, 3);
+  EXPECT_FALSE(backend.last_call.colour_mapped);
+  // A vertex without a scalar is named.
+  const std::vector<double> short_scalars{1.0, 2.0};
+  input.scalars = short_scalars;
+  try {
+    (void)build_surface_buffers(input, 0.02);
+    FAIL() << "a vertex without a scalar";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("no scalar"), std::string::npos) << error.what();
   }
 }
 

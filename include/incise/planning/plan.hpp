@@ -74,6 +74,10 @@ struct PlanSummary {
   double max_displacement = 0.0;  ///< mm, skin
   double seconds = 0.0;
   std::filesystem::path report;  ///< report.json
+  /// The skin over its columns, before and after (m): what the pictures show.
+  std::vector<Triangle> skin_triangles;
+  std::vector<Vec3> skin_before;
+  std::vector<Vec3> skin_after;
 };
 
 /// Runs the plan, writes skin_before/after.vtp, bone_before/after.vtp, tissue.vtu and

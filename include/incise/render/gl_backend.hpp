@@ -30,7 +30,7 @@ class GlBackend final : public RenderBackend {
   unsigned int index_buffer_ = 0;
   unsigned int overlay_vao_ = 0;  ///< blade and lines: positions only
   unsigned int overlay_buffer_ = 0;
-  std::array<unsigned int, 2> textures_{};  ///< exterior, cut
+  std::array<unsigned int, 3> textures_{};  ///< exterior, cut, colour map
   std::size_t exterior_triangles_ = 0;
   std::size_t cut_triangles_ = 0;
   std::size_t position_bytes_ = 0;

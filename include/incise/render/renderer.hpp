@@ -42,6 +42,10 @@ struct RenderInput {
   /// among them (cyan), m.
   std::span<const std::array<Vec3, 2>> highlights;
   std::span<const std::array<Vec3, 2>> cut_edges;
+  /// Per vertex: when given, the surface is coloured by this scalar (cool_to_warm over
+  /// RenderOptions::scalar_range) instead of textured. Part of the surface: a change needs a
+  /// new surface_revision.
+  std::span<const double> scalars;
 };
 
 struct RenderOptions {
@@ -53,6 +57,8 @@ struct RenderOptions {
   double texture_period = 0.02;
   Rgba background{38, 42, 52, 255};
   bool draw_blade = true;
+  /// The scalars' values at the blue and the red end of the colour map.
+  std::array<double, 2> scalar_range{0.0, 1.0};
 };
 
 /// The CPU side of the surface's buffers: built once per surface revision.
@@ -63,11 +69,15 @@ struct SurfaceBuffers {
   std::size_t exterior_triangles = 0;
   std::size_t cut_triangles = 0;
   std::vector<float> texture_coordinates;  ///< 3 per buffer vertex: rest position / period
+  /// Coloured by scalars: each texture coordinate is (t, 0.5, 0.5), t the scalar's place in
+  /// the range, into the colour map.
+  bool colour_mapped = false;
 };
 
 /// Builds the buffers of `input`'s surface. Throws InputError naming the triangle if it
-/// refers to a vertex that has no position, or a rest position is not finite.
-[[nodiscard]] SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_period);
+/// refers to a vertex that has no position (or scalar), or a rest position is not finite.
+[[nodiscard]] SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_period,
+                                                   std::array<double, 2> scalar_range = {0.0, 1.0});
 /// Current positions of the buffer's vertices, 3 floats each.
 void gather_positions(const SurfaceBuffers& buffers, std::span<const Vec3> positions,
                       std::vector<float>& out);
@@ -83,6 +93,7 @@ struct DrawCall {
   std::vector<float> blade_quad;  ///< two triangles, 18 floats; empty without a blade
   std::vector<float> lines;       ///< 6 floats per segment
   std::vector<float> cut_lines;   ///< 6 floats per segment, drawn in a second colour
+  bool colour_mapped = false;     ///< the surface's texture is the colour map
 };
 
 class RenderBackend {
@@ -129,6 +140,7 @@ class Renderer {
   RenderBackend* backend_;
   bool uploaded_ = false;
   double uploaded_period_ = 0.0;
+  std::array<double, 2> uploaded_range_{};
   SurfaceBuffers buffers_;
   std::vector<float> positions_;
 };

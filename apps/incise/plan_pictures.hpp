@@ -1,0 +1,24 @@
+#pragma once
+// Pictures of a plan's prediction (`incise plan --render DIR`): the skin before and after,
+// textured, and after coloured by its displacement (ParaView's Cool to Warm, 0 mm blue to the
+// largest red), all from one camera that looks at the most displaced skin point.
+
+#include <filesystem>
+#include <vector>
+
+#include "incise/planning/plan.hpp"
+#include "incise/render/renderer.hpp"
+
+namespace incise::app {
+
+struct PlanPictures {
+  std::vector<std::filesystem::path> files;
+  double largest_displacement_mm = 0.0;  ///< the red end of the colour map
+};
+
+/// Writes DIR/skin_before.png, skin_after.png and skin_displacement.png at width x height.
+PlanPictures write_plan_pictures(const planning::PlanSummary& summary,
+                                 const std::filesystem::path& dir, int width, int height,
+                                 ImageRenderer& renderer);
+
+}  // namespace incise::app
