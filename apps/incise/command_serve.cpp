@@ -57,7 +57,9 @@ int serve(const ServeOptions& options) {
                      "incise serve needs a cutter: add \"cutter\": {\"type\": \"subdivision\"}");
   }
   Engine engine(scene);
-  auto live = std::make_unique<LiveToolPose>();
+  // The device moves in the world, where the body is now: the engine carries its poses back
+  // to the rest frame the cutters cut in.
+  auto live = std::make_unique<LiveToolPose>(PoseFrame::kWorld);
   LiveToolPose& live_pose = *live;
   engine.set_tool_source(std::move(live));
   const TetMesh& start_mesh = engine.mesh();

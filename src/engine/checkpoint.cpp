@@ -20,8 +20,9 @@ namespace incise {
 namespace {
 
 constexpr std::string_view kMagic = "INCISE-CHECKPOINT\n";
-constexpr std::uint32_t kVersion = 4;  // 2: swept triangles carry their sweep number; 3: xfem;
-                                       // 4: xfem quads' shared lines decided exactly
+constexpr std::uint32_t kVersion = 5;  // 2: swept triangles carry their sweep number; 3: xfem;
+                                       // 4: xfem quads' shared lines decided exactly;
+                                       // 5: the blade's frame, rest pose and world-to-rest map
 
 std::uint32_t checksum(std::string_view bytes) {
   uLong crc = crc32(0L, Z_NULL, 0);
@@ -47,6 +48,11 @@ void Engine::save_checkpoint(const std::filesystem::path& path) const {
   out.value(p.state.time);
   out.value(p.blade.has_value());
   out.value(p.blade ? *p.blade : BladePose{0.0, Vec3::Zero(), Vec3::Zero()});
+  out.value(static_cast<std::uint8_t>(p.blade_frame));
+  out.value(p.blade_rest.has_value());
+  out.value(p.blade_rest ? *p.blade_rest : BladePose{0.0, Vec3::Zero(), Vec3::Zero()});
+  out.value(p.rest_map.linear);
+  out.value(p.rest_map.offset);
   // A scripted or recorded path goes along, so a run fed by --tool resumes on it too; a live
   // source does not (the resumed run is given one).
   const auto* scripted = dynamic_cast<const ScriptedToolPath*>(p.tool.get());
@@ -121,6 +127,16 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
   const bool has_blade = in.value<bool>("blade present");
   const auto blade = in.value<BladePose>("blade");
   p.blade = has_blade ? std::optional<BladePose>(blade) : std::nullopt;
+  const auto frame = in.value<std::uint8_t>("blade frame");
+  if (frame > static_cast<std::uint8_t>(PoseFrame::kWorld)) {
+    in.fail("blade frame", "neither the rest frame nor the world");
+  }
+  p.blade_frame = static_cast<PoseFrame>(frame);
+  const bool has_rest_blade = in.value<bool>("rest blade present");
+  const auto rest_blade = in.value<BladePose>("rest blade");
+  p.blade_rest = has_rest_blade ? std::optional<BladePose>(rest_blade) : std::nullopt;
+  p.rest_map.linear = in.value<Mat3>("world-to-rest map");
+  p.rest_map.offset = in.value<Vec3>("world-to-rest offset");
   const bool scripted = in.value<bool>("tool kind");
   std::vector<BladePose> poses = in.values<BladePose>("tool path");
   if (scripted) {

@@ -262,6 +262,7 @@ Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(s
   if (!scene.tool.poses.empty()) {
     p.tool = std::make_unique<ScriptedToolPath>(scene.tool.poses);
     p.blade = p.tool->pose(0, p.state.time);
+    p.blade_rest = p.blade;
   }
   p.steps_per_frame = static_cast<int>(std::lround(scene.frame_dt / spec.dt));
   const auto [low, high] = bounding_box(p.mesh);
@@ -276,6 +277,9 @@ void Engine::set_tool_source(std::unique_ptr<ToolPoseSource> source) {
   Parts& p = *parts_;
   p.tool = std::move(source);
   p.blade = p.tool ? p.tool->pose(p.last.frame, p.state.time) : std::nullopt;
+  p.blade_frame = p.tool ? p.tool->frame() : PoseFrame::kRest;
+  p.blade_rest =
+      p.blade ? std::optional<BladePose>(p.rest_pose(*p.blade, p.blade_frame)) : std::nullopt;
 }
 
 void Engine::add_sink(FrameSink& sink) {
@@ -387,16 +391,20 @@ bool Engine::step() {
   const double dt = p.description.integrator.dt;
 
   // ---- the tool: cd and gc --------------------------------------------------------------------
-  const std::optional<BladePose> pose =
+  const std::optional<BladePose> given =
       p.tool ? p.tool->pose(record.frame, frame_dt * record.frame) : std::nullopt;
+  const PoseFrame frame = p.tool ? p.tool->frame() : PoseFrame::kRest;
+  // The cutters cut the rest mesh: a pose given in the world is carried back first.
+  const std::optional<BladePose> pose =
+      given ? std::optional<BladePose>(p.rest_pose(*given, frame)) : std::nullopt;
   // Either cutter: a stroke starts where the blade was at the start of the frame (or here, when
   // it was lifted); the blade moves to its pose at the end of this frame and cuts what it
   // swept. True when the blade moved.
   const auto cut_with = [&](auto& cutter) {
-    if (!cutter.started() || !p.blade) {
-      cutter.start(p.blade ? *p.blade : *pose);
+    if (!cutter.started() || !p.blade_rest) {
+      cutter.start(p.blade_rest ? *p.blade_rest : *pose);
     }
-    if (!p.blade) {
+    if (!p.blade_rest) {
       return false;
     }
     const std::uint64_t revision = p.mesh.revision();
@@ -431,7 +439,9 @@ bool Engine::step() {
     }
     record.gc += seconds_since(start);
   }
-  p.blade = pose;
+  p.blade = given;
+  p.blade_frame = frame;
+  p.blade_rest = pose;
 
   // ---- relaxation: rx -------------------------------------------------------------------------
   for (const auto& [vertex, force] : p.pushes) {
@@ -559,6 +569,24 @@ std::shared_ptr<const SurfaceTopology> Engine::surface() const {
 }
 const std::optional<BladePose>& Engine::blade() const {
   return parts_->blade;
+}
+
+PoseFrame Engine::blade_frame() const {
+  return parts_->blade_frame;
+}
+
+const std::optional<BladePose>& Engine::blade_rest() const {
+  return parts_->blade_rest;
+}
+
+BladePose Engine::Parts::rest_pose(const BladePose& pose, PoseFrame frame) {
+  if (frame == PoseFrame::kRest) {
+    return pose;
+  }
+  if (const std::optional<RestMap> map = blade_rest_map(mesh, state.x.values(), pose)) {
+    rest_map = *map;
+  }
+  return mapped(pose, rest_map);
 }
 const MaterialMap* Engine::materials() const {
   return parts_->model->material_map();

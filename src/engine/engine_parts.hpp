@@ -34,7 +34,10 @@ struct Engine::Parts {
   std::unique_ptr<VisualSurface> collision;       ///< the scene's collision surface, if any
   std::vector<std::pair<VertexId, Vec3>> pushes;  ///< N, for the next step only
   std::unique_ptr<ToolPoseSource> tool;
-  std::optional<BladePose> blade;
+  std::optional<BladePose> blade;  ///< as the tool gave it (drawn there)
+  PoseFrame blade_frame = PoseFrame::kRest;
+  std::optional<BladePose> blade_rest;  ///< what the cutter was given: in the rest frame
+  RestMap rest_map;  ///< the last world-to-rest map around the blade (held while it is outside)
   std::vector<FrameSink*> sinks;
   std::vector<std::string> warnings;
   double limit = 0.0;
@@ -51,6 +54,9 @@ struct Engine::Parts {
   std::shared_ptr<const SurfaceTopology> visual_topology;  ///< of `visual`, per its revision
 
   std::string measure(FrameRecord& record) const;
+  /// `pose` in the rest frame: as it is, or carried back from the world by the deformation
+  /// around the blade (pose_frames.hpp; the map is kept while the blade is outside the body).
+  BladePose rest_pose(const BladePose& pose, PoseFrame frame);
   /// The visual surface as render topology, rebuilt only when it changed (null without one).
   const std::shared_ptr<const SurfaceTopology>& current_visual_surface();
   /// The boundary with its cut faces marked, rebuilt only when the mesh or the cut changed.

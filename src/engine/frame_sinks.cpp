@@ -111,14 +111,14 @@ void VtuSeriesSink::end(const Engine& engine) {
 ToolPathRecorder::ToolPathRecorder(std::filesystem::path csv) : csv_(std::move(csv)) {}
 
 void ToolPathRecorder::begin(const Engine& engine) {
-  if (engine.blade()) {
-    poses_.push_back(*engine.blade());
+  if (engine.blade_rest()) {
+    poses_.push_back(*engine.blade_rest());
   }
 }
 
 bool ToolPathRecorder::frame(const Engine& engine, const FrameRecord& /*record*/) {
-  if (engine.blade()) {
-    poses_.push_back(*engine.blade());
+  if (engine.blade_rest()) {
+    poses_.push_back(*engine.blade_rest());
   }
   return false;
 }

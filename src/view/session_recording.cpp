@@ -40,10 +40,12 @@ void write_session(const std::filesystem::path& path, const SessionRecording& re
     std::size_t next_action = 0;
     for (std::size_t frame = 0; frame < segment.poses.size(); ++frame) {
       const auto& pose = segment.poses[frame];
-      out << (pose ? Json{{"frame", frame}, {"pose", pose_json(*pose)}}
-                   : Json{{"frame", frame}, {"lift", true}})
-                 .dump()
-          << "\n";
+      Json row = pose ? Json{{"frame", frame}, {"pose", pose_json(*pose)}}
+                      : Json{{"frame", frame}, {"lift", true}};
+      if (pose && frame < segment.world.size() && segment.world[frame] != 0) {
+        row["world"] = true;
+      }
+      out << row.dump() << "\n";
       while (next_action < segment.actions.size() &&
              segment.actions[next_action].frame <= static_cast<int>(frame)) {
         out << action_json(segment.actions[next_action++]).dump() << "\n";
@@ -119,6 +121,10 @@ SessionRecording read_session(const std::filesystem::path& path) {
       fail("pose of frame " + std::to_string(frame) + " where frame " +
            std::to_string(segment.poses.size()) + " was expected");
     }
+    if (row.contains("world") && !row["world"].is_boolean()) {
+      fail("\"world\" must be true or false");
+    }
+    segment.world.push_back(row.value("world", false) ? 1 : 0);
     if (row.contains("lift")) {
       segment.poses.emplace_back();
     } else if (row.contains("pose")) {
@@ -148,6 +154,7 @@ void SessionRecorder::begin(const Engine& engine) {
   segment.scene_file = engine.scene().file;
   segment.scene_text = engine.scene().source_text;
   segment.poses.push_back(engine.blade());
+  segment.world.push_back(engine.blade_frame() == PoseFrame::kWorld ? 1 : 0);
   recording_->segments.push_back(std::move(segment));
 }
 
@@ -155,6 +162,7 @@ bool SessionRecorder::frame(const Engine& engine, const FrameRecord& record) {
   auto& poses = recording_->segments.back().poses;
   INCISE_ASSERT(record.frame == static_cast<int>(poses.size()), "frames recorded out of order");
   poses.push_back(engine.blade());
+  recording_->segments.back().world.push_back(engine.blade_frame() == PoseFrame::kWorld ? 1 : 0);
   return false;
 }
 
@@ -167,7 +175,9 @@ std::optional<BladePose> RecordedToolPoses::pose(int frame, double /*time*/) {
   if (frame < 0 || static_cast<std::size_t>(frame) >= poses_.size()) {
     return std::nullopt;
   }
-  return poses_[static_cast<std::size_t>(frame)];
+  const auto at = static_cast<std::size_t>(frame);
+  frame_ = at < world_.size() && world_[at] != 0 ? PoseFrame::kWorld : PoseFrame::kRest;
+  return poses_[at];
 }
 
 SceneDescription viewer_scene(SceneDescription scene) {
@@ -179,7 +189,7 @@ SceneDescription viewer_scene(SceneDescription scene) {
 
 std::unique_ptr<Engine> replay_engine(const SessionSegment& segment) {
   auto engine = std::make_unique<Engine>(viewer_scene(segment.scene()));
-  engine->set_tool_source(std::make_unique<RecordedToolPoses>(segment.poses));
+  engine->set_tool_source(std::make_unique<RecordedToolPoses>(segment.poses, segment.world));
   return engine;
 }
 

@@ -145,6 +145,13 @@ TEST(SessionRecording, AHandMadeCutReplaysBitForBitFromTheFile) {
   ASSERT_EQ(segment.actions.size(), 1u);
   EXPECT_EQ(segment.actions.front().frame, 20);
   EXPECT_EQ(segment.actions.front().name, "take");
+  // The scene's path is in the rest frame, the mouse's poses in the world (the picture).
+  ASSERT_EQ(segment.world.size(), segment.poses.size());
+  for (std::size_t frame = 0; frame < segment.poses.size(); ++frame) {
+    if (segment.poses[frame]) {
+      EXPECT_EQ(segment.world[frame] != 0, frame > 20) << "frame " << frame;
+    }
+  }
   const auto engine = replay_engine(segment);
   for (int k = 0; k < segment.frames(); ++k) {
     ASSERT_TRUE(engine->step());
@@ -173,6 +180,7 @@ TEST(SessionRecording, ABadFileNamesItsLine) {
       "{\"incise_session\": 1}\n{\"frame\": 0, \"start\": {\"scene\": \"{}\"}}\n";
   expect_error(start + "{\"frame\": 0, \"lift\": true}\n{\"frame\": 2, \"lift\": true}\n", "4");
   expect_error(start + "{\"frame\": 0, \"pose\": [1, 2, 3]}\n", "3");
+  expect_error(start + "{\"frame\": 0, \"pose\": [0, 0, 0, 0, 0, 0, 1], \"world\": 1}\n", "3");
   expect_error(start + "not json\n", "3");
   expect_error("{\"incise_session\": 1}\n{\"frame\": 0, \"lift\": true}\n", "2");
 }

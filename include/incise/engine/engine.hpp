@@ -115,8 +115,12 @@ class Engine {
   /// The boundary surface with its cut faces marked and the rest positions (the one the
   /// snapshots publish), built once per mesh revision and cutter move.
   [[nodiscard]] std::shared_ptr<const SurfaceTopology> surface() const;
-  /// The blade at the end of the last frame, if the tool was on.
+  /// The blade at the end of the last frame, if the tool was on, as its source gave it (in
+  /// blade_frame(): the world for a mouse or device, else the rest frame).
   [[nodiscard]] const std::optional<BladePose>& blade() const;
+  [[nodiscard]] PoseFrame blade_frame() const;
+  /// The same blade in the body's rest frame: what the cutter cut with.
+  [[nodiscard]] const std::optional<BladePose>& blade_rest() const;
   [[nodiscard]] const Integrator& integrator() const;
   /// The materials of the body (table and one per tetrahedron), or null if the model keeps none.
   [[nodiscard]] const MaterialMap* materials() const;

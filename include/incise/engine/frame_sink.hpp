@@ -61,7 +61,8 @@ class VtuSeriesSink final : public FrameSink {
 };
 
 /// Records the blade pose of every frame to a blade-path CSV at the end, so a live session
-/// (mouse, device) can be replayed with ScriptedToolPath::from_csv. Frames with the tool
+/// (mouse, device) can be replayed with ScriptedToolPath::from_csv: the pose the cutter cut
+/// with, in the rest frame (a live pose carried back from the world). Frames with the tool
 /// lifted are left out (the CSV format has no gaps: a replay moves straight across them).
 class ToolPathRecorder final : public FrameSink {
  public:

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "incise/cut/blade.hpp"
+#include "incise/engine/pose_frames.hpp"
 
 namespace incise {
 
@@ -24,6 +25,9 @@ class ToolPoseSource {
   /// nothing while the tool is away from the body (a later pose starts a new stroke). Called
   /// from the thread that steps the engine, once per frame.
   [[nodiscard]] virtual std::optional<BladePose> pose(int frame, double time) = 0;
+  /// The frame of the pose pose() returned last: the body's rest frame (scene and recorded
+  /// paths, the default) or the world, where the body is now (a mouse, a tracked device).
+  [[nodiscard]] virtual PoseFrame frame() const { return PoseFrame::kRest; }
 };
 
 /// A path of poses over time, linearly interpolated and held at its ends: the scene's
@@ -47,13 +51,17 @@ class ScriptedToolPath final : public ToolPoseSource {
 /// per frame under a lock held only to copy it.
 class LiveToolPose final : public ToolPoseSource {
  public:
+  /// Poses set in `frame`: kWorld for a mouse on the picture or a tracked device.
+  explicit LiveToolPose(PoseFrame frame = PoseFrame::kRest) : frame_(frame) {}
   /// The blade is at `pose` (its time is ignored: the engine stamps its own).
   void set(const BladePose& pose);
   /// The blade leaves the body: the next set() starts a new stroke.
   void lift();
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override;
+  [[nodiscard]] PoseFrame frame() const override { return frame_; }
 
  private:
+  PoseFrame frame_;
   std::mutex mutex_;
   std::optional<BladePose> pose_;
 };

@@ -52,15 +52,20 @@ class HandOverTool final : public ToolPoseSource {
   [[nodiscard]] LiveToolPose& live() { return live_; }
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override {
     if (taken_.load()) {
+      last_frame_ = PoseFrame::kWorld;
       return live_.pose(frame, time);
     }
+    last_frame_ = PoseFrame::kRest;
     return scripted_ ? scripted_->pose(frame, time) : std::nullopt;
   }
+  /// The scene's path is in the rest frame; the mouse works on the picture, in the world.
+  [[nodiscard]] PoseFrame frame() const override { return last_frame_; }
 
  private:
   std::unique_ptr<ToolPoseSource> scripted_;
-  LiveToolPose live_;
-  std::atomic<bool> taken_{false};  ///< set by the viewer, read by the engine's thread
+  LiveToolPose live_{PoseFrame::kWorld};
+  std::atomic<bool> taken_{false};           ///< set by the viewer, read by the engine's thread
+  PoseFrame last_frame_ = PoseFrame::kRest;  ///< the engine's thread only
 };
 
 }  // namespace incise

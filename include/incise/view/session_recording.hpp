@@ -6,7 +6,8 @@
 //
 // File format: JSON lines. The first line is {"incise_session": 1}; then for each segment a
 // {"frame": 0, "start": {"scene_file": PATH, "scene": TEXT}} line, and lines
-// {"frame": N, "pose": [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]} (s, m),
+// {"frame": N, "pose": [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]} (s, m; with
+// "world": true where the pose is where the body is now, the mouse's, not in its rest frame),
 // {"frame": N, "lift": true} and {"frame": N, "action": NAME, "value": TEXT}.
 
 #include <filesystem>
@@ -29,6 +30,7 @@ struct SessionSegment {
   std::filesystem::path scene_file;  ///< empty: the built-in default scene
   std::string scene_text;
   std::vector<std::optional<BladePose>> poses;  ///< index: frame (0: the start)
+  std::vector<std::uint8_t> world;              ///< per frame: the pose is in the world
   std::vector<SessionAction> actions;
   /// The scene, parsed as it was run (relative paths against scene_file's folder).
   [[nodiscard]] SceneDescription scene() const;
@@ -61,12 +63,16 @@ class SessionRecorder final : public FrameSink {
 /// The poses of a recorded segment, frame by frame; the tool is lifted after its end.
 class RecordedToolPoses final : public ToolPoseSource {
  public:
-  explicit RecordedToolPoses(std::vector<std::optional<BladePose>> poses)
-      : poses_(std::move(poses)) {}
+  /// `world` per frame (empty: every pose in the rest frame).
+  RecordedToolPoses(std::vector<std::optional<BladePose>> poses, std::vector<std::uint8_t> world)
+      : poses_(std::move(poses)), world_(std::move(world)) {}
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override;
+  [[nodiscard]] PoseFrame frame() const override { return frame_; }
 
  private:
   std::vector<std::optional<BladePose>> poses_;
+  std::vector<std::uint8_t> world_;
+  PoseFrame frame_ = PoseFrame::kRest;
 };
 
 /// The scene as the viewer runs it: with a cutter even where the scene has none (the mouse

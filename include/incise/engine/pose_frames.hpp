@@ -1,0 +1,42 @@
+#pragma once
+// Blade poses in the world and in the body's rest frame. The cutters cut the rest mesh, so a
+// pose given where the user sees the body (the viewer's mouse, a tracked device) is carried
+// back to the rest frame first: by the deformation of the element the blade is in, which is
+// affine per linear tetrahedron, so the map is exact for any motion that is affine around the
+// blade (rigid moves, stretches) and first-order accurate otherwise. Scene paths and recorded
+// CSV paths are already in the rest frame.
+
+#include <optional>
+#include <span>
+
+#include "incise/core/types.hpp"
+#include "incise/cut/blade.hpp"
+#include "incise/mesh/tet_mesh.hpp"
+
+namespace incise {
+
+/// Which frame a tool pose is given in.
+enum class PoseFrame : std::uint8_t { kRest, kWorld };
+
+/// An affine map X = linear x + offset from current positions to rest positions (m).
+struct RestMap {
+  Mat3 linear = Mat3::Identity();
+  Vec3 offset = Vec3::Zero();
+  [[nodiscard]] Vec3 operator()(const Vec3& x) const { return linear * x + offset; }
+};
+
+/// The map of element `tet` (current corners x to its rest corners), if it is not flat in
+/// either configuration.
+[[nodiscard]] std::optional<RestMap> element_rest_map(const TetMesh& mesh, std::span<const Vec3> x,
+                                                      TetId tet);
+
+/// The map around a world blade: of the element holding the middle one of the blade's
+/// sample points that lie in the body now, else of the element nearest the blade; nothing for
+/// a mesh without a usable element. One pass over the elements (0.6 ms at 50k tetrahedra).
+[[nodiscard]] std::optional<RestMap> blade_rest_map(const TetMesh& mesh, std::span<const Vec3> x,
+                                                    const BladePose& world);
+
+/// The pose carried by `map`.
+[[nodiscard]] BladePose mapped(const BladePose& pose, const RestMap& map);
+
+}  // namespace incise
