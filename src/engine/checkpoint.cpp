@@ -127,6 +127,7 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
   const bool has_blade = in.value<bool>("blade present");
   const auto blade = in.value<BladePose>("blade");
   p.blade = has_blade ? std::optional<BladePose>(blade) : std::nullopt;
+  p.blade_world.reset();
   const auto frame = in.value<std::uint8_t>("blade frame");
   if (frame > static_cast<std::uint8_t>(PoseFrame::kWorld)) {
     in.fail("blade frame", "neither the rest frame nor the world");

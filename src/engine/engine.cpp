@@ -280,6 +280,7 @@ void Engine::set_tool_source(std::unique_ptr<ToolPoseSource> source) {
   p.blade_frame = p.tool ? p.tool->frame() : PoseFrame::kRest;
   p.blade_rest =
       p.blade ? std::optional<BladePose>(p.rest_pose(*p.blade, p.blade_frame)) : std::nullopt;
+  p.blade_world.reset();
 }
 
 void Engine::add_sink(FrameSink& sink) {
@@ -359,7 +360,7 @@ void Engine::Parts::publish() {
   snapshot->time = state.time;
   snapshot->positions.assign(state.x.values().begin(), state.x.values().end());
   snapshot->surface = current_surface();
-  snapshot->blade = blade;
+  snapshot->blade = world_blade();
   snapshot->cd = last.cd;
   snapshot->gc = last.gc;
   snapshot->rx = last.rx;
@@ -442,6 +443,7 @@ bool Engine::step() {
   p.blade = given;
   p.blade_frame = frame;
   p.blade_rest = pose;
+  p.blade_world.reset();
 
   // ---- relaxation: rx -------------------------------------------------------------------------
   for (const auto& [vertex, force] : p.pushes) {
@@ -577,6 +579,24 @@ PoseFrame Engine::blade_frame() const {
 
 const std::optional<BladePose>& Engine::blade_rest() const {
   return parts_->blade_rest;
+}
+
+const std::optional<BladePose>& Engine::blade_world() const {
+  return parts_->world_blade();
+}
+
+const std::optional<BladePose>& Engine::Parts::world_blade() const {
+  if (!blade_world || blade_world->first != last.frame) {
+    std::optional<BladePose> world = blade;
+    if (blade && blade_frame == PoseFrame::kRest) {
+      // Drawn where the body is now: carried by the deformation around it at rest.
+      if (const auto map = blade_map(mesh, mesh.rest_positions(), state.x.values(), *blade)) {
+        world = mapped(*blade, *map);
+      }
+    }
+    blade_world.emplace(last.frame, world);
+  }
+  return blade_world->second;
 }
 
 BladePose Engine::Parts::rest_pose(const BladePose& pose, PoseFrame frame) {

@@ -38,6 +38,9 @@ struct Engine::Parts {
   PoseFrame blade_frame = PoseFrame::kRest;
   std::optional<BladePose> blade_rest;  ///< what the cutter was given: in the rest frame
   RestMap rest_map;  ///< the last world-to-rest map around the blade (held while it is outside)
+  /// The blade where the body is now (drawn there) and the frame it was computed for: computed
+  /// on demand, reset whenever the blade changes.
+  mutable std::optional<std::pair<int, std::optional<BladePose>>> blade_world;
   std::vector<FrameSink*> sinks;
   std::vector<std::string> warnings;
   double limit = 0.0;
@@ -57,6 +60,8 @@ struct Engine::Parts {
   /// `pose` in the rest frame: as it is, or carried back from the world by the deformation
   /// around the blade (pose_frames.hpp; the map is kept while the blade is outside the body).
   BladePose rest_pose(const BladePose& pose, PoseFrame frame);
+  /// The last frame's blade where the body is now.
+  const std::optional<BladePose>& world_blade() const;
   /// The visual surface as render topology, rebuilt only when it changed (null without one).
   const std::shared_ptr<const SurfaceTopology>& current_visual_surface();
   /// The boundary with its cut faces marked, rebuilt only when the mesh or the cut changed.

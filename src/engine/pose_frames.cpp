@@ -48,17 +48,18 @@ double distance_to_segment(const Vec3& p, const Vec3& a, const Vec3& b) {
 
 }  // namespace
 
-std::optional<RestMap> element_rest_map(const TetMesh& mesh, std::span<const Vec3> x, TetId tet) {
+std::optional<RestMap> element_map(const TetMesh& mesh, std::span<const Vec3> from,
+                                   std::span<const Vec3> to, TetId tet) {
   const Tet& t = mesh.tet(tet);
-  const std::array<Vec3, 4> now = corners(x, t);
-  const std::array<Vec3, 4> rest = corners(mesh.rest_positions(), t);
+  const std::array<Vec3, 4> now = corners(from, t);
+  const std::array<Vec3, 4> rest = corners(to, t);
   const Mat3 current = edges(now);
   const Mat3 original = edges(rest);
   const double scale = (now[1] - now[0]).squaredNorm() + (now[2] - now[0]).squaredNorm() +
                        (now[3] - now[0]).squaredNorm();
   const double rest_scale = (rest[1] - rest[0]).squaredNorm() + (rest[2] - rest[0]).squaredNorm() +
                             (rest[3] - rest[0]).squaredNorm();
-  // Flat (relative volume below 1e-9) in either frame: no map.
+  // Flat (relative volume below 1e-9) in either configuration: no map.
   if (!(std::abs(current.determinant()) > 1e-9 * std::pow(scale, 1.5)) ||
       !(std::abs(original.determinant()) > 1e-9 * std::pow(rest_scale, 1.5))) {
     return std::nullopt;
@@ -69,8 +70,8 @@ std::optional<RestMap> element_rest_map(const TetMesh& mesh, std::span<const Vec
   return map;
 }
 
-std::optional<RestMap> blade_rest_map(const TetMesh& mesh, std::span<const Vec3> x,
-                                      const BladePose& world) {
+std::optional<RestMap> blade_map(const TetMesh& mesh, std::span<const Vec3> x,
+                                 std::span<const Vec3> to, const BladePose& world) {
   std::array<Vec3, kSamples> samples;
   Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity());
   Vec3 high = -low;
@@ -92,14 +93,14 @@ std::optional<RestMap> blade_rest_map(const TetMesh& mesh, std::span<const Vec3>
     const Vec3 box_high = c[0].cwiseMax(c[1]).cwiseMax(c[2]).cwiseMax(c[3]);
     if ((box_high.array() >= low.array()).all() && (box_low.array() <= high.array()).all()) {
       for (std::size_t k = 0; k < samples.size(); ++k) {
-        if (holder[k] == kInvalidId && contains(c, samples[k]) && element_rest_map(mesh, x, id)) {
+        if (holder[k] == kInvalidId && contains(c, samples[k]) && element_map(mesh, x, to, id)) {
           holder[k] = id;
         }
       }
     }
     const double distance =
         distance_to_segment(0.25 * (c[0] + c[1] + c[2] + c[3]), world.tip, world.base);
-    if (distance < nearest_distance && element_rest_map(mesh, x, id)) {
+    if (distance < nearest_distance && element_map(mesh, x, to, id)) {
       nearest_distance = distance;
       nearest = id;
     }
@@ -114,7 +115,12 @@ std::optional<RestMap> blade_rest_map(const TetMesh& mesh, std::span<const Vec3>
   if (chosen == kInvalidId) {
     return std::nullopt;
   }
-  return element_rest_map(mesh, x, chosen);
+  return element_map(mesh, x, to, chosen);
+}
+
+std::optional<RestMap> blade_rest_map(const TetMesh& mesh, std::span<const Vec3> x,
+                                      const BladePose& world) {
+  return blade_map(mesh, x, mesh.rest_positions(), world);
 }
 
 BladePose mapped(const BladePose& pose, const RestMap& map) {

@@ -34,8 +34,8 @@ FrameScene frame_scene(const Engine& engine, bool highlight_active) {
   FrameScene scene;
   scene.surface = engine.surface();
   scene.positions = engine.positions();
-  if (engine.blade()) {
-    scene.blade = segment(*engine.blade());
+  if (engine.blade_world()) {
+    scene.blade = segment(*engine.blade_world());
   }
   if (engine.visual() != nullptr) {
     // The visual surface is what a user sees; highlights still follow the physics mesh.

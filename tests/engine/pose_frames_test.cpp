@@ -81,6 +81,7 @@ TEST(PoseFrames, AWorldBladeCutsWhereTheBodyIsNow) {
     (void)tet_components(engine->mesh(), &pieces);
     EXPECT_EQ(pieces, 2) << "a full cut through the moved block separates it";
     EXPECT_EQ(engine->blade_frame(), PoseFrame::kWorld);
+    EXPECT_EQ(engine->blade_world()->tip, engine->blade()->tip);  // drawn where it is held
     ASSERT_TRUE(engine->blade_rest().has_value());
     EXPECT_NEAR(engine->blade_rest()->tip.x(), 0.0213, 1e-12);
     if (std::string(cutter) == "subdivision") {
@@ -98,6 +99,10 @@ TEST(PoseFrames, AWorldBladeCutsWhereTheBodyIsNow) {
   // plane x = 0.0413 of the rest block, just outside it: the body the user sees is not cut.
   const auto misread = cut_moved_block("subdivision", PoseFrame::kRest);
   EXPECT_TRUE(misread->cut_surface().empty());
+  // A rest-frame blade is drawn where the body carries it: 2 cm along x and 1 cm up.
+  ASSERT_TRUE(misread->blade_world().has_value());
+  EXPECT_LT((misread->blade_world()->tip - misread->blade()->tip - Vec3(0.02, 0.0, 0.01)).norm(),
+            1e-12);
   int pieces = 0;
   (void)tet_components(misread->mesh(), &pieces);
   EXPECT_EQ(pieces, 1);

@@ -121,6 +121,9 @@ class Engine {
   [[nodiscard]] PoseFrame blade_frame() const;
   /// The same blade in the body's rest frame: what the cutter cut with.
   [[nodiscard]] const std::optional<BladePose>& blade_rest() const;
+  /// The same blade where the body is now (a rest-frame pose carried by the deformation around
+  /// it): where pictures and snapshots draw it.
+  [[nodiscard]] const std::optional<BladePose>& blade_world() const;
   [[nodiscard]] const Integrator& integrator() const;
   /// The materials of the body (table and one per tetrahedron), or null if the model keeps none.
   [[nodiscard]] const MaterialMap* materials() const;
