@@ -138,6 +138,10 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
   p.blade_rest = has_rest_blade ? std::optional<BladePose>(rest_blade) : std::nullopt;
   p.rest_map.linear = in.value<Mat3>("world-to-rest map");
   p.rest_map.offset = in.value<Vec3>("world-to-rest offset");
+  if (!p.rest_map.linear.allFinite() || !p.rest_map.offset.allFinite() ||
+      (p.blade_rest && (!p.blade_rest->tip.allFinite() || !p.blade_rest->base.allFinite()))) {
+    in.fail("world-to-rest map", "holds a value that is not finite");
+  }
   const bool scripted = in.value<bool>("tool kind");
   std::vector<BladePose> poses = in.values<BladePose>("tool path");
   if (scripted) {
