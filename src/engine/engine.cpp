@@ -431,7 +431,8 @@ bool Engine::step() {
       p.integrator->focus_on(nearest);
     }
   }
-  if (p.xfem && pose && cut_with(*p.xfem) && record.edited && (p.visual || p.collision)) {
+  // The picture follows splits, and the blade inside the tetrahedra it has only partly crossed.
+  if (p.xfem && pose && cut_with(*p.xfem) && (p.visual || p.collision)) {
     const auto start = Clock::now();
     for (VisualSurface* surface : {p.visual.get(), p.collision.get()}) {
       if (surface != nullptr) {

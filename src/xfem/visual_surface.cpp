@@ -7,6 +7,7 @@
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -73,6 +74,62 @@ double squared_distance_to_tet(const Vec3& p, const std::array<Vec3, 4>& x) {
 /// (extended, so a point nudged just outside the tetrahedron still reads its side): one plane,
 /// or two for a quad bent along its diagonal, where side b is the wedge between them when the
 /// quad bends towards b and the rest of space when it bends away.
+/// The part of the segment p0 -> p1 inside a tetrahedron (corners x, vertex ids `ids`): its
+/// parameters along the segment and the face each end lies on (the local index of the corner
+/// opposite it; -1 where the segment ends inside). A face's plane is taken through its corners
+/// in increasing vertex id, so the two tetrahedra that share a face find the same point, bit
+/// for bit, and the pieces of cut surface they make meet there.
+struct SegmentClip {
+  double enter = 0.0;
+  double exit = 1.0;
+  int enter_face = -1;
+  int exit_face = -1;
+};
+
+std::optional<SegmentClip> clip_segment(const std::array<Vec3, 4>& x, const Tet& ids,
+                                        const Vec3& p0, const Vec3& p1) {
+  SegmentClip clip;
+  for (int k = 0; k < 4; ++k) {
+    std::array<int, 3> face{};
+    for (int i = 0, m = 0; i < 4; ++i) {
+      if (i != k) {
+        face[static_cast<std::size_t>(m++)] = i;
+      }
+    }
+    std::sort(face.begin(), face.end(), [&](int a, int b) {
+      return ids[static_cast<std::size_t>(a)] < ids[static_cast<std::size_t>(b)];
+    });
+    const Vec3& a = x[static_cast<std::size_t>(face[0])];
+    Vec3 normal =
+        (x[static_cast<std::size_t>(face[1])] - a).cross(x[static_cast<std::size_t>(face[2])] - a);
+    if (normal.dot(x[static_cast<std::size_t>(k)] - a) < 0.0) {
+      normal = -normal;  // inside is positive
+    }
+    const double f0 = normal.dot(p0 - a);
+    const double f1 = normal.dot(p1 - a);
+    if (f0 < 0.0 && f1 < 0.0) {
+      return std::nullopt;
+    }
+    if (f0 < 0.0 && f1 >= 0.0) {
+      const double s = f0 / (f0 - f1);
+      if (s > clip.enter) {
+        clip.enter = s;
+        clip.enter_face = k;
+      }
+    } else if (f1 < 0.0 && f0 >= 0.0) {
+      const double s = f0 / (f0 - f1);
+      if (s < clip.exit) {
+        clip.exit = s;
+        clip.exit_face = k;
+      }
+    }
+  }
+  if (!(clip.enter < clip.exit)) {
+    return std::nullopt;
+  }
+  return clip;
+}
+
 bool on_side_b(const std::array<Vec3, 4>& corners, const ElementCut& cut, const Vec3& q) {
   const std::vector<Vec3> polygon = cut_polygon(corners, cut);  // oriented from a to b
   const Vec3 n1 = (polygon[1] - polygon[0]).cross(polygon[2] - polygon[0]);
@@ -248,69 +305,105 @@ Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, co
 }
 
 void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
-  if (cutter.stats().elements_split == split_seen_) {
+  // Split tetrahedra change the picture, and so does the blade moving on inside tetrahedra it
+  // has only partly crossed (the progressive part).
+  const std::vector<TetId> front = cutter.front();
+  if (cutter.stats().elements_split == split_seen_ &&
+      (front.empty() || cutter.stats().moves == moves_seen_)) {
     return;
   }
   split_seen_ = cutter.stats().elements_split;
+  moves_seen_ = cutter.stats().moves;
 
   // The cut surface the physics sees: each split tetrahedron's polygon through its edge
   // crossings, a crossing shared by every tetrahedron around its edge, oriented from side a
-  // to side b.
-  std::vector<Vec3> cut_points;
-  std::vector<Triangle> cut_triangles;
-  std::unordered_map<std::uint64_t, VertexId> crossing_point;
-  std::vector<std::uint64_t> edge_of_point;  // the mesh edge each cut point lies on
-  for (std::size_t t = 0; t < rest_mesh_.tet_count(); ++t) {
-    const auto& cut = cutter.cut_of(static_cast<TetId>(t));
-    if (!cut) {
-      continue;
+  // to side b; then the pieces the blade has cut in front of it. When CGAL cannot corefine
+  // with the pieces in front (a walk that doubles back can leave pieces that meet others), the
+  // picture is cut without them; when it cannot at all, the picture keeps its last cut.
+  CgalMesh visual;
+  CgalMesh cut_surface;
+  bool corefined = false;
+  for (const bool with_front : {true, false}) {
+    if (!with_front && front.empty()) {
+      break;
     }
-    const Tet& tet = rest_mesh_.tet(static_cast<TetId>(t));
-    const auto x = rest_corners(rest_mesh_, static_cast<TetId>(t));
-    std::vector<VertexId> polygon;
-    for (int k : cut_polygon_edges(x, *cut)) {
-      const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
-      const auto i = static_cast<std::size_t>(edge[0]);
-      const auto j = static_cast<std::size_t>(edge[1]);
-      const auto [slot, added] = crossing_point.try_emplace(
-          edge_key(tet[i], tet[j]), static_cast<VertexId>(cut_points.size()));
-      if (added) {
-        const double along = cut->crossing[static_cast<std::size_t>(k)];
-        cut_points.push_back((1.0 - along) * x[i] + along * x[j]);
-        edge_of_point.push_back(edge_key(tet[i], tet[j]));
+    std::vector<Vec3> cut_points;
+    std::vector<Triangle> cut_triangles;
+    std::unordered_map<std::uint64_t, VertexId> crossing_point;
+    std::vector<std::uint64_t> edge_of_point;  // the mesh edge each cut point lies on
+    for (std::size_t t = 0; t < rest_mesh_.tet_count(); ++t) {
+      const auto& cut = cutter.cut_of(static_cast<TetId>(t));
+      if (!cut) {
+        continue;
       }
-      polygon.push_back(slot->second);
+      const Tet& tet = rest_mesh_.tet(static_cast<TetId>(t));
+      const auto x = rest_corners(rest_mesh_, static_cast<TetId>(t));
+      std::vector<VertexId> polygon;
+      for (int k : cut_polygon_edges(x, *cut)) {
+        const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
+        const auto i = static_cast<std::size_t>(edge[0]);
+        const auto j = static_cast<std::size_t>(edge[1]);
+        const auto [slot, added] = crossing_point.try_emplace(
+            edge_key(tet[i], tet[j]), static_cast<VertexId>(cut_points.size()));
+        if (added) {
+          const double along = cut->crossing[static_cast<std::size_t>(k)];
+          cut_points.push_back((1.0 - along) * x[i] + along * x[j]);
+          edge_of_point.push_back(edge_key(tet[i], tet[j]));
+        }
+        polygon.push_back(slot->second);
+      }
+      for (std::size_t m = 1; m + 1 < polygon.size(); ++m) {
+        cut_triangles.push_back({polygon[0], polygon[m], polygon[m + 1]});
+      }
     }
-    for (std::size_t m = 1; m + 1 < polygon.size(); ++m) {
-      cut_triangles.push_back({polygon[0], polygon[m], polygon[m + 1]});
+    if (with_front) {
+      add_front_pieces(cutter, front, crossing_point, cut_points, cut_triangles, edge_of_point);
+      // The blade moving outside the body, or along a piece already drawn, changes nothing.
+      std::vector<double> signature;
+      signature.reserve(3 * cut_points.size() + 3 * cut_triangles.size());
+      for (const Vec3& p : cut_points) {
+        signature.insert(signature.end(), {p.x(), p.y(), p.z()});
+      }
+      for (const Triangle& t : cut_triangles) {
+        signature.insert(signature.end(), {static_cast<double>(t[0]), static_cast<double>(t[1]),
+                                           static_cast<double>(t[2])});
+      }
+      if (signature == cut_signature_) {
+        return;
+      }
+      cut_signature_ = std::move(signature);
+    }
+    // The band past the boundary also keeps the cut's rim off a visual surface that lies on
+    // the body's boundary (the body's own surface): corefinement then meets a crossing, not
+    // two nearly coplanar triangles.
+    if (closed_) {
+      add_skirt(cut_points, cut_triangles, edge_of_point);
+    }
+    visual = to_cgal(original_points_, original_triangles_);
+    cut_surface = to_cgal(cut_points, cut_triangles);
+    if (cut_triangles.empty()) {
+      corefined = true;
+      break;
+    }
+    // Corefinement asks for surfaces that do not intersect themselves; real visual surfaces
+    // sometimes do (SOFA's liver-smooth.obj), and a skirt round a sharp rim may.
+    try {
+      PMP::corefine(visual, cut_surface);
+      corefined = true;
+      break;
+    } catch (const CGAL::Failure_exception&) {
+      front_failures_ += with_front ? 1 : 0;
     }
   }
-
-  // The band past the boundary also keeps the cut's rim off a visual surface that lies on the
-  // body's boundary (the body's own surface): corefinement then meets a crossing, not two
-  // nearly coplanar triangles.
-  if (closed_) {
-    add_skirt(cut_points, cut_triangles, edge_of_point);
+  if (!corefined) {
+    ++failures_;
+    return;
   }
-
-  CgalMesh visual = to_cgal(original_points_, original_triangles_);
-  CgalMesh cut_surface = to_cgal(cut_points, cut_triangles);
   std::unique_ptr<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>> inside;
   CgalMesh original;
   if (closed_) {
-    original = visual;
+    original = to_cgal(original_points_, original_triangles_);
     inside = std::make_unique<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>>(original);
-  }
-  if (!cut_triangles.empty()) {
-    // Corefinement asks for surfaces that do not intersect themselves; real visual surfaces
-    // sometimes do (SOFA's liver-smooth.obj), and a skirt round a sharp rim may. When CGAL
-    // gives up, the picture keeps its last cut until the next split.
-    try {
-      PMP::corefine(visual, cut_surface);
-    } catch (const CGAL::Failure_exception&) {
-      ++failures_;
-      return;
-    }
   }
 
   std::map<PointKey, VertexId> index;
@@ -376,6 +469,119 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
   }
   tidy();
   ++revision_;
+}
+
+void VisualSurface::add_front_pieces(const XfemCutter& cutter, std::span<const TetId> front,
+                                     std::unordered_map<std::uint64_t, VertexId>& crossing_point,
+                                     std::vector<Vec3>& cut_points,
+                                     std::vector<Triangle>& cut_triangles,
+                                     std::vector<std::uint64_t>& edge_of_point) const {
+  // Beyond the seed (its future work): the picture opens under the blade before the physics
+  // splits. In each tetrahedron the cut has reached but not crossed, the cut so far runs
+  // through the crossings of its crossed edges and the blade's line inside it now; both sides'
+  // points there lie in the one whole element, so the picture is cut (and shows the cut faces)
+  // but stays closed until the physics splits the element and the lips part.
+  std::map<std::array<VertexId, 3>, VertexId> face_point;  // the blade's end on a face
+  std::map<TetId, VertexId> inner_point;                   // the blade's tip inside
+  constexpr std::uint64_t kNoEdge = ~std::uint64_t{0};
+  const BladePose& blade = cutter.last_pose();
+  for (TetId t : front) {
+    const Tet& tet = rest_mesh_.tet(t);
+    const auto x = rest_corners(rest_mesh_, t);
+    std::vector<VertexId> points;
+    for (const auto& edge : tet_local::kEdges) {
+      const auto i = static_cast<std::size_t>(edge[0]);
+      const auto j = static_cast<std::size_t>(edge[1]);
+      const std::optional<double> along = cutter.crossing(tet[i], tet[j]);
+      if (!along) {
+        continue;
+      }
+      const auto [slot, added] = crossing_point.try_emplace(
+          edge_key(tet[i], tet[j]), static_cast<VertexId>(cut_points.size()));
+      if (added) {
+        cut_points.push_back((1.0 - *along) * x[i] + *along * x[j]);
+        edge_of_point.push_back(edge_key(tet[i], tet[j]));
+      }
+      points.push_back(slot->second);
+    }
+    if (points.size() < 2) {
+      continue;  // the cut has not made a piece here yet
+    }
+    if (const auto clip = clip_segment(x, tet, blade.tip, blade.base)) {
+      for (const auto& [s, face] :
+           {std::pair{clip->enter, clip->enter_face}, std::pair{clip->exit, clip->exit_face}}) {
+        const Vec3 p = blade.tip + s * (blade.base - blade.tip);
+        VertexId id = kInvalidId;
+        if (face < 0) {
+          const auto [slot, added] =
+              inner_point.try_emplace(t, static_cast<VertexId>(cut_points.size()));
+          id = slot->second;
+          if (added) {
+            cut_points.push_back(p);
+            edge_of_point.push_back(kNoEdge);
+          }
+        } else {
+          std::array<VertexId, 3> key{};
+          for (int i = 0, m = 0; i < 4; ++i) {
+            if (i != face) {
+              key[static_cast<std::size_t>(m++)] = tet[static_cast<std::size_t>(i)];
+            }
+          }
+          std::sort(key.begin(), key.end());
+          const auto [slot, added] =
+              face_point.try_emplace(key, static_cast<VertexId>(cut_points.size()));
+          id = slot->second;
+          if (added) {
+            cut_points.push_back(p);
+            edge_of_point.push_back(kNoEdge);
+          }
+        }
+        points.push_back(id);
+      }
+    }
+    std::sort(points.begin(), points.end());
+    points.erase(std::unique(points.begin(), points.end()), points.end());
+    if (points.size() < 3) {
+      continue;
+    }
+    // A convex polygon in the tetrahedron: its corners in order around their centre, in the
+    // plane they lie closest to.
+    Vec3 centre = Vec3::Zero();
+    for (VertexId id : points) {
+      centre += cut_points[static_cast<std::size_t>(id)];
+    }
+    centre /= static_cast<double>(points.size());
+    Mat3 spread = Mat3::Zero();
+    for (VertexId id : points) {
+      const Vec3 d = cut_points[static_cast<std::size_t>(id)] - centre;
+      spread += d * d.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Mat3> axes(spread);
+    const Vec3 u = axes.eigenvectors().col(2);
+    const Vec3 v = axes.eigenvectors().col(1);
+    const double size = (x[1] - x[0]).norm() + (x[2] - x[0]).norm() + (x[3] - x[0]).norm();
+    if (!(axes.eigenvalues()[1] > 1e-12 * size * size)) {
+      continue;  // the points lie on a line: no area yet
+    }
+    // Far from flat: the blade turned, or came back, inside the tetrahedron; no one polygon
+    // stands for that cut, and the picture waits for the physics here.
+    const Vec3 normal = axes.eigenvectors().col(0);
+    const bool flat = std::all_of(points.begin(), points.end(), [&](VertexId id) {
+      return std::abs((cut_points[static_cast<std::size_t>(id)] - centre).dot(normal)) <=
+             0.02 * size;
+    });
+    if (!flat) {
+      continue;
+    }
+    std::sort(points.begin(), points.end(), [&](VertexId a, VertexId b) {
+      const Vec3 da = cut_points[static_cast<std::size_t>(a)] - centre;
+      const Vec3 db = cut_points[static_cast<std::size_t>(b)] - centre;
+      return std::atan2(da.dot(v), da.dot(u)) < std::atan2(db.dot(v), db.dot(u));
+    });
+    for (std::size_t m = 1; m + 1 < points.size(); ++m) {
+      cut_triangles.push_back({points[0], points[m], points[m + 1]});
+    }
+  }
 }
 
 void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles,

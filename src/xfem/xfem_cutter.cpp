@@ -85,6 +85,14 @@ std::vector<TetId> XfemCutter::front() const {
   return result;
 }
 
+std::optional<double> XfemCutter::crossing(VertexId a, VertexId b) const {
+  const EdgeRecord* found = record(a, b);
+  if (found == nullptr || found->crossings % 2 == 0) {
+    return std::nullopt;
+  }
+  return a < b ? found->at : 1.0 - found->at;
+}
+
 void XfemCutter::start(const BladePose& pose) {
   last_ = pose;
   started_ = true;

@@ -68,6 +68,56 @@ void expect_closed(const TetMesh& mesh, const VisualSurface& visual, double volu
   }
 }
 
+TEST(VisualSurface, ThePictureIsCutUpToTheBladeWhileThePhysicsWaits) {
+  // A blade swept along y across the bar, 1 mm per pose through 1 cm cells: the physics splits
+  // a tetrahedron once the blade has crossed it completely, a cell behind the blade; the
+  // picture is cut up to the blade itself (its cut faces reach the blade's line), and stays
+  // closed, with its volume, where the physics is still whole.
+  TetMesh mesh = bar();
+  const SurfaceMesh surface = inner_box();
+  const double volume = enclosed_volume(surface.points, surface.triangles);
+  VisualSurface visual(mesh, surface.points, surface.triangles);
+  XfemCutter cutter(mesh);
+  const double x = 0.0437;
+  cutter.start({0.0, Vec3(x, -0.005, -0.01), Vec3(x, -0.005, 0.03)});
+  double picture_lag = 0.0;  // m: the blade's y beyond the picture's cut, largest
+  double physics_lag = 0.0;  // m: the blade's y beyond the split elements, largest
+  int poses_inside = 0;
+  for (int i = 1; i <= 20; ++i) {
+    const double y = -0.005 + 0.001 * i;
+    cutter.move_to({0.1 * i, Vec3(x, y, -0.01), Vec3(x, y, 0.03)});
+    visual.follow(mesh, cutter);
+    expect_closed(mesh, visual, volume, 1e-6, "pose " + std::to_string(i));
+    if (y < 0.004) {
+      continue;  // the blade has not reached the visual surface (2 mm in) far enough
+    }
+    ++poses_inside;
+    double picture = -1.0;
+    for (std::size_t t = 0; t < visual.triangles().size(); ++t) {
+      if (visual.on_cut()[t] != 0) {
+        for (VertexId v : visual.triangles()[t]) {
+          picture = std::max(picture, visual.rest_points()[static_cast<std::size_t>(v)].y());
+        }
+      }
+    }
+    double physics = -1.0;
+    for (std::size_t t = 0; t < cutter.rest_tet_count(); ++t) {
+      if (cutter.cut_of(static_cast<TetId>(t))) {
+        for (VertexId v : mesh.tet(static_cast<TetId>(t))) {
+          physics = std::max(physics, mesh.rest_position(v).y());
+        }
+      }
+    }
+    picture_lag = std::max(picture_lag, y - picture);
+    physics_lag = std::max(physics_lag, y - std::min(physics, y));
+  }
+  EXPECT_GT(poses_inside, 10);
+  EXPECT_LT(picture_lag, 1e-9) << "the picture's cut reaches the blade";
+  EXPECT_GT(physics_lag, 0.002) << "the physics waits for full crossings (1 cm cells)";
+  EXPECT_EQ(visual.failures(), 0U);
+  EXPECT_EQ(visual.front_failures(), 0U);
+}
+
 TEST(VisualSurface, StaysClosedAndEnclosesItsVolumeAfterEveryPose) {
   TetMesh mesh = bar();
   const SurfaceMesh surface = inner_box();

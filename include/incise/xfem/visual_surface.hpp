@@ -18,6 +18,7 @@
 #include <memory>
 #include <set>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "incise/core/types.hpp"
@@ -62,6 +63,9 @@ class VisualSurface {
   /// Updates CGAL's corefinement gave up on (a surface that intersects itself); the surface
   /// then kept its previous cut.
   [[nodiscard]] std::size_t failures() const { return failures_; }
+  /// Updates whose pieces in front of the blade CGAL could not corefine: those were drawn
+  /// without them (the cut the physics sees only).
+  [[nodiscard]] std::size_t front_failures() const { return front_failures_; }
   /// Grows each time the surface's triangles change (a renderer uploads them again then).
   [[nodiscard]] std::uint64_t revision() const { return revision_; }
 
@@ -78,6 +82,12 @@ class VisualSurface {
   /// rim on the boundary.
   void add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles,
                  std::span<const std::uint64_t> edge_of_point) const;
+  /// The cut so far inside the tetrahedra the blade has reached but not crossed (`front`):
+  /// polygons through their edges' crossings and the blade's line in them now.
+  void add_front_pieces(const XfemCutter& cutter, std::span<const TetId> front,
+                        std::unordered_map<std::uint64_t, VertexId>& crossing_point,
+                        std::vector<Vec3>& points, std::vector<Triangle>& triangles,
+                        std::vector<std::uint64_t>& edge_of_point) const;
   /// m: from p to the nearest point of the original surface.
   [[nodiscard]] double nearest_visual_distance(const Vec3& p) const;
   /// Drops triangles rounding made flat and welds the seam where the picture's cut runs past
@@ -100,7 +110,10 @@ class VisualSurface {
   std::vector<Embedding> embedding_;
   std::size_t outside_ = 0;
   std::size_t split_seen_ = 0;
+  std::size_t moves_seen_ = 0;
+  std::vector<double> cut_signature_;  ///< the cut surface last drawn, to skip redrawing it
   std::size_t failures_ = 0;
+  std::size_t front_failures_ = 0;
   std::uint64_t revision_ = 1;
   bool closed_ = true;
 };
