@@ -152,9 +152,15 @@ struct PointKey {
 
 }  // namespace
 
+struct VisualSurface::CgalCache {
+  CgalMesh original;
+  std::unique_ptr<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>> inside;  ///< closed ones only
+};
+
 VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
                              std::vector<Triangle> triangles)
-    : rest_mesh_(std::vector<Vec3>(mesh.rest_positions().begin(), mesh.rest_positions().end()),
+    : cgal_(std::make_unique<CgalCache>()),
+      rest_mesh_(std::vector<Vec3>(mesh.rest_positions().begin(), mesh.rest_positions().end()),
                  std::vector<Tet>(mesh.tets().begin(), mesh.tets().end())),
       original_points_(std::move(points)),
       original_triangles_(std::move(triangles)) {
@@ -179,6 +185,11 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
   }
   nudge_ = 1e-6 * length / static_cast<double>(std::max<std::size_t>(1, rest_mesh_.edge_count()));
   closed_ = is_watertight(original_triangles_);
+  cgal_->original = to_cgal(original_points_, original_triangles_);
+  if (closed_) {
+    cgal_->inside =
+        std::make_unique<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>>(cgal_->original);
+  }
   for (const BoundaryFace& face : boundary_faces(rest_mesh_)) {
     std::array<VertexId, 3> key = face.vertices;
     std::sort(key.begin(), key.end());
@@ -379,7 +390,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
     if (closed_) {
       add_skirt(cut_points, cut_triangles, edge_of_point);
     }
-    visual = to_cgal(original_points_, original_triangles_);
+    visual = cgal_->original;
     cut_surface = to_cgal(cut_points, cut_triangles);
     if (cut_triangles.empty()) {
       corefined = true;
@@ -399,12 +410,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
     ++failures_;
     return;
   }
-  std::unique_ptr<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>> inside;
-  CgalMesh original;
-  if (closed_) {
-    original = to_cgal(original_points_, original_triangles_);
-    inside = std::make_unique<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>>(original);
-  }
+  const auto* inside = cgal_->inside.get();
 
   std::map<PointKey, VertexId> index;
   rest_points_.clear();

@@ -94,6 +94,10 @@ class VisualSurface {
   /// the physics' front.
   void tidy();
 
+  /// The original surface as CGAL's mesh and its inside test, made once (every update starts
+  /// from them).
+  struct CgalCache;
+  std::unique_ptr<CgalCache> cgal_;
   TetMesh rest_mesh_;  ///< the physics mesh before any cut (its tetrahedra are the rest ones)
   std::unique_ptr<TetGrid> grid_;
   double nudge_ = 0.0;  ///< m: how far past a point its side is read
