@@ -132,6 +132,7 @@ int cut_xfem(const XfemCutRequest& request) {
       json["visual_triangles"] = visual->triangles().size();
       json["visual_outside_points"] = visual->outside_points();
       json["visual_failures"] = visual->failures();
+      json["visual_front_failures"] = visual->front_failures();
     }
     write_file_atomically(request.report_path, json.dump(2) + "\n");
   }
