@@ -69,15 +69,12 @@ double mean_skin_prestrain(const LayeredTissue& tissue) {
 /// X <- X - K^-1 r (K the stiffness at the scanned state, factorised once and again only when
 /// the residual stops halving per step) converges linearly at the rate of the strains
 /// the load makes, which are small for tissue that carries its own weight.
-EquilibriumReport balance_continuum(LayeredTissue& tissue, const Vec3& gravity, double tolerance,
-                                    int max_iterations) {
-  EquilibriumReport report;
+/// `f` holds the forces at the scanned state, `report` the residual before.
+EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& energy,
+                                    std::vector<Vec3>& f, EquilibriumReport report,
+                                    double tolerance, int max_iterations) {
   const std::size_t n = tissue.point_count();
   const std::span<const Vec3> x = tissue.rest;
-  std::vector<Vec3> f(n);
-  TissueEnergy energy(tissue, gravity);
-  energy.forces(x, f);
-  report.residual_before = largest_soft_force(tissue, f);
   report.residual_after = report.residual_before;
   report.skin_prestrain_mean = mean_skin_prestrain(tissue);
   std::vector<int> row;
@@ -138,17 +135,17 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const Vec3& gravity, 
 
 EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
                                          double tolerance, int max_iterations) {
-  if (tissue.elasticity == TissueElasticity::kContinuum) {
-    return balance_continuum(tissue, gravity, tolerance, max_iterations);
-  }
-  // Damped steps converge linearly: a few more of them than Gauss-Newton would need.
   EquilibriumReport report;
   const std::size_t n = tissue.point_count();
   const std::span<const Vec3> x = tissue.rest;
   std::vector<Vec3> f(n);
-  TissueEnergy energy(tissue, gravity);
+  const TissueEnergy energy(tissue, gravity);
   energy.forces(x, f);
   report.residual_before = largest_soft_force(tissue, f);
+  if (tissue.elasticity == TissueElasticity::kContinuum) {
+    return balance_continuum(tissue, energy, f, report, tolerance, max_iterations);
+  }
+  // Damped steps converge linearly: a few more of them than Gauss-Newton would need.
   // Soft points are the rows; every spring is an unknown. The skin's too: on an irregular
   // triangulation a uniform pre-strain leaves in-plane forces that only in-plane springs can
   // balance (through the nearly radial springs below it would take huge changes); their mean

@@ -487,8 +487,8 @@ void VisualSurface::add_front_pieces(const XfemCutter& cutter, std::span<const T
   // through the crossings of its crossed edges and the blade's line inside it now; both sides'
   // points there lie in the one whole element, so the picture is cut (and shows the cut faces)
   // but stays closed until the physics splits the element and the lips part.
-  std::map<std::array<VertexId, 3>, VertexId> face_point;  // the blade's end on a face
-  std::map<TetId, VertexId> inner_point;                   // the blade's tip inside
+  // The blade's ends in the tetrahedra: on a face (shared by its two tetrahedra) or inside.
+  std::map<std::array<VertexId, 3>, VertexId> blade_point;
   constexpr std::uint64_t kNoEdge = ~std::uint64_t{0};
   const BladePose& blade = cutter.last_pose();
   for (TetId t : front) {
@@ -514,35 +514,27 @@ void VisualSurface::add_front_pieces(const XfemCutter& cutter, std::span<const T
       continue;  // the cut has not made a piece here yet
     }
     if (const auto clip = clip_segment(x, tet, blade.tip, blade.base)) {
-      for (const auto& [s, face] :
-           {std::pair{clip->enter, clip->enter_face}, std::pair{clip->exit, clip->exit_face}}) {
-        const Vec3 p = blade.tip + s * (blade.base - blade.tip);
-        VertexId id = kInvalidId;
-        if (face < 0) {
-          const auto [slot, added] =
-              inner_point.try_emplace(t, static_cast<VertexId>(cut_points.size()));
-          id = slot->second;
-          if (added) {
-            cut_points.push_back(p);
-            edge_of_point.push_back(kNoEdge);
-          }
-        } else {
-          std::array<VertexId, 3> key{};
+      for (int end = 0; end < 2; ++end) {
+        const double s = end == 0 ? clip->enter : clip->exit;
+        const int face = end == 0 ? clip->enter_face : clip->exit_face;
+        // Keyed by the face it lies on (its vertices, sorted), or, inside, by the tetrahedron
+        // and which end it is.
+        std::array<VertexId, 3> key{kInvalidId, t, -1 - end};
+        if (face >= 0) {
           for (int i = 0, m = 0; i < 4; ++i) {
             if (i != face) {
               key[static_cast<std::size_t>(m++)] = tet[static_cast<std::size_t>(i)];
             }
           }
           std::sort(key.begin(), key.end());
-          const auto [slot, added] =
-              face_point.try_emplace(key, static_cast<VertexId>(cut_points.size()));
-          id = slot->second;
-          if (added) {
-            cut_points.push_back(p);
-            edge_of_point.push_back(kNoEdge);
-          }
         }
-        points.push_back(id);
+        const auto [slot, added] =
+            blade_point.try_emplace(key, static_cast<VertexId>(cut_points.size()));
+        if (added) {
+          cut_points.push_back(blade.tip + s * (blade.base - blade.tip));
+          edge_of_point.push_back(kNoEdge);
+        }
+        points.push_back(slot->second);
       }
     }
     std::sort(points.begin(), points.end());
