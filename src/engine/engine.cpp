@@ -609,6 +609,7 @@ BladePose Engine::Parts::rest_pose(const BladePose& pose, PoseFrame frame) {
   }
   return mapped(pose, rest_map);
 }
+
 const MaterialMap* Engine::materials() const {
   return parts_->model->material_map();
 }

@@ -122,7 +122,8 @@ class Engine {
   /// The same blade in the body's rest frame: what the cutter cut with.
   [[nodiscard]] const std::optional<BladePose>& blade_rest() const;
   /// The same blade where the body is now (a rest-frame pose carried by the deformation around
-  /// it): where pictures and snapshots draw it.
+  /// it): where pictures and snapshots draw it. Computed on first use per frame, so the
+  /// engine's thread only (other threads take the snapshot's).
   [[nodiscard]] const std::optional<BladePose>& blade_world() const;
   [[nodiscard]] const Integrator& integrator() const;
   /// The materials of the body (table and one per tetrahedron), or null if the model keeps none.
