@@ -25,6 +25,7 @@ Runner add_view_command(CLI::App& app) {
   auto screenshot = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto exit_after = std::make_shared<int>(-1);
+  auto paced = std::make_shared<bool>(false);
   auto size = std::make_shared<std::string>("1280x800");
   auto mode = std::make_shared<std::string>("faces");
   command->add_option("scene", *scene_path, "Scene file (JSON); see scenes/README.md")
@@ -37,10 +38,16 @@ Runner add_view_command(CLI::App& app) {
                       "Record the session (tool poses and UI actions per frame) to this file; "
                       "replay with incise run --replay or incise view --replay");
   command->add_option("--screenshot", *screenshot, "Save a picture of the view here at exit");
+  auto* exit_after_option =
+      command
+          ->add_option("--exit-after", *exit_after,
+                       "Play this many frames (the replay, else the scene's own path), then exit")
+          ->check(CLI::NonNegativeNumber);
   command
-      ->add_option("--exit-after", *exit_after,
-                   "Play this many frames (the replay, else the scene's own path), then exit")
-      ->check(CLI::NonNegativeNumber);
+      ->add_flag("--paced", *paced,
+                 "With --exit-after: pace the physics to the scene's frame time, as when a user "
+                 "watches (else it runs flat out); for measuring the frame rate a user sees")
+      ->needs(exit_after_option);
   command->add_option("--size", *size, "Window size WxH (default 1280x800)");
   command->add_option("--mode", *mode, "faces, wire or cut (keys F, G, C)");
   command->add_option("--out", *out,
@@ -68,6 +75,7 @@ Runner add_view_command(CLI::App& app) {
       options.out = *out;
     }
     options.exit_after = *exit_after;
+    options.paced = *paced;
     std::tie(options.width, options.height) = parse_size(*size);
     options.mode = parse_mode(*mode);
     Viewer viewer(options);

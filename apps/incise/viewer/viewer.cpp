@@ -148,7 +148,7 @@ void Viewer::start_engine() {
   }
   // Interactive: paced to the scene's frame time; scripted (--exit-after): as fast as it goes.
   thread_ = std::make_unique<EngineThread>(*engine_, playing_, options_.exit_after,
-                                           options_.exit_after < 0);
+                                           options_.exit_after < 0 || options_.paced);
 }
 
 double Viewer::aspect() const {

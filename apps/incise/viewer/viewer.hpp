@@ -30,6 +30,9 @@ struct ViewerOptions {
   std::optional<std::filesystem::path> screenshot;  ///< saved at exit
   std::optional<std::filesystem::path> out;         ///< the first and last frame as a .vtu series
   int exit_after = -1;                              ///< frames to play, then exit
+  /// With exit_after: the physics paced to the scene's frame time, as when a user watches
+  /// (else it runs as fast as it goes); the window still draws without waiting for vsync.
+  bool paced = false;
   int width = 1280;
   int height = 800;
   RenderMode mode = RenderMode::kFaces;
