@@ -568,6 +568,12 @@ TEST(Cli, RunRefusesBadPictureOptionsByName) {
   EXPECT_FALSE(std::filesystem::exists(dir / "png" / "frame_000000.png"));
 }
 
+TEST(Cli, ViewPacedNeedsExitAfter) {
+  const CommandResult run = incise("view --paced");
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("--exit-after"), std::string::npos) << run.err;
+}
+
 /// A pixel of cut tissue in a picture: deep red, unlike background, blade and exterior.
 std::size_t cut_pixels(const std::filesystem::path& png) {
   std::size_t n = 0;
