@@ -1,7 +1,7 @@
 #pragma once
 // Pictures of a plan's prediction (`incise plan --render DIR`): the skin before and after,
 // textured, and after coloured by its displacement (ParaView's Cool to Warm, 0 mm blue to the
-// largest red), all from one camera that looks at the most displaced skin point.
+// largest red), all from one camera that looks at the displacement-weighted centre of the skin.
 
 #include <filesystem>
 #include <vector>

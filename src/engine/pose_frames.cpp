@@ -27,16 +27,12 @@ Mat3 edges(const std::array<Vec3, 4>& c) {
   return m;
 }
 
-/// Whether p lies in the tetrahedron (barycentric coordinates above -tolerance).
+/// Whether p lies in the tetrahedron (barycentric coordinates above -tolerance; false for a
+/// flat one, whose coordinates are not finite).
 bool contains(const std::array<Vec3, 4>& c, const Vec3& p) {
-  const Mat3 m = edges(c);
-  const double det = m.determinant();
-  if (!(std::abs(det) > 0.0)) {
-    return false;
-  }
-  const Vec3 b = m.inverse() * (p - c[0]);
+  const auto w = barycentric_coordinates(p, c[0], c[1], c[2], c[3]);
   constexpr double kTolerance = 1e-9;
-  return b.minCoeff() >= -kTolerance && b.sum() <= 1.0 + kTolerance;
+  return std::all_of(w.begin(), w.end(), [](double b) { return b >= -kTolerance; });
 }
 
 double distance_to_segment(const Vec3& p, const Vec3& a, const Vec3& b) {

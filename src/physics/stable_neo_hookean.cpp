@@ -20,12 +20,6 @@ Mat3 cofactor(const Mat3& F) {
   return c;
 }
 
-Mat3 cross_matrix(const Vec3& v) {
-  Mat3 m;
-  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-  return m;
-}
-
 Eigen::Map<const Eigen::Matrix<double, 9, 1>> as_vector(const Mat3& m) {
   return Eigen::Map<const Eigen::Matrix<double, 9, 1>>(m.data());
 }

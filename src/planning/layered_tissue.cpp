@@ -81,9 +81,9 @@ void split_into_tets(const Triangle& t, Prism& prism) {
 /// The skin membrane's springs (the continuum's layer-0 springs): k = E t (A1 + A2) / l0^2 over
 /// the one or two skin triangles beside the edge. On a mesh of equilateral triangles this gives
 /// the membrane an equibiaxial stiffness E t / (1 - nu) with the lattice's nu = 1/3, so a
-/// pre-strain e pulls with the tension E t e / (1 - nu) (N/m) whatever the layers. Stores
-/// E t (A1 + A2) in `spring_volume`; the caller divides by l0^2.
-void set_skin_membrane(const LayeredTissue& tissue, double modulus_thickness,
+/// pre-strain e pulls with the tension E t e / (1 - nu) (N/m) whatever the layers. Stores the
+/// volume t (A1 + A2) in `spring_volume`; the caller multiplies by E / l0^2.
+void set_skin_membrane(const LayeredTissue& tissue, double thickness,
                        const std::map<std::pair<int, int>, int>& spring_of,
                        std::vector<double>& spring_volume) {
   for (const Triangle& t : tissue.skin_triangles) {
@@ -95,7 +95,7 @@ void set_skin_membrane(const LayeredTissue& tissue, double modulus_thickness,
       const auto found =
           spring_of.find(std::minmax(tissue.point(t[e], 0), tissue.point(t[(e + 1) % 3], 0)));
       if (found != spring_of.end()) {
-        spring_volume[static_cast<std::size_t>(found->second)] += modulus_thickness * area;
+        spring_volume[static_cast<std::size_t>(found->second)] += thickness * area;
       }
     }
   }
@@ -339,16 +339,13 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
     }
   }
   if (continuum) {
-    set_skin_membrane(tissue, material_of(0).young_modulus * options.skin_thickness, spring_of,
-                      spring_volume);
+    set_skin_membrane(tissue, options.skin_thickness, spring_of, spring_volume);
   }
   for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
     Spring& spring = tissue.springs[s];
     const LayerMaterial& material = material_of(spring.layer);
     const double length = std::max(spring.rest_length, options.min_thickness / layers);
-    // Continuum: spring_volume holds the membrane's E t (A1 + A2) (N m), set above.
-    spring.stiffness =
-        (continuum ? 1.0 : material.young_modulus) * spring_volume[s] / (length * length);
+    spring.stiffness = material.young_modulus * spring_volume[s] / (length * length);
     if (spring.set == SpringSet::kLayer && spring.layer == 0) {
       // Skin pre-strain: the scanned length is the stretched one.
       spring.rest_length /= 1.0 + options.skin_prestrain;

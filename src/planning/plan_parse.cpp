@@ -1,7 +1,10 @@
 // Plan files: JSON, millimetres for lengths (converted to metres here), SI for materials.
 
+#include <array>
 #include <fstream>
 #include <sstream>
+#include <string_view>
+#include <utility>
 
 #include "incise/core/error.hpp"
 #include "incise/core/json_reader.hpp"
@@ -152,17 +155,10 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
     plan.skin_edge_length = top.positive("skin_edge_length", 1.0) * kMillimetre;
   }
   plan.tissue.layers = top.integer("layers", plan.tissue.layers, 1, 64);
-  if (top.has("elasticity")) {
-    const std::string elasticity = top.string("elasticity", "");
-    if (elasticity == "springs") {
-      plan.tissue.elasticity = TissueElasticity::kSprings;
-    } else if (elasticity == "continuum") {
-      plan.tissue.elasticity = TissueElasticity::kContinuum;
-    } else {
-      context.fail("elasticity",
-                   "unknown elasticity '" + elasticity + "' (known: continuum, springs)");
-    }
-  }
+  constexpr std::array<std::pair<std::string_view, TissueElasticity>, 2> kElasticities{
+      {{"continuum", TissueElasticity::kContinuum}, {"springs", TissueElasticity::kSprings}}};
+  plan.tissue.elasticity = top.choice<TissueElasticity>("elasticity", plan.tissue.elasticity,
+                                                        kElasticities, "elasticity");
   const bool continuum = plan.tissue.elasticity == TissueElasticity::kContinuum;
   if (top.has("skin_thickness")) {
     if (!continuum) {

@@ -57,11 +57,6 @@ PrismHessian prism_volume_hessian(const PrismPoints& p) {
   // (cyclically), and d.N has the block -[d]x at (p, q), (q, r), (r, p) and its transpose at
   // the mirrored places. A mid-triangle corner m_i = (p_i + p_{i+3}) / 2 takes half of each
   // derivative, and Nm carries the weight 4.
-  const auto cross_matrix = [](const Vec3& v) {
-    Mat3 m;
-    m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-    return m;
-  };
   const Vec3 d = (p[3] + p[4] + p[5] - p[0] - p[1] - p[2]) / 3.0;
   const std::array<Vec3, 3> m = {0.5 * (p[0] + p[3]), 0.5 * (p[1] + p[4]), 0.5 * (p[2] + p[5])};
   std::array<Mat3, 6> jacobian;  // dS/dp_a

@@ -4,14 +4,11 @@
 #include <cstdint>
 #include <unordered_map>
 
+#include "incise/mesh/tet_mesh.hpp"
+
 namespace incise::planning {
 
 namespace {
-
-std::uint64_t pair_key(int a, int b) {
-  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(std::min(a, b))) << 32U) |
-         static_cast<std::uint32_t>(std::max(a, b));
-}
 
 /// The index among a prism's 15 corner pairs (i, j), i < j, in coupling_pattern's order.
 constexpr std::size_t prism_pair_index(std::size_t i, std::size_t j) {
@@ -25,7 +22,7 @@ CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
   std::unordered_map<std::uint64_t, std::size_t> index;
   index.reserve(tissue.springs.size() * 2 + tissue.prisms.size() * 8);
   for (const Spring& spring : tissue.springs) {
-    index.emplace(pair_key(spring.a, spring.b), pattern.pairs.size());
+    index.emplace(edge_key(spring.a, spring.b), pattern.pairs.size());
     pattern.pairs.emplace_back(spring.a, spring.b);
   }
   pattern.prism_pairs.reserve(tissue.prisms.size() * 15);
@@ -34,7 +31,7 @@ CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
       for (std::size_t j = i + 1; j < 6; ++j) {
         const int a = prism.points[i];
         const int b = prism.points[j];
-        const auto [it, added] = index.emplace(pair_key(a, b), pattern.pairs.size());
+        const auto [it, added] = index.emplace(edge_key(a, b), pattern.pairs.size());
         if (added) {
           pattern.pairs.emplace_back(a, b);
         }

@@ -70,10 +70,6 @@ double squared_distance_to_tet(const Vec3& p, const std::array<Vec3, 4>& x) {
   return best;
 }
 
-/// Whether q lies on side b of a split tetrahedron's cut, read from the cut polygon's planes
-/// (extended, so a point nudged just outside the tetrahedron still reads its side): one plane,
-/// or two for a quad bent along its diagonal, where side b is the wedge between them when the
-/// quad bends towards b and the rest of space when it bends away.
 /// The part of the segment p0 -> p1 inside a tetrahedron (corners x, vertex ids `ids`): its
 /// parameters along the segment and the face each end lies on (the local index of the corner
 /// opposite it; -1 where the segment ends inside). A face's plane is taken through its corners
@@ -130,6 +126,10 @@ std::optional<SegmentClip> clip_segment(const std::array<Vec3, 4>& x, const Tet&
   return clip;
 }
 
+/// Whether q lies on side b of a split tetrahedron's cut, read from the cut polygon's planes
+/// (extended, so a point nudged just outside the tetrahedron still reads its side): one plane,
+/// or two for a quad bent along its diagonal, where side b is the wedge between them when the
+/// quad bends towards b and the rest of space when it bends away.
 bool on_side_b(const std::array<Vec3, 4>& corners, const ElementCut& cut, const Vec3& q) {
   const std::vector<Vec3> polygon = cut_polygon(corners, cut);  // oriented from a to b
   const Vec3 n1 = (polygon[1] - polygon[0]).cross(polygon[2] - polygon[0]);

@@ -23,4 +23,11 @@ using Triangle = std::array<VertexId, 3>;
 
 inline constexpr std::int32_t kInvalidId = -1;
 
+/// The matrix of the cross product with v: cross_matrix(v) * w == v.cross(w).
+[[nodiscard]] inline Mat3 cross_matrix(const Vec3& v) {
+  Mat3 m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
 }  // namespace incise
