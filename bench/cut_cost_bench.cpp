@@ -9,6 +9,7 @@
 //
 // usage: cut_cost_bench [--cells 10,20,40] [--model corotational-fem|mass-spring]
 //                       [--cutter subdivision|xfem] [--blade-x 0.05] [--per-frame 1]
+//                       [--preconditioner block-jacobi|two-level]
 // (x = 0.05 m is a plane of grid vertices at every n here; 0.0537 m crosses the cells)
 // Frames 1-10 are "before", 16-45 (the blade moving inside) "cutting", 46-65 "after".
 
@@ -54,7 +55,8 @@ struct Means {
   [[nodiscard]] double per_iteration() const { return iterations > 0 ? solve / iterations : 0.0; }
 };
 
-std::string scene_text(int cells, const std::string& model, const std::string& cutter, double x) {
+std::string scene_text(int cells, const std::string& model, const std::string& cutter, double x,
+                       const std::string& preconditioner) {
   // Frames 1-10: the blade waits outside (y < 0); 11-45: it moves 1 mm per frame to 3 cm deep
   // (5 mm of approach first); 46-65: it rests inside.
   return fmt::format(R"({{
@@ -62,7 +64,7 @@ std::string scene_text(int cells, const std::string& model, const std::string& c
     "material": {{"young_modulus": 3000, "poisson_ratio": 0.45, "density": 1000}},
     "model": {{"type": "{1}"}},
     "integrator": {{"type": "backward-euler", "dt": 0.01,
-                    "solver": {{"type": "cg", "preconditioner": "block-jacobi", "tolerance": 1e-6}}}},
+                    "solver": {{"type": "cg", "preconditioner": "{4}", "tolerance": 1e-6}}}},
     "fixed": [{{"box": [[-1, -1, -1], [1, 1, 0]]}}],
     "gravity": [0, 0, -9.81],
     "tool": {{"poses": [[0.0, {3}, -0.005, -0.01, {3}, -0.005, 0.11],
@@ -70,7 +72,7 @@ std::string scene_text(int cells, const std::string& model, const std::string& c
                         [0.45, {3}, 0.030, -0.01, {3}, 0.030, 0.11]]}},
     "cutter": {{"type": "{2}"}},
     "frames": 65, "frame_dt": 0.01}})",
-                     cells, model, cutter, x);
+                     cells, model, cutter, x, preconditioner);
 }
 
 }  // namespace
@@ -79,7 +81,8 @@ int main(int argc, char** argv) {
   std::vector<int> sizes{10, 20, 40};
   std::string model = "corotational-fem";
   std::string cutter = "subdivision";
-  double blade_x = 0.05;   // m
+  double blade_x = 0.05;  // m
+  std::string preconditioner = "block-jacobi";
   bool per_frame = false;  // --per-frame 1: every frame on stderr
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
@@ -99,6 +102,8 @@ int main(int argc, char** argv) {
       cutter = argv[i + 1];
     } else if (std::strcmp(argv[i], "--blade-x") == 0) {
       blade_x = std::atof(argv[i + 1]);
+    } else if (std::strcmp(argv[i], "--preconditioner") == 0) {
+      preconditioner = argv[i + 1];
     } else if (std::strcmp(argv[i], "--per-frame") == 0) {
       per_frame = std::strcmp(argv[i + 1], "0") != 0;
     }
@@ -109,7 +114,8 @@ int main(int argc, char** argv) {
       "|---|---|---|---|---|---|---|\n");
   std::vector<std::string> where;  // the second table's rows
   for (int n : sizes) {
-    Engine engine(incise::parse_scene(scene_text(n, model, cutter, blade_x), "cut_cost.json"));
+    Engine engine(incise::parse_scene(scene_text(n, model, cutter, blade_x, preconditioner),
+                                      "cut_cost.json"));
     const std::size_t tets = engine.mesh().tet_count();
     Means cutting;
     Means before;  // the whole body, not cut yet
@@ -129,9 +135,13 @@ int main(int argc, char** argv) {
       const FrameRecord& r = engine.last_frame();
       const incise::IntegratorStats& stats = engine.integrator().stats();
       if (per_frame) {
-        std::fprintf(stderr, "n %d frame %d tets %zu cd %.2f gc %.2f update %.2f rx %.2f CG %zu\n",
+        std::fprintf(stderr,
+                     "n %d frame %d tets %zu cd %.2f gc %.2f update %.2f rx %.2f CG %zu "
+                     "(preconditioner %.2f products %.2f updates %.2f)\n",
                      n, r.frame, r.tets, 1e3 * r.cd, 1e3 * r.gc, 1e3 * stats.seconds_refresh,
-                     1e3 * r.rx, stats.solver_iterations_last_step);
+                     1e3 * r.rx, stats.solver_iterations_last_step,
+                     1e3 * stats.seconds_preconditioner, 1e3 * stats.seconds_products,
+                     1e3 * stats.seconds_vector_updates);
       }
       if (r.frame == 15) {
         tets_before_cut = r.tets;

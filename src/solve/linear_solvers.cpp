@@ -9,6 +9,8 @@
 #include "incise/core/error.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/core/timing.hpp"
+#include "incise/solve/aggregation_coarse_space.hpp"
+#include "incise/solve/cluster_jacobi.hpp"
 #include "incise/solve/direct_factorization.hpp"
 
 namespace incise {
@@ -110,8 +112,11 @@ Preconditioner parse_preconditioner(const std::string& name) {
   if (name == "incomplete-cholesky") {
     return Preconditioner::kIncompleteCholesky;
   }
+  if (name == "two-level") {
+    return Preconditioner::kTwoLevel;
+  }
   throw InputError("unknown preconditioner '" + name +
-                   "' (known: none, jacobi, block-jacobi, incomplete-cholesky)");
+                   "' (known: none, jacobi, block-jacobi, incomplete-cholesky, two-level)");
 }
 
 std::string to_string(Preconditioner preconditioner) {
@@ -124,6 +129,8 @@ std::string to_string(Preconditioner preconditioner) {
       return "block-jacobi";
     case Preconditioner::kIncompleteCholesky:
       return "incomplete-cholesky";
+    case Preconditioner::kTwoLevel:
+      return "two-level";
   }
   return "?";
 }
@@ -238,6 +245,7 @@ void LinearizedSystemSolver::fill_scalar_values() {
 Mat3 LinearizedSystemSolver::preconditioner_block(const Mat3& diagonal_block) const {
   switch (options_.preconditioner) {
     case Preconditioner::kBlockJacobi:
+    case Preconditioner::kTwoLevel:
       return diagonal_block.inverse();
     case Preconditioner::kJacobi:
       return diagonal_block.diagonal().cwiseInverse().asDiagonal();
@@ -278,6 +286,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
                           }
                         });
   };
+  const bool two_level = options_.preconditioner == Preconditioner::kTwoLevel;
   // Preconditioner and the initial residual (warm start from x).
   if (!start_from_x) {
     std::fill(x.begin(), x.end(), Vec3::Zero());
@@ -292,13 +301,31 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
           product_[i].setZero();  // never written again: held rows stay out of every update
           return;
         }
-        diagonal_[i] = preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
+        diagonal_[i] =
+            two_level ? clusters_->single_inverse()[i]
+                      : preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
         residual_[i] = rhs[i] - row_x;  // x is zero on a cold start
         preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
         direction_[i] = preconditioned_[i];
         sum_rr += residual_[i].squaredNorm();
         sum_rz += residual_[i].dot(preconditioned_[i]);
       });
+  // The two-level preconditioner's per-row part (vertices alone in their cluster) runs in the
+  // passes above and below; once the whole residual is known, the clusters' blocks and the
+  // coarse correction add theirs, and their part of r.z (the coarse one is
+  // (P^T r).(A_c^-1 P^T r), so it needs no pass of its own).
+  auto precondition_two_level = [&](bool set_direction) {
+    double sum = clusters_->apply_clusters(residual_, preconditioned_);
+    sum += coarse_->solve(residual_);
+    coarse_->add_correction(preconditioned_);
+    if (set_direction) {
+      std::copy(preconditioned_.begin(), preconditioned_.end(), direction_.begin());
+    }
+    return sum;
+  };
+  if (two_level) {
+    rz += precondition_two_level(true);
+  }
   stats.relative_residual = std::sqrt(rr) / rhs_norm;
   // q = J p for the first direction; afterwards J p_new = J z + beta J p_old is formed in the
   // same pass as J z, so an iteration is two passes (the p and q recurrences are exact
@@ -330,13 +357,16 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
     }
     const double alpha = rz / curvature;
     const auto update_start = Clock::now();
-    const auto [rr_next, rz_next] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
+    auto [rr_next, rz_next] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
       x[i] += alpha * direction_[i];
       residual_[i] -= alpha * product_[i];
       preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
       sum_rr += residual_[i].squaredNorm();
       sum_rz += residual_[i].dot(preconditioned_[i]);
     });
+    if (two_level && std::sqrt(rr_next) / rhs_norm > options_.tolerance) {
+      rz_next += precondition_two_level(false);
+    }
     stats.seconds_vector_updates += seconds_since(update_start);
     ++iteration;
     stats.relative_residual = std::sqrt(rr_next) / rhs_norm;
@@ -462,7 +492,8 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
   }
   bool direct = options_.type == LinearSolverType::kDirect ||
                 (options_.type == LinearSolverType::kAuto && free_unknowns <= auto_direct_limit());
-  bool needs_matrix = direct || options_.preconditioner == Preconditioner::kIncompleteCholesky;
+  bool needs_matrix = direct || options_.preconditioner == Preconditioner::kIncompleteCholesky ||
+                      options_.preconditioner == Preconditioner::kTwoLevel;
   bool assembled = false;
   const auto matrix_start = Clock::now();
   if (needs_matrix) {
@@ -470,7 +501,8 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     if (!assembled && options_.type == LinearSolverType::kAuto) {
       // A matrix-free model: auto falls back to CG.
       direct = false;
-      needs_matrix = options_.preconditioner == Preconditioner::kIncompleteCholesky;
+      needs_matrix = options_.preconditioner == Preconditioner::kIncompleteCholesky ||
+                     options_.preconditioner == Preconditioner::kTwoLevel;
     }
   }
   stats.direct = direct;
@@ -480,6 +512,34 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
           "this model offers matrix-free products only: use the cg solver with the jacobi or "
           "block-jacobi preconditioner");
     }
+  }
+  if (needs_matrix && !direct && options_.preconditioner == Preconditioner::kTwoLevel) {
+    if (!coarse_) {
+      coarse_ = std::make_unique<AggregationCoarseSpace>();
+      clusters_ = std::make_unique<ClusterJacobi>();
+    }
+    if (!clusters_->update(assembled_, constrained_)) {
+      throw InputError(
+          "the two-level preconditioner found a vertex block that is not positive definite "
+          "(is every free vertex given a mass?)");
+    }
+    if (!coarse_->update(assembled_, constrained_)) {
+      throw InputError(
+          "the two-level preconditioner could not factorise its coarse matrix (is the system "
+          "positive definite?)");
+    }
+    stats.coarse_unknowns = 3 * coarse_->aggregate_count();
+    stats.seconds_preconditioner = seconds_since(matrix_start);
+    if (!start_basis.empty()) {
+      galerkin_start(
+          start_basis, rhs, x,
+          [&](std::span<const Vec3> p, std::span<Vec3> y) { assembled_.multiply(p, y); }, stats);
+    }
+    fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats);
+    stats.seconds_total = seconds_since(start);
+    return stats;
+  }
+  if (needs_matrix) {
     fill_scalar_values();
     if (direct) {
       if (!direct_) {
@@ -555,7 +615,8 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
   preconditioned_.resize(n);
   const auto build_start = Clock::now();
   if (options_.preconditioner == Preconditioner::kJacobi ||
-      options_.preconditioner == Preconditioner::kBlockJacobi) {
+      options_.preconditioner == Preconditioner::kBlockJacobi ||
+      options_.preconditioner == Preconditioner::kTwoLevel) {
     diagonal_.resize(n);
     parallel_vertices(
         n, [&](std::size_t i) { diagonal_[i] = mass_scale * masses_[i] * Mat3::Identity(); });
@@ -573,6 +634,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
         break;
       case Preconditioner::kJacobi:
       case Preconditioner::kBlockJacobi:
+      case Preconditioner::kTwoLevel:  // solved on the assembled matrix above; never here
         parallel_vertices(n, [&](std::size_t i) { z[i].noalias() = diagonal_[i] * r[i]; });
         break;
       case Preconditioner::kIncompleteCholesky: {

@@ -507,7 +507,7 @@ TEST(FemAccuracy, PreconditionersAndDirectSolverAgreeOnOneStep) {
   std::vector<double> sags;
   for (Preconditioner preconditioner :
        {Preconditioner::kNone, Preconditioner::kJacobi, Preconditioner::kBlockJacobi,
-        Preconditioner::kIncompleteCholesky}) {
+        Preconditioner::kIncompleteCholesky, Preconditioner::kTwoLevel}) {
     LinearSolverOptions options;
     options.tolerance = 1e-10;
     options.preconditioner = preconditioner;

@@ -17,13 +17,17 @@
 
 namespace incise {
 
+class AggregationCoarseSpace;
+class ClusterJacobi;
 class DirectFactorization;
 
 /// kAuto: the direct factorisation up to auto_direct_limit() free unknowns, CG above (measured
 /// in BENCHMARKS.md: factorised Newton steps converge where block-Jacobi CG stalls on slender
 /// bodies; CG's memory grows slower on very large ones).
 enum class LinearSolverType { kConjugateGradient, kDirect, kAuto };
-enum class Preconditioner { kNone, kJacobi, kBlockJacobi, kIncompleteCholesky };
+/// kTwoLevel: block-Jacobi plus an aggregation coarse level (see aggregation_coarse_space.hpp);
+/// needs a model that assembles its matrix.
+enum class Preconditioner { kNone, kJacobi, kBlockJacobi, kIncompleteCholesky, kTwoLevel };
 
 /// Free scalar unknowns up to which kAuto factorises: 150,000 with CHOLMOD (about 1 GB of
 /// factor at most), 15,000 with the simplicial fallback.
@@ -44,7 +48,8 @@ struct LinearSolverOptions {
   bool assembled = true;
 };
 
-/// Parses "cg" / "direct" / "auto" and "none" / "jacobi" / "block-jacobi" / "incomplete-cholesky";
+/// Parses "cg" / "direct" / "auto" and "none" / "jacobi" / "block-jacobi" / "incomplete-cholesky"
+/// / "two-level";
 /// throws InputError listing the valid names.
 [[nodiscard]] LinearSolverType parse_linear_solver_type(const std::string& name);
 [[nodiscard]] Preconditioner parse_preconditioner(const std::string& name);
@@ -58,7 +63,8 @@ struct LinearSolveStats {
   double seconds_vector_updates = 0.0;  ///< the x, r, z updates and their dot products
   double seconds_start = 0.0;           ///< the starting guess from a basis
   double seconds_total = 0.0;
-  bool direct = false;  ///< solved by factorisation (kDirect, or kAuto below its limit)
+  bool direct = false;              ///< solved by factorisation (kDirect, or kAuto below its limit)
+  std::size_t coarse_unknowns = 0;  ///< the two-level preconditioner's coarse system size
 };
 
 class LinearizedSystemSolver {
@@ -123,6 +129,8 @@ class LinearizedSystemSolver {
   std::unique_ptr<DirectFactorization> direct_;
   struct IncompleteCholesky;
   std::unique_ptr<IncompleteCholesky> incomplete_;
+  std::unique_ptr<AggregationCoarseSpace> coarse_;
+  std::unique_ptr<ClusterJacobi> clusters_;
   Eigen::VectorXd scalar_rhs_, scalar_solution_;
 };
 

@@ -1,0 +1,267 @@
+#include "incise/solve/cluster_jacobi.hpp"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <tuple>
+
+#include "incise/core/error.hpp"
+#include "incise/core/parallel_for.hpp"
+
+namespace incise {
+
+namespace {
+
+constexpr std::size_t kNoBlock = std::numeric_limits<std::size_t>::max();
+/// Clusters per chunk of the r.z sum (fixed chunks summed in order: deterministic).
+constexpr std::size_t kClusterChunk = 512;
+
+/// Storage index of block (row, column), or kNoBlock when the two are not coupled.
+std::size_t find_block(const BlockSparseMatrix& matrix, VertexId row, VertexId column) {
+  const auto columns = matrix.row_columns(row);
+  const auto found = std::lower_bound(columns.begin(), columns.end(), column);
+  if (found == columns.end() || *found != column) {
+    return kNoBlock;
+  }
+  return matrix.row_begin()[static_cast<std::size_t>(row)] +
+         static_cast<std::size_t>(found - columns.begin());
+}
+
+}  // namespace
+
+ClusterJacobi::ClusterJacobi(const ClusterOptions& options) : options_(options) {
+  if (!(options_.threshold > 0.0) || options_.max_size < 1) {
+    throw InputError("cluster threshold must be positive and clusters at least one vertex");
+  }
+}
+
+VertexId ClusterJacobi::root(VertexId v) {
+  while (parent_[static_cast<std::size_t>(v)] != v) {
+    auto& up = parent_[static_cast<std::size_t>(v)];
+    up = parent_[static_cast<std::size_t>(up)];
+    v = up;
+  }
+  return v;
+}
+
+void ClusterJacobi::join_strong_pairs(const BlockSparseMatrix& matrix,
+                                      std::span<const char> constrained, std::size_t first_new) {
+  // Strong pairs with a vertex at or above first_new (all pairs for 0), strongest first, ties
+  // by vertex ids (deterministic); clusters merge while they stay within max_size.
+  const std::size_t n = matrix.rows();
+  const auto values = matrix.values();
+  auto is_free = [&](std::size_t v) { return constrained[v] == 0; };
+  auto diagonal_norm = [&](std::size_t v) {
+    return values[matrix.diagonal(static_cast<VertexId>(v))].norm();
+  };
+  std::vector<std::tuple<double, VertexId, VertexId>> strong;
+  for (std::size_t i = first_new; i < n; ++i) {
+    if (!is_free(i)) {
+      continue;
+    }
+    const auto row = matrix.row_columns(static_cast<VertexId>(i));
+    const std::size_t first = matrix.row_begin()[i];
+    const double di = diagonal_norm(i);
+    for (std::size_t k = 0; k < row.size(); ++k) {
+      // Each pair once: from its larger vertex if that is the only new one, else its smaller.
+      const auto j = static_cast<std::size_t>(row[k]);
+      if (!(j > i || j < first_new) || !is_free(j)) {
+        continue;
+      }
+      const double scale = std::sqrt(di * diagonal_norm(j));
+      const double strength = scale > 0.0 ? values[first + k].norm() / scale : 0.0;
+      if (strength > options_.threshold) {
+        strong.emplace_back(strength, static_cast<VertexId>(std::min(i, j)),
+                            static_cast<VertexId>(std::max(i, j)));
+      }
+    }
+  }
+  std::sort(strong.begin(), strong.end(), [](const auto& a, const auto& b) {
+    if (std::get<0>(a) != std::get<0>(b)) {
+      return std::get<0>(a) > std::get<0>(b);
+    }
+    return std::tie(std::get<1>(a), std::get<2>(a)) < std::tie(std::get<1>(b), std::get<2>(b));
+  });
+  for (const auto& [strength, a, b] : strong) {
+    const VertexId ra = root(a);
+    const VertexId rb = root(b);
+    if (ra == rb || size_[static_cast<std::size_t>(ra)] + size_[static_cast<std::size_t>(rb)] >
+                        options_.max_size) {
+      continue;
+    }
+    const VertexId low = std::min(ra, rb);
+    const VertexId high = std::max(ra, rb);
+    parent_[static_cast<std::size_t>(high)] = low;
+    size_[static_cast<std::size_t>(low)] += size_[static_cast<std::size_t>(high)];
+  }
+}
+
+void ClusterJacobi::group(const BlockSparseMatrix& matrix, std::span<const char> constrained,
+                          std::size_t first_new) {
+  const std::size_t n = matrix.rows();
+  parent_.resize(n);
+  size_.resize(n, 1);
+  for (std::size_t i = first_new; i < n; ++i) {
+    parent_[i] = static_cast<VertexId>(i);
+    size_[i] = 1;
+  }
+  join_strong_pairs(matrix, constrained, first_new);
+  pack(matrix, constrained);
+}
+
+void ClusterJacobi::pack(const BlockSparseMatrix& matrix, std::span<const char> constrained) {
+  const std::size_t n = matrix.rows();
+  auto is_free = [&](std::size_t v) { return constrained[v] == 0; };
+  // Clusters in the order of their smallest vertex, members in vertex order.
+  std::vector<std::size_t> cluster_of_root(n, kNoBlock);
+  std::vector<std::vector<VertexId>> clusters;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!is_free(i)) {
+      continue;
+    }
+    const auto r = static_cast<std::size_t>(root(static_cast<VertexId>(i)));
+    if (cluster_of_root[r] == kNoBlock) {
+      cluster_of_root[r] = clusters.size();
+      clusters.emplace_back();
+    }
+    clusters[cluster_of_root[r]].push_back(static_cast<VertexId>(i));
+  }
+  members_.clear();
+  first_.assign(1, 0);
+  multi_.clear();
+  offset_.clear();
+  block_of_.clear();
+  block_first_.clear();
+  clustered_vertices_ = 0;
+  largest_ = 1;
+  std::size_t offset = 0;
+  for (const std::vector<VertexId>& cluster : clusters) {
+    const std::size_t k = cluster.size();
+    if (k > 1) {
+      multi_.push_back(first_.size() - 1);
+      offset_.push_back(offset);
+      offset += 9 * k * k;
+      block_first_.push_back(block_of_.size());
+      clustered_vertices_ += k;
+      largest_ = std::max(largest_, k);
+      for (const VertexId a : cluster) {
+        for (const VertexId b : cluster) {
+          block_of_.push_back(find_block(matrix, a, b));
+        }
+      }
+    }
+    members_.insert(members_.end(), cluster.begin(), cluster.end());
+    first_.push_back(members_.size());
+  }
+  inverse_.assign(offset, 0.0);
+  single_inverse_.assign(n, Mat3::Zero());
+}
+
+bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char> constrained) {
+  const bool same_pattern =
+      pattern_ == matrix.pattern() && pattern_version_ == matrix.pattern_version();
+  const bool same_constraints =
+      std::equal(constrained.begin(), constrained.end(), constrained_.begin(), constrained_.end());
+  if (!same_pattern || !same_constraints) {
+    // After a cut only the new vertices' pairs are looked at (the clusters follow the edit,
+    // not the body); anything else (new held rows, fewer rows) groups everything again.
+    const bool grows = !parent_.empty() && matrix.rows() >= parent_.size() &&
+                       constrained.size() >= constrained_.size() &&
+                       std::equal(constrained_.begin(), constrained_.end(), constrained.begin());
+    group(matrix, constrained, grows ? parent_.size() : 0);
+    pattern_ = matrix.pattern();
+    pattern_version_ = matrix.pattern_version();
+    constrained_.assign(constrained.begin(), constrained.end());
+  }
+  const auto values = matrix.values();
+  std::vector<char> failed(multi_.size() + 1, 0);
+  // Vertices alone: their 3x3 inverse (rows in parallel).
+  parallel_for(0, single_inverse_.size(), 1024, [&](std::size_t first, std::size_t last) {
+    for (std::size_t i = first; i != last; ++i) {
+      single_inverse_[i].setZero();
+    }
+  });
+  const std::size_t clusters = cluster_count();
+  parallel_for(0, clusters, 1024, [&](std::size_t first, std::size_t last) {
+    for (std::size_t c = first; c != last; ++c) {
+      if (first_[c + 1] - first_[c] != 1) {
+        continue;
+      }
+      const VertexId v = members_[first_[c]];
+      const Mat3& d = values[matrix.diagonal(v)];
+      if (!(d.determinant() > 0.0)) {
+        failed.back() = 1;
+      }
+      single_inverse_[static_cast<std::size_t>(v)] = d.inverse();
+    }
+  });
+  // Clusters: each block factorised and inverted in place (a buffer per task, no allocation
+  // per cluster).
+  parallel_for(0, multi_.size(), 64, [&](std::size_t first, std::size_t last) {
+    const auto largest = static_cast<Eigen::Index>(3 * largest_);
+    Eigen::MatrixXd buffer(largest, largest);
+    for (std::size_t m = first; m != last; ++m) {
+      const std::size_t c = multi_[m];
+      const std::size_t k = first_[c + 1] - first_[c];
+      const auto size = static_cast<Eigen::Index>(3 * k);
+      auto block = buffer.topLeftCorner(size, size);
+      block.setZero();
+      for (std::size_t a = 0; a < k; ++a) {
+        for (std::size_t b = 0; b < k; ++b) {
+          const std::size_t index = block_of_[block_first_[m] + a * k + b];
+          if (index != kNoBlock) {
+            block.block<3, 3>(static_cast<Eigen::Index>(3 * a), static_cast<Eigen::Index>(3 * b)) =
+                values[index];
+          }
+        }
+      }
+      Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> factor(block);
+      if (factor.info() != Eigen::Success) {
+        failed[m] = 1;
+        continue;
+      }
+      Eigen::Map<Eigen::MatrixXd> inverse(&inverse_[offset_[m]], size, size);
+      inverse.setIdentity();
+      factor.solveInPlace(inverse);
+    }
+  });
+  return std::none_of(failed.begin(), failed.end(), [](char f) { return f != 0; });
+}
+
+double ClusterJacobi::apply_clusters(std::span<const Vec3> r, std::span<Vec3> z) const {
+  const std::size_t clusters = multi_.size();
+  const std::size_t chunks = (clusters + kClusterChunk - 1) / kClusterChunk;
+  std::vector<double> partial(chunks, 0.0);
+  parallel_for(0, chunks, 1, [&](std::size_t first_chunk, std::size_t last_chunk) {
+    const auto largest = static_cast<Eigen::Index>(3 * largest_);
+    Eigen::VectorXd gathered(largest);
+    Eigen::VectorXd solved(largest);
+    for (std::size_t chunk = first_chunk; chunk != last_chunk; ++chunk) {
+      double sum = 0.0;
+      const std::size_t end = std::min(clusters, (chunk + 1) * kClusterChunk);
+      for (std::size_t m = chunk * kClusterChunk; m < end; ++m) {
+        const std::size_t c = multi_[m];
+        const std::size_t k = first_[c + 1] - first_[c];
+        const auto size = static_cast<Eigen::Index>(3 * k);
+        for (std::size_t a = 0; a < k; ++a) {
+          gathered.segment<3>(static_cast<Eigen::Index>(3 * a)) =
+              r[static_cast<std::size_t>(members_[first_[c] + a])];
+        }
+        solved.head(size).noalias() =
+            Eigen::Map<const Eigen::MatrixXd>(&inverse_[offset_[m]], size, size) *
+            gathered.head(size);
+        for (std::size_t a = 0; a < k; ++a) {
+          const auto v = static_cast<std::size_t>(members_[first_[c] + a]);
+          z[v] = solved.segment<3>(static_cast<Eigen::Index>(3 * a));
+          sum += r[v].dot(z[v]);
+        }
+      }
+      partial[chunk] = sum;
+    }
+  });
+  return std::accumulate(partial.begin(), partial.end(), 0.0);
+}
+
+}  // namespace incise
