@@ -370,6 +370,16 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
       } catch (const InputError& error) {
         context.fail("integrator.solver.preconditioner", error.what());
       }
+      // These read the assembled matrix, which only the FEM builds (mass-spring multiplies
+      // matrix-free): refused here rather than at the first step.
+      if (scene.model_type != ModelKind::kCorotationalFem &&
+          (options.preconditioner == Preconditioner::kIncompleteCholesky ||
+           options.preconditioner == Preconditioner::kTwoLevel)) {
+        context.fail("integrator.solver.preconditioner",
+                     "'" + to_string(options.preconditioner) +
+                         "' needs the corotational-fem model (it reads the assembled matrix); "
+                         "mass-spring takes jacobi or block-jacobi");
+      }
       options.tolerance = solver.positive("tolerance", options.tolerance);
       options.max_iterations = solver.integer("max_iterations", options.max_iterations, 1, 1000000);
       options.warm_start = solver.boolean("warm_start", options.warm_start);

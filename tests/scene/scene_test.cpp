@@ -184,6 +184,16 @@ TEST(SceneParsing, CorotationalFemKeys) {
   EXPECT_EQ(statics.integrator.static_solve.max_iterations, 7);
   EXPECT_EQ(statics.integrator.static_solve.solver.preconditioner,
             Preconditioner::kIncompleteCholesky);
+  EXPECT_NE(error_of(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "mass-spring"},
+          "integrator": {"type": "backward-euler", "solver": {"preconditioner": "two-level"}}})")
+                .find("integrator.solver.preconditioner"),
+            std::string::npos);
+  EXPECT_EQ(
+      parse_scene(R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "corotational-fem"},
+          "integrator": {"type": "backward-euler", "solver": {"preconditioner": "two-level"}}})",
+                  "two-level.json")
+          .integrator.backward_euler.solver.preconditioner,
+      Preconditioner::kTwoLevel);
   const std::string fem =
       R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "model": {"type": "corotational-fem", )";
   EXPECT_NE(error_of(fem + R"("rayleigh": [0.1]}})").find("model.rayleigh"), std::string::npos);
