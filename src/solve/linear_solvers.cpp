@@ -315,8 +315,14 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   // coarse correction add theirs, and their part of r.z (the coarse one is
   // (P^T r).(A_c^-1 P^T r), so it needs no pass of its own).
   auto precondition_two_level = [&](bool set_direction) {
-    double sum = clusters_->apply_clusters(residual_, preconditioned_);
-    sum += coarse_->solve(residual_);
+    // The clusters and the coarse solve read r and write apart (z on clustered rows; the
+    // coarse solution), so they run at once: the coarse solve is sequential and would
+    // otherwise leave the other cores idle.
+    double cluster_sum = 0.0;
+    double coarse_sum = 0.0;
+    parallel_invoke([&] { cluster_sum = clusters_->apply_clusters(residual_, preconditioned_); },
+                    [&] { coarse_sum = coarse_->solve(residual_); });
+    const double sum = cluster_sum + coarse_sum;
     coarse_->add_correction(preconditioned_);
     if (set_direction) {
       std::copy(preconditioned_.begin(), preconditioned_.end(), direction_.begin());

@@ -13,6 +13,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <cstddef>
@@ -68,6 +69,34 @@ void parallel_for(std::size_t begin, std::size_t end, std::size_t grain, const B
   tbb::parallel_for(
       tbb::blocked_range<std::size_t>(begin, end, grain),
       [&](const tbb::blocked_range<std::size_t>& range) { body(range.begin(), range.end()); });
+#endif
+}
+
+/// Runs first() and second() at once (each may use parallel_for inside). They must not write
+/// what the other reads or writes. Under ThreadSanitizer, second() runs on a plain thread.
+template <typename First, typename Second>
+void parallel_invoke(const First& first, const Second& second) {
+#ifdef INCISE_THREAD_SANITIZER
+  std::exception_ptr failure;
+  std::thread thread([&] {
+    try {
+      second();
+    } catch (...) {
+      failure = std::current_exception();
+    }
+  });
+  try {
+    first();
+  } catch (...) {
+    thread.join();
+    throw;
+  }
+  thread.join();
+  if (failure) {
+    std::rethrow_exception(failure);
+  }
+#else
+  tbb::parallel_invoke(first, second);
 #endif
 }
 
