@@ -17,6 +17,7 @@
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/render/gl_backend.hpp"
+#include "incise/solve/linear_solvers.hpp"
 #include "incise/view/frame_scene.hpp"
 
 namespace incise::app {
@@ -95,6 +96,8 @@ Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
   settings_.integrator = static_cast<int>(scene_.integrator.type);
   settings_.dt = static_cast<float>(scene_.integrator.dt);
   settings_.split = static_cast<int>(scene_.tool.split);
+  settings_.preconditioner =
+      static_cast<int>(scene_.integrator.backward_euler.solver.preconditioner);
   start_engine();
 }
 
@@ -309,6 +312,15 @@ void Viewer::apply_settings() {
   }
   root["integrator"]["type"] = name_of(static_cast<IntegratorKind>(settings_.integrator));
   root["integrator"]["dt"] = settings_.dt;
+  const auto integrator = static_cast<IntegratorKind>(settings_.integrator);
+  if (scene_.model_type == ModelKind::kCorotationalFem &&
+      (integrator == IntegratorKind::kBackwardEuler || integrator == IntegratorKind::kStatic)) {
+    nlohmann::json& solver = root["integrator"]["solver"];
+    if (!solver.is_object()) {
+      solver = nlohmann::json::object();
+    }
+    solver["preconditioner"] = to_string(static_cast<Preconditioner>(settings_.preconditioner));
+  }
   if (!root.contains("cutter") || !root["cutter"].is_object()) {
     root["cutter"] = {{"type", "subdivision"}};
   }

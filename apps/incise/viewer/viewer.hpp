@@ -108,6 +108,7 @@ class Viewer {
     int integrator = 0;
     float dt = 0;  ///< s
     int split = 0;
+    int preconditioner = 0;  ///< a Preconditioner (FEM bodies with an implicit integrator)
   } settings_;
   Timing timing_;
   double draw_ms_ = 0.0;

@@ -7,6 +7,7 @@
 #include <array>
 #include <vector>
 
+#include "incise/solve/linear_solvers.hpp"
 #include "viewer.hpp"
 
 namespace incise::app {
@@ -96,6 +97,24 @@ void Viewer::draw_panels() {
       ImGui::EndCombo();
     }
     ImGui::InputFloat("dt (s)", &settings_.dt, 0, 0, "%.5f");
+    const auto integrator = static_cast<IntegratorKind>(settings_.integrator);
+    if (scene_.model_type == ModelKind::kCorotationalFem &&
+        (integrator == IntegratorKind::kBackwardEuler || integrator == IntegratorKind::kStatic)) {
+      // two-level pays off on large or cut bodies (BENCHMARKS.md); block-Jacobi on small ones.
+      const std::array<Preconditioner, 5> preconditioners{
+          Preconditioner::kBlockJacobi, Preconditioner::kTwoLevel, Preconditioner::kJacobi,
+          Preconditioner::kIncompleteCholesky, Preconditioner::kNone};
+      const std::string chosen = to_string(static_cast<Preconditioner>(settings_.preconditioner));
+      if (ImGui::BeginCombo("preconditioner", chosen.c_str())) {
+        for (Preconditioner preconditioner : preconditioners) {
+          if (ImGui::Selectable(to_string(preconditioner).c_str(),
+                                static_cast<int>(preconditioner) == settings_.preconditioner)) {
+            settings_.preconditioner = static_cast<int>(preconditioner);
+          }
+        }
+        ImGui::EndCombo();
+      }
+    }
     ImGui::RadioButton("minimal split", &settings_.split, static_cast<int>(SplitMode::kMinimal));
     ImGui::SameLine();
     ImGui::RadioButton("generic split", &settings_.split, static_cast<int>(SplitMode::kGeneric));
