@@ -116,12 +116,20 @@ bool BlockSparseMatrix::compact_if_fragmented() {
   return true;
 }
 
-std::size_t BlockSparseMatrix::find(VertexId row, VertexId column) const {
+std::optional<std::size_t> BlockSparseMatrix::find_if_coupled(VertexId row, VertexId column) const {
   const std::span<const VertexId> columns = row_columns(row);
   const auto it = std::lower_bound(columns.begin(), columns.end(), column);
-  INCISE_ASSERT(it != columns.end() && *it == column, "block outside the matrix pattern");
+  if (it == columns.end() || *it != column) {
+    return std::nullopt;
+  }
   return pattern_->columns.begin()[static_cast<std::size_t>(row)] +
          static_cast<std::size_t>(it - columns.begin());
+}
+
+std::size_t BlockSparseMatrix::find(VertexId row, VertexId column) const {
+  const std::optional<std::size_t> index = find_if_coupled(row, column);
+  INCISE_ASSERT(index.has_value(), "block outside the matrix pattern");
+  return *index;
 }
 
 void BlockSparseMatrix::set_zero() {

@@ -114,11 +114,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   // iterations on the 384k-tet box: slower in all, measured.)
   aggregate_of_ = std::move(aggregate);
   members_.assign(static_cast<std::size_t>(count), {});
-  for (std::size_t i = 0; i < n; ++i) {
-    if (aggregate_of_[i] >= 0) {
-      members_[static_cast<std::size_t>(aggregate_of_[i])].push_back(static_cast<VertexId>(i));
-    }
-  }
+  collect_members();
 
   // The coarse pattern: aggregate I couples to J when a block of A joins a member of each.
   // Slots are numbered row by row with sorted columns, so the scalar matrix comes out sorted.
@@ -250,7 +246,6 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
   factor_->reset_pattern();
   coarse_solution_.assign(aggregates, Vec3::Zero());
-  ++aggregations_;
 }
 
 void AggregationCoarseSpace::extend(const BlockSparseMatrix& matrix,
@@ -282,10 +277,14 @@ void AggregationCoarseSpace::extend(const BlockSparseMatrix& matrix,
       }
     }
   }
+  collect_members();
+}
+
+void AggregationCoarseSpace::collect_members() {
   for (std::vector<VertexId>& group : members_) {
     group.clear();
   }
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < aggregate_of_.size(); ++i) {
     if (aggregate_of_[i] >= 0) {
       members_[static_cast<std::size_t>(aggregate_of_[i])].push_back(static_cast<VertexId>(i));
     }

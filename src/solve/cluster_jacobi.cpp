@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -17,17 +18,6 @@ namespace {
 constexpr std::size_t kNoBlock = std::numeric_limits<std::size_t>::max();
 /// Clusters per chunk of the r.z sum (fixed chunks summed in order: deterministic).
 constexpr std::size_t kClusterChunk = 512;
-
-/// Storage index of block (row, column), or kNoBlock when the two are not coupled.
-std::size_t find_block(const BlockSparseMatrix& matrix, VertexId row, VertexId column) {
-  const auto columns = matrix.row_columns(row);
-  const auto found = std::lower_bound(columns.begin(), columns.end(), column);
-  if (found == columns.end() || *found != column) {
-    return kNoBlock;
-  }
-  return matrix.row_begin()[static_cast<std::size_t>(row)] +
-         static_cast<std::size_t>(found - columns.begin());
-}
 
 }  // namespace
 
@@ -148,7 +138,7 @@ void ClusterJacobi::pack(const BlockSparseMatrix& matrix, std::span<const char> 
       largest_ = std::max(largest_, k);
       for (const VertexId a : cluster) {
         for (const VertexId b : cluster) {
-          block_of_.push_back(find_block(matrix, a, b));
+          block_of_.push_back(matrix.find_if_coupled(a, b).value_or(kNoBlock));
         }
       }
     }
@@ -176,7 +166,8 @@ bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char
     constrained_.assign(constrained.begin(), constrained.end());
   }
   const auto values = matrix.values();
-  std::vector<char> failed(multi_.size() + 1, 0);
+  std::vector<char> failed(multi_.size(), 0);
+  std::atomic<bool> single_failed = false;
   // Vertices alone: their 3x3 inverse (rows in parallel).
   parallel_for(0, single_inverse_.size(), 1024, [&](std::size_t first, std::size_t last) {
     for (std::size_t i = first; i != last; ++i) {
@@ -192,7 +183,7 @@ bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char
       const VertexId v = members_[first_[c]];
       const Mat3& d = values[matrix.diagonal(v)];
       if (!(d.determinant() > 0.0)) {
-        failed.back() = 1;
+        single_failed = true;
       }
       single_inverse_[static_cast<std::size_t>(v)] = d.inverse();
     }
@@ -227,7 +218,8 @@ bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char
       factor.solveInPlace(inverse);
     }
   });
-  return std::none_of(failed.begin(), failed.end(), [](char f) { return f != 0; });
+  return !single_failed &&
+         std::none_of(failed.begin(), failed.end(), [](char f) { return f != 0; });
 }
 
 double ClusterJacobi::apply_clusters(std::span<const Vec3> r, std::span<Vec3> z) const {

@@ -470,6 +470,20 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
   stats.seconds_start += seconds_since(began);
 }
 
+LinearSolveStats LinearizedSystemSolver::fused_solve(
+    std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
+    std::span<const std::span<const Vec3>> start_basis, Clock::time_point start,
+    LinearSolveStats& stats) {
+  if (!start_basis.empty()) {
+    galerkin_start(
+        start_basis, rhs, x,
+        [&](std::span<const Vec3> p, std::span<Vec3> y) { assembled_.multiply(p, y); }, stats);
+  }
+  fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats);
+  stats.seconds_total = seconds_since(start);
+  return stats;
+}
+
 LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, double mass_scale,
                                                double a, double b,
                                                std::span<const char> constrained,
@@ -534,16 +548,8 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
           "the two-level preconditioner could not factorise its coarse matrix (is the system "
           "positive definite?)");
     }
-    stats.coarse_unknowns = 3 * coarse_->aggregate_count();
     stats.seconds_preconditioner = seconds_since(matrix_start);
-    if (!start_basis.empty()) {
-      galerkin_start(
-          start_basis, rhs, x,
-          [&](std::span<const Vec3> p, std::span<Vec3> y) { assembled_.multiply(p, y); }, stats);
-    }
-    fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats);
-    stats.seconds_total = seconds_since(start);
-    return stats;
+    return fused_solve(rhs, x, rhs_norm, start_basis, start, stats);
   }
   if (needs_matrix) {
     fill_scalar_values();
@@ -603,14 +609,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     const auto build_start = Clock::now();
     if (assemble(system, mass_scale, a, b)) {
       stats.seconds_preconditioner += seconds_since(build_start);
-      if (!start_basis.empty()) {
-        galerkin_start(
-            start_basis, rhs, x,
-            [&](std::span<const Vec3> p, std::span<Vec3> y) { assembled_.multiply(p, y); }, stats);
-      }
-      fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats);
-      stats.seconds_total = seconds_since(start);
-      return stats;
+      return fused_solve(rhs, x, rhs_norm, start_basis, start, stats);
     }
   }
 

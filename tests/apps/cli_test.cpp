@@ -463,6 +463,13 @@ TEST(Cli, FemScenesRunAndGiveTheSameFramesWhateverTheThreadCount) {
 }
 
 /// Width and height from a PNG's IHDR chunk (bytes 16-23, big-endian), or {0, 0}.
+/// Whether a command failed only for want of offscreen OpenGL on this machine, and the suite
+/// may skip for it (INCISE_REQUIRE_GL makes that a failure instead).
+bool lacks_offscreen_gl(const CommandResult& run) {
+  return run.code != 0 && run.err.find("offscreen rendering") != std::string::npos &&
+         std::getenv("INCISE_REQUIRE_GL") == nullptr;
+}
+
 std::pair<int, int> png_size(const std::filesystem::path& path) {
   const std::string bytes = slurp(path);
   if (bytes.size() < 24 || bytes.compare(1, 3, "PNG") != 0) {
@@ -483,8 +490,7 @@ TEST(Cli, RunRendersPicturesOfTheDefaultScene) {
   const CommandResult run =
       incise("run --frames 10 --out " + (dir / "out").string() + " --render " +
              (dir / "png").string() + " --render-every 5 --size 160x120 --mode cut");
-  if (run.code != 0 && run.err.find("offscreen rendering") != std::string::npos &&
-      std::getenv("INCISE_REQUIRE_GL") == nullptr) {
+  if (lacks_offscreen_gl(run)) {
     GTEST_SKIP() << "no OpenGL here: " << run.err;
   }
   ASSERT_EQ(run.code, 0) << run.err;
@@ -520,8 +526,7 @@ TEST(Cli, PlanDrawsTheSkinBeforeAfterAndColouredByItsDisplacement) {
   const CommandResult run =
       incise("plan " + (dir / "plan.json").string() + " --out " + (dir / "out").string() +
              " --render " + (dir / "png").string() + " --size 200x150");
-  if (run.code != 0 && run.err.find("offscreen rendering") != std::string::npos &&
-      std::getenv("INCISE_REQUIRE_GL") == nullptr) {
+  if (lacks_offscreen_gl(run)) {
     GTEST_SKIP() << "no OpenGL here: " << run.err;
   }
   ASSERT_EQ(run.code, 0) << run.err;
@@ -648,8 +653,7 @@ TEST(Cli, RunWritesAVideoThroughFfmpegOrSaysItIsMissing) {
     GTEST_SKIP() << "ffmpeg is not installed here (apt-get install ffmpeg)";
   }
   const CommandResult run = incise(arguments);
-  if (run.code != 0 && run.err.find("offscreen rendering") != std::string::npos &&
-      std::getenv("INCISE_REQUIRE_GL") == nullptr) {
+  if (lacks_offscreen_gl(run)) {
     GTEST_SKIP() << "no OpenGL here";
   }
   ASSERT_EQ(run.code, 0) << run.err;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <random>
+#include <span>
 #include <string>
 
 #include "incise/engine/engine.hpp"
@@ -55,13 +56,37 @@ BlockSparseMatrix laplacian_matrix(const TetMesh& mesh, std::mt19937& random,
   return matrix;
 }
 
-std::vector<Vec3> random_field(std::size_t n, std::mt19937& random) {
+/// Random entries in [-1, 1], zero on the held vertices (a residual's shape).
+std::vector<Vec3> random_field(std::size_t n, std::mt19937& random,
+                               std::span<const char> held = {}) {
   std::uniform_real_distribution<double> entry(-1.0, 1.0);
   std::vector<Vec3> field(n);
-  for (Vec3& v : field) {
-    v = Vec3(entry(random), entry(random), entry(random));
+  for (std::size_t v = 0; v < n; ++v) {
+    const Vec3 value(entry(random), entry(random), entry(random));
+    field[v] = !held.empty() && held[v] != 0 ? Vec3::Zero() : value;
   }
   return field;
+}
+
+/// The first `count` vertices held (a box grid's bottom layer), the rest free.
+std::vector<char> hold_first(std::size_t n, std::size_t count) {
+  std::vector<char> held(n, 0);
+  std::fill(held.begin(), held.begin() + static_cast<std::ptrdiff_t>(count), 1);
+  return held;
+}
+
+/// The coarse correction P e of r, checking that solve()'s r.(P e) matches it.
+std::vector<Vec3> coarse_correction(AggregationCoarseSpace& coarse, const std::vector<Vec3>& r) {
+  const double r_pe = coarse.solve(r);
+  std::vector<Vec3> prolonged(r.size(), Vec3::Zero());
+  coarse.add_correction(prolonged);
+  double expected = 0.0;
+  for (std::size_t v = 0; v < r.size(); ++v) {
+    EXPECT_EQ(prolonged[v], coarse.correction(v));
+    expected += r[v].dot(prolonged[v]);
+  }
+  EXPECT_NEAR(r_pe, expected, 1e-9 * std::abs(expected));
+  return prolonged;
 }
 
 TEST(ClusterJacobi, InvertsEachClustersBlockAndJoinsStronglyCoupledVertices) {
@@ -135,10 +160,7 @@ TEST(AggregationCoarseSpace, SolvesTheGalerkinSystemOnAggregatesThatCoverTheFree
   const TetMesh mesh = make_box_grid(grid);
   std::mt19937 random(11);
   const BlockSparseMatrix matrix = laplacian_matrix(mesh, random, {});
-  std::vector<char> constrained(matrix.rows(), 0);
-  for (std::size_t v = 0; v < 25; ++v) {
-    constrained[v] = 1;  // the z = 0 face
-  }
+  const std::vector<char> constrained = hold_first(matrix.rows(), 25);  // the z = 0 face
   AggregationCoarseSpace coarse;
   ASSERT_TRUE(coarse.update(matrix, constrained));
   const auto aggregate_of = coarse.aggregate_of();
@@ -155,21 +177,8 @@ TEST(AggregationCoarseSpace, SolvesTheGalerkinSystemOnAggregatesThatCoverTheFree
   EXPECT_TRUE(std::all_of(sizes.begin(), sizes.end(), [](int s) { return s > 0; }));
 
   // e solves P^T A P e = P^T r: A (P e) restricted back equals P^T r.
-  std::vector<Vec3> r = random_field(matrix.rows(), random);
-  for (std::size_t v = 0; v < matrix.rows(); ++v) {
-    if (constrained[v] != 0) {
-      r[v].setZero();
-    }
-  }
-  const double r_pe = coarse.solve(r);
-  std::vector<Vec3> prolonged(matrix.rows(), Vec3::Zero());
-  coarse.add_correction(prolonged);
-  double expected_r_pe = 0.0;
-  for (std::size_t v = 0; v < matrix.rows(); ++v) {
-    EXPECT_EQ(prolonged[v], coarse.correction(v));
-    expected_r_pe += r[v].dot(prolonged[v]);
-  }
-  EXPECT_NEAR(r_pe, expected_r_pe, 1e-9 * std::abs(expected_r_pe));
+  const std::vector<Vec3> r = random_field(matrix.rows(), random, constrained);
+  const std::vector<Vec3> prolonged = coarse_correction(coarse, r);
   std::vector<Vec3> product(matrix.rows());
   matrix.multiply(prolonged, product);
   std::vector<Vec3> restricted(coarse.aggregate_count(), Vec3::Zero());
@@ -194,36 +203,16 @@ TEST(AggregationCoarseSpace, ThreeLevelCorrectionIsSymmetricAndPositive) {
   const TetMesh mesh = make_box_grid(grid);
   std::mt19937 random(5);
   const BlockSparseMatrix matrix = laplacian_matrix(mesh, random, {});
-  std::vector<char> constrained(matrix.rows(), 0);
-  for (std::size_t v = 0; v < 49; ++v) {
-    constrained[v] = 1;
-  }
+  const std::vector<char> constrained = hold_first(matrix.rows(), 49);  // the z = 0 face
   AggregationCoarseSpace coarse;
   coarse.set_exact_limit(0);
   ASSERT_TRUE(coarse.update(matrix, constrained));
   ASSERT_TRUE(coarse.three_level());
-  auto apply = [&](const std::vector<Vec3>& r) {
-    std::vector<Vec3> out(r.size(), Vec3::Zero());
-    const double r_out = coarse.solve(r);
-    coarse.add_correction(out);
-    double expected = 0.0;
-    for (std::size_t v = 0; v < r.size(); ++v) {
-      expected += r[v].dot(out[v]);
-    }
-    EXPECT_NEAR(r_out, expected, 1e-9 * std::abs(expected));
-    return out;
-  };
   for (int trial = 0; trial < 5; ++trial) {
-    std::vector<Vec3> r = random_field(matrix.rows(), random);
-    std::vector<Vec3> s = random_field(matrix.rows(), random);
-    for (std::size_t v = 0; v < matrix.rows(); ++v) {
-      if (constrained[v] != 0) {
-        r[v].setZero();
-        s[v].setZero();
-      }
-    }
-    const std::vector<Vec3> br = apply(r);
-    const std::vector<Vec3> bs = apply(s);
+    const std::vector<Vec3> r = random_field(matrix.rows(), random, constrained);
+    const std::vector<Vec3> s = random_field(matrix.rows(), random, constrained);
+    const std::vector<Vec3> br = coarse_correction(coarse, r);
+    const std::vector<Vec3> bs = coarse_correction(coarse, s);
     double s_br = 0.0;
     double r_bs = 0.0;
     double r_br = 0.0;

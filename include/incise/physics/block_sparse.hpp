@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -72,6 +73,8 @@ class BlockSparseMatrix {
   [[nodiscard]] std::span<const Mat3> values() const { return values_; }
   /// Index of block (row, column) in values(); asserts that it is in the pattern.
   [[nodiscard]] std::size_t find(VertexId row, VertexId column) const;
+  /// The same, or nothing when the two vertices are not coupled.
+  [[nodiscard]] std::optional<std::size_t> find_if_coupled(VertexId row, VertexId column) const;
   [[nodiscard]] std::size_t diagonal(VertexId row) const { return pattern_->diagonal[row]; }
 
   void set_zero();

@@ -72,12 +72,12 @@ class AggregationCoarseSpace {
   [[nodiscard]] std::size_t aggregate_count() const { return members_.size(); }
   /// The aggregate of each vertex, -1 for held ones.
   [[nodiscard]] std::span<const int> aggregate_of() const { return aggregate_of_; }
-  /// How many times the vertices were aggregated (once per pattern change).
-  [[nodiscard]] std::uint64_t aggregations() const { return aggregations_; }
 
  private:
   void aggregate(const BlockSparseMatrix& matrix, std::span<const char> constrained);
   void extend(const BlockSparseMatrix& matrix, std::span<const char> constrained);
+  /// members_ from aggregate_of_, each in vertex order.
+  void collect_members();
 
   /// A look at a matrix's pattern and held rows (the pattern held, so its address is not
   /// reused).
@@ -99,7 +99,6 @@ class AggregationCoarseSpace {
   Eigen::VectorXd coarse_rhs_;
   std::unique_ptr<DirectFactorization> factor_;
   std::vector<Vec3> coarse_solution_;
-  std::uint64_t aggregations_ = 0;
   int refactor_every_ = 10;
   /// Coarse unknowns up to which the aggregates' system is factorised exactly; above, a third
   /// level (see aggregate()).

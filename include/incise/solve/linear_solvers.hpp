@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "incise/core/timing.hpp"
 #include "incise/physics/block_sparse.hpp"
 #include "incise/physics/dynamic_system.hpp"
 
@@ -63,8 +64,7 @@ struct LinearSolveStats {
   double seconds_vector_updates = 0.0;  ///< the x, r, z updates and their dot products
   double seconds_start = 0.0;           ///< the starting guess from a basis
   double seconds_total = 0.0;
-  bool direct = false;              ///< solved by factorisation (kDirect, or kAuto below its limit)
-  std::size_t coarse_unknowns = 0;  ///< the two-level preconditioner's coarse system size
+  bool direct = false;  ///< solved by factorisation (kDirect, or kAuto below its limit)
 };
 
 class LinearizedSystemSolver {
@@ -99,6 +99,11 @@ class LinearizedSystemSolver {
   /// when start_from_x, else from zero.
   void fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
                                  bool start_from_x, LinearSolveStats& stats);
+  /// After the assembled matrix and its preconditioner are built: the start (the Galerkin one
+  /// from start_basis when given), then the fused PCG; stats' total time counts from `start`.
+  LinearSolveStats fused_solve(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
+                               std::span<const std::span<const Vec3>> start_basis,
+                               Clock::time_point start, LinearSolveStats& stats);
   /// Whether CG starts from the caller's x: a warm start or a basis start was asked for and
   /// x is nonzero on some free row.
   [[nodiscard]] bool starts_from_x(std::span<const Vec3> x, bool basis_given) const;
