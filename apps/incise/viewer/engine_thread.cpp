@@ -1,15 +1,18 @@
 #include "engine_thread.hpp"
 
 #include <chrono>
+#include <utility>
 
 #include "incise/core/timing.hpp"
 
 namespace incise::app {
 
-EngineThread::EngineThread(Engine& engine, bool playing, int stop_at, bool paced)
+EngineThread::EngineThread(Engine& engine, bool playing, int stop_at, bool paced,
+                           std::function<void()> on_frame)
     : engine_(&engine),
       stop_at_(stop_at),
       paced_(paced),
+      on_frame_(std::move(on_frame)),
       playing_(playing),
       finished_(engine.diverged() || (stop_at >= 0 && engine.frame() >= stop_at)) {
   thread_ = std::thread([this] { loop(); });
@@ -103,6 +106,19 @@ void EngineThread::loop() {
     const auto start = Clock::now();
     const bool ok = engine_->step();
     const double seconds = seconds_since(start);
+    lock.lock();
+    ++stepped_;
+    stepping_seconds_ += seconds;
+    if (!ok || (stop_at_ >= 0 && engine_->frame() >= stop_at_)) {
+      finished_ = true;
+      playing_ = false;
+    }
+    lock.unlock();
+    if (on_frame_) {
+      // The snapshot is published and finished() says whether it was the last: the window
+      // may draw it now, while this thread paces.
+      on_frame_();
+    }
     if (paced_) {
       next += std::chrono::duration_cast<Wall::duration>(std::chrono::duration<double>(frame_dt));
       if (next > Wall::now()) {
@@ -112,12 +128,6 @@ void EngineThread::loop() {
       }
     }
     lock.lock();
-    ++stepped_;
-    stepping_seconds_ += seconds;
-    if (!ok || (stop_at_ >= 0 && engine_->frame() >= stop_at_)) {
-      finished_ = true;
-      playing_ = false;
-    }
   }
 }
 

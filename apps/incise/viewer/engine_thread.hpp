@@ -19,7 +19,10 @@ class EngineThread {
  public:
   /// Starts stepping `engine` (paused unless `playing`); stops by itself after frame
   /// `stop_at` (-1: never). `paced`: no faster than one frame per frame_dt of wall time.
-  EngineThread(Engine& engine, bool playing, int stop_at, bool paced);
+  /// `on_frame` runs on this thread after every frame (and when it finishes): the window uses
+  /// it to wake up and draw the new snapshot; it must be safe to call from another thread.
+  EngineThread(Engine& engine, bool playing, int stop_at, bool paced,
+               std::function<void()> on_frame = {});
   ~EngineThread();
   EngineThread(const EngineThread&) = delete;
   EngineThread& operator=(const EngineThread&) = delete;
@@ -41,6 +44,7 @@ class EngineThread {
   Engine* engine_;
   int stop_at_;
   bool paced_;
+  std::function<void()> on_frame_;
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   bool playing_;

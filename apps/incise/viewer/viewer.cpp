@@ -31,6 +31,10 @@ Viewer& viewer_of(GLFWwindow* window) {
 }
 
 constexpr std::size_t kTimingFrames = 240;
+/// After input the panels are drawn for this long (hover states, tooltips, popups).
+constexpr auto kSettle = std::chrono::milliseconds(500);
+/// The longest the window sleeps without input or a physics frame.
+constexpr double kIdleWakeSeconds = 0.25;
 
 void push(std::deque<float>& series, double value) {
   series.push_back(static_cast<float>(value));
@@ -71,10 +75,24 @@ Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
   glfwSetScrollCallback(
       window_, [](GLFWwindow* window, double, double y) { viewer_of(window).on_scroll(y); });
   glfwSetKeyCallback(window_, [](GLFWwindow* window, int key, int, int action, int) {
+    viewer_of(window).on_input();
     if (action == GLFW_PRESS) {
       viewer_of(window).on_key(key);
     }
   });
+  glfwSetCursorPosCallback(
+      window_, [](GLFWwindow* window, double, double) { viewer_of(window).on_cursor_move(); });
+  glfwSetMouseButtonCallback(
+      window_, [](GLFWwindow* window, int, int, int) { viewer_of(window).on_input(); });
+  glfwSetCharCallback(window_,
+                      [](GLFWwindow* window, unsigned int) { viewer_of(window).on_input(); });
+  glfwSetCursorEnterCallback(window_,
+                             [](GLFWwindow* window, int) { viewer_of(window).on_input(); });
+  glfwSetWindowFocusCallback(window_,
+                             [](GLFWwindow* window, int) { viewer_of(window).on_input(); });
+  glfwSetFramebufferSizeCallback(
+      window_, [](GLFWwindow* window, int, int) { viewer_of(window).on_input(); });
+  glfwSetWindowRefreshCallback(window_, [](GLFWwindow* window) { viewer_of(window).on_input(); });
   IMGUI_CHECKVERSION();
   ImGui::CreateContext();
   ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini left in the user's folder
@@ -150,8 +168,12 @@ void Viewer::start_engine() {
     series->clear();
   }
   // Interactive: paced to the scene's frame time; scripted (--exit-after): as fast as it goes.
+  // Each physics frame wakes the window (glfwPostEmptyEvent may be called from any thread).
   thread_ = std::make_unique<EngineThread>(*engine_, playing_, options_.exit_after,
-                                           options_.exit_after < 0 || options_.paced);
+                                           options_.exit_after < 0 || options_.paced,
+                                           [] { glfwPostEmptyEvent(); });
+  shown_finished_ = false;
+  settle_until_ = Clock::now() + kSettle;
 }
 
 double Viewer::aspect() const {
@@ -173,10 +195,10 @@ void Viewer::on_key(int key) {
   keys_.push_back(key);
 }
 
-void Viewer::take_snapshot() {
+bool Viewer::take_snapshot() {
   snapshot_ = engine_->snapshots().latest();
   if (snapshot_->frame == seen_frame_) {
-    return;
+    return false;
   }
   const int previous = seen_frame_;
   seen_frame_ = snapshot_->frame;
@@ -199,6 +221,34 @@ void Viewer::take_snapshot() {
       }
     }
   }
+  return true;
+}
+
+void Viewer::wait_for_events() {
+  if (Clock::now() < settle_until_ || pending_screenshot_) {
+    glfwPollEvents();
+  } else {
+    // Input, or the physics thread's empty event after each frame, ends the wait.
+    glfwWaitEventsTimeout(kIdleWakeSeconds);
+  }
+}
+
+bool Viewer::needs_drawing(bool new_snapshot, bool finished) {
+  const auto now = Clock::now();
+  const bool input = input_events_ != seen_input_events_ || !keys_.empty() || scroll_ != 0.0;
+  // A cursor move changes the picture only while it turns the camera or moves over the
+  // panels; one that steers a held scalpel shows in the physics' next snapshot.
+  const bool over_panels = ImGui::GetIO().WantCaptureMouse;
+  const bool cursor = cursor_moves_ != seen_cursor_moves_ && (dragging_camera_ || over_panels);
+  seen_input_events_ = input_events_;
+  seen_cursor_moves_ = cursor_moves_;
+  if (input || (cursor && over_panels)) {
+    settle_until_ = now + kSettle;
+  }
+  const bool finish_changed = finished != shown_finished_;
+  shown_finished_ = finished;
+  return new_snapshot || input || cursor || finish_changed || pending_screenshot_ ||
+         now < settle_until_;
 }
 
 void Viewer::handle_mouse() {
@@ -347,11 +397,15 @@ int Viewer::run() {
   int drawn_frames = 0;
   const auto run_start = Clock::now();
   while (glfwWindowShouldClose(window_) == 0) {
+    wait_for_events();
     const auto frame_start = std::chrono::steady_clock::now();
     // Asked before the snapshot is taken: once finished, the snapshot is the last frame.
     const bool finished = thread_->finished();
-    take_snapshot();
-    glfwPollEvents();
+    const bool new_snapshot = take_snapshot();
+    if (!needs_drawing(new_snapshot, finished)) {
+      handle_mouse();  // a held scalpel follows the cursor between drawn frames
+      continue;
+    }
     ImGui_ImplOpenGL3_NewFrame();
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();

@@ -7,6 +7,7 @@
 // exactly whatever the frame rates were.
 
 #include <array>
+#include <chrono>
 #include <deque>
 #include <filesystem>
 #include <memory>
@@ -47,16 +48,29 @@ class Viewer {
   /// Runs until the window closes or exit_after frames have played; returns the exit code.
   int run();
 
-  // Called from GLFW callbacks.
-  void on_scroll(double amount) { scroll_ += amount; }
+  // Called from GLFW callbacks (on the window's thread, inside glfwPollEvents and
+  // glfwWaitEvents*).
+  void on_scroll(double amount) {
+    scroll_ += amount;
+    ++input_events_;
+  }
   void on_key(int key);
+  /// Any input but a cursor move: buttons, characters, resizes, focus.
+  void on_input() { ++input_events_; }
+  void on_cursor_move() { ++cursor_moves_; }
 
  private:
   struct Timing {
     std::deque<float> cd, gc, rx, rd;  ///< ms, the last frames
   };
-  void start_engine();   ///< (re)builds the engine from scene_ (or the replay) and its thread
-  void take_snapshot();  ///< the latest published frame, its timings and replayed actions
+  void start_engine();  ///< (re)builds the engine from scene_ (or the replay) and its thread
+  /// The latest published frame, its timings and replayed actions; true if it is new.
+  bool take_snapshot();
+  /// Waits for input or a physics frame, unless the panels still need frames after input.
+  void wait_for_events();
+  /// Whether this pass has something new to show (else the window is not drawn again: on
+  /// llvmpipe a drawn frame of a large body costs most of a core that the physics needs).
+  [[nodiscard]] bool needs_drawing(bool new_snapshot, bool finished);
   void handle_mouse();
   void draw_scene();
   void draw_panels();
@@ -98,6 +112,14 @@ class Viewer {
   double last_y_ = 0.0;
   double scroll_ = 0.0;
   std::deque<int> keys_;
+  // Redrawing on demand: what the window has seen of the input, and until when the panels
+  // keep being drawn after input (hover, tooltips and popups need a few frames).
+  int input_events_ = 0;
+  int cursor_moves_ = 0;
+  int seen_input_events_ = 0;
+  int seen_cursor_moves_ = 0;
+  std::chrono::steady_clock::time_point settle_until_{};
+  bool shown_finished_ = false;
   std::optional<std::filesystem::path> pending_screenshot_;
 
   // Settings being edited (applied with a reset).
