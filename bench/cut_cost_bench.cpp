@@ -9,7 +9,10 @@
 //
 // usage: cut_cost_bench [--cells 10,20,40] [--model corotational-fem|mass-spring]
 //                       [--cutter subdivision|xfem] [--blade-x 0.05] [--per-frame 1]
-//                       [--preconditioner block-jacobi|two-level]
+//                       [--preconditioner block-jacobi|two-level] [--paired-every 3]
+// --paired-every K (0: off): every K-th cutting frame is also stepped from the same state with
+// the blade held still (the engine resumed from a checkpoint taken just before it), so the cut's
+// own extra is measured without the body's motion, which differs from frame to frame.
 // (x = 0.05 m is a plane of grid vertices at every n here; 0.0537 m crosses the cells)
 // Frames 1-10 are "before", 16-45 (the blade moving inside) "cutting", 46-65 "after".
 
@@ -17,10 +20,13 @@
 
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "incise/engine/engine.hpp"
+#include "incise/engine/tool_pose_source.hpp"
 #include "incise/solve/integrators.hpp"
 
 namespace {
@@ -84,6 +90,7 @@ int main(int argc, char** argv) {
   double blade_x = 0.05;  // m
   std::string preconditioner = "block-jacobi";
   bool per_frame = false;  // --per-frame 1: every frame on stderr
+  int paired_every = 3;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
       sizes.clear();
@@ -104,6 +111,8 @@ int main(int argc, char** argv) {
       blade_x = std::atof(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--preconditioner") == 0) {
       preconditioner = argv[i + 1];
+    } else if (std::strcmp(argv[i], "--paired-every") == 0) {
+      paired_every = std::atoi(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--per-frame") == 0) {
       per_frame = std::strcmp(argv[i + 1], "0") != 0;
     }
@@ -112,7 +121,10 @@ int main(int argc, char** argv) {
       "| n | tets | cutting frame ms (cd / gc / rx; CG iterations) | frames before the cut | "
       "frames after the cut | extra ms over after | ratio to after |\n"
       "|---|---|---|---|---|---|---|\n");
-  std::vector<std::string> where;  // the second table's rows
+  std::vector<std::string> where;   // the second table's rows
+  std::vector<std::string> paired;  // the third's
+  const std::filesystem::path checkpoint =
+      std::filesystem::temp_directory_path() / "cut_cost_bench.checkpoint";
   for (int n : sizes) {
     Engine engine(incise::parse_scene(scene_text(n, model, cutter, blade_x, preconditioner),
                                       "cut_cost.json"));
@@ -127,7 +139,19 @@ int main(int argc, char** argv) {
     Means first_after;   // frames 46-50
     std::size_t tets_before_cut = 0;
     std::size_t tets_after_cut = 0;
+    Means pair_cut;   // the sampled cutting frames
+    Means pair_held;  // the same frames from the same state, the blade held still
     for (int frame = 0; frame < 65; ++frame) {
+      const int next = engine.frame() + 1;
+      const bool pair =
+          paired_every > 0 && next >= 16 && next <= 45 && (next - 16) % paired_every == 0;
+      std::unique_ptr<Engine> held;
+      if (pair && engine.blade_rest()) {
+        engine.save_checkpoint(checkpoint);
+        held = Engine::resume(checkpoint);
+        held->set_tool_source(std::make_unique<incise::ScriptedToolPath>(
+            std::vector<incise::BladePose>{*engine.blade_rest()}));
+      }
       if (!engine.step()) {
         std::fprintf(stderr, "%s\n", engine.divergence().c_str());
         return 1;
@@ -137,11 +161,19 @@ int main(int argc, char** argv) {
       if (per_frame) {
         std::fprintf(stderr,
                      "n %d frame %d tets %zu cd %.2f gc %.2f update %.2f rx %.2f CG %zu "
-                     "(preconditioner %.2f products %.2f updates %.2f)\n",
+                     "(forces %.2f preconditioner %.2f start %.2f products %.2f updates %.2f)\n",
                      n, r.frame, r.tets, 1e3 * r.cd, 1e3 * r.gc, 1e3 * stats.seconds_refresh,
-                     1e3 * r.rx, stats.solver_iterations_last_step,
-                     1e3 * stats.seconds_preconditioner, 1e3 * stats.seconds_products,
-                     1e3 * stats.seconds_vector_updates);
+                     1e3 * r.rx, stats.solver_iterations_last_step, 1e3 * stats.seconds_forces,
+                     1e3 * stats.seconds_preconditioner, 1e3 * stats.seconds_solver_start,
+                     1e3 * stats.seconds_products, 1e3 * stats.seconds_vector_updates);
+      }
+      if (held) {
+        if (!held->step()) {
+          std::fprintf(stderr, "%s\n", held->divergence().c_str());
+          return 1;
+        }
+        pair_cut.add(r, stats);
+        pair_held.add(held->last_frame(), held->integrator().stats());
       }
       if (r.frame == 15) {
         tets_before_cut = r.tets;
@@ -184,6 +216,43 @@ int main(int argc, char** argv) {
         last_cutting.per_frame(last_cutting.iterations), ms(first_after.mean()),
         first_after.per_frame(first_after.iterations),
         first_after.mean() > 0 ? last_cutting.mean() / first_after.mean() : 0.0));
+    if (pair_cut.frames > 0) {
+      // The cut's own extra: its edit, the CG iterations it adds over the same frame with the
+      // blade held (each at the cutting frames' cost), and the forces and preconditioner set-up
+      // of the tetrahedra it added, taken against the frames after the cut (the held engine's
+      // first step after resuming allocates and builds from nothing, which would hide them).
+      // The CG comparison is exact for block-Jacobi; the two-level one's resumed coarse space is
+      // aggregated afresh, not extended, so it may need a few iterations more or less.
+      const double edit_ms = ms(pair_cut.per_frame(pair_cut.cd + pair_cut.gc + pair_cut.refresh));
+      const double more_iterations =
+          pair_cut.per_frame(pair_cut.iterations) - pair_held.per_frame(pair_held.iterations);
+      const double iteration_ms = more_iterations * ms(pair_cut.per_iteration());
+      const double other_ms = ms(cutting.per_frame(cutting.forces + cutting.preconditioner) -
+                                 after.per_frame(after.forces + after.preconditioner));
+      const double extra_ms = edit_ms + iteration_ms + other_ms;
+      paired.push_back(fmt::format(
+          "| {} | {} | {:.1f} | {:.1f} / {:.1f} CG: {:+.1f} x {:.3f} = {:.1f} | {:.1f} | {:.1f} | "
+          "{:.2f} |",
+          n, pair_cut.frames, edit_ms, pair_cut.per_frame(pair_cut.iterations),
+          pair_held.per_frame(pair_held.iterations), more_iterations, ms(pair_cut.per_iteration()),
+          iteration_ms, other_ms, extra_ms,
+          pair_cut.mean() > 0 ? 1e3 * pair_cut.mean() / (1e3 * pair_cut.mean() - extra_ms) : 0.0));
+    }
+  }
+  std::filesystem::remove(checkpoint);
+  if (!paired.empty()) {
+    std::printf(
+        "\nThe cut's own extra, from the same state (every %d-th cutting frame stepped twice: "
+        "as it cuts, and resumed from a checkpoint with the blade held): the edit (cd + gc + "
+        "model update), CG iterations cutting / held and the extra at the cutting frames' ms "
+        "per iteration, forces + preconditioner extra, all of it (ms), and the cutting frame "
+        "over the same frame without its extra\n\n"
+        "| n | frames | edit | CG iterations | forces + preconditioner | extra | ratio |\n"
+        "|---|---|---|---|---|---|---|\n",
+        paired_every);
+    for (const std::string& row : paired) {
+      std::printf("%s\n", row.c_str());
+    }
   }
   std::printf(
       "\nWhere the extra of a cutting frame goes (ms per frame): the edit (cd / gc / the model "

@@ -22,13 +22,13 @@
 namespace incise {
 namespace {
 
-/// An SPD matrix on a box's vertex graph: a mass on the diagonal plus, per edge, a random SPD
-/// block as a graph Laplacian; the edges in `stiff` are 1e4 times stiffer.
-BlockSparseMatrix laplacian_matrix(const TetMesh& mesh, std::mt19937& random,
-                                   const std::vector<std::pair<VertexId, VertexId>>& stiff) {
-  BlockSparseMatrix matrix;
-  matrix.build_pattern(mesh);
+/// SPD values on a matrix's pattern: a mass on the diagonal plus, per coupled pair, a random
+/// SPD block as a graph Laplacian; the pairs in `stiff` are 1e4 times stiffer. A pair's block
+/// depends on the seed and the pair alone, so an edit's refill leaves the others' as they were.
+void fill_laplacian(BlockSparseMatrix& matrix, std::uint32_t seed,
+                    const std::vector<std::pair<VertexId, VertexId>>& stiff) {
   std::uniform_real_distribution<double> entry(-1.0, 1.0);
+  matrix.zero_values();
   auto values = matrix.values();
   for (std::size_t i = 0; i < matrix.rows(); ++i) {
     values[matrix.diagonal(static_cast<VertexId>(i))] = 0.1 * Mat3::Identity();
@@ -38,6 +38,8 @@ BlockSparseMatrix laplacian_matrix(const TetMesh& mesh, std::mt19937& random,
       if (static_cast<std::size_t>(j) <= i) {
         continue;
       }
+      std::mt19937 random(seed ^ static_cast<std::uint32_t>(73856093U * i) ^
+                          static_cast<std::uint32_t>(19349663U * static_cast<std::size_t>(j)));
       Mat3 g;
       for (int k = 0; k < 9; ++k) {
         g.data()[k] = entry(random);
@@ -53,7 +55,26 @@ BlockSparseMatrix laplacian_matrix(const TetMesh& mesh, std::mt19937& random,
       values[matrix.find(j, a)] -= block;
     }
   }
+}
+
+/// fill_laplacian on a box's vertex graph.
+BlockSparseMatrix laplacian_matrix(const TetMesh& mesh, std::mt19937& random,
+                                   const std::vector<std::pair<VertexId, VertexId>>& stiff) {
+  BlockSparseMatrix matrix;
+  matrix.build_pattern(mesh);
+  fill_laplacian(matrix, static_cast<std::uint32_t>(random()), stiff);
   return matrix;
+}
+
+/// Each vertex's cluster (-1 for held ones), clusters numbered by their smallest vertex.
+std::vector<int> cluster_of_each(const ClusterJacobi& clusters, std::size_t n) {
+  std::vector<int> cluster_of(n, -1);
+  for (std::size_t c = 0; c + 1 < clusters.first().size(); ++c) {
+    for (std::size_t m = clusters.first()[c]; m < clusters.first()[c + 1]; ++m) {
+      cluster_of[static_cast<std::size_t>(clusters.members()[m])] = static_cast<int>(c);
+    }
+  }
+  return cluster_of;
 }
 
 /// Random entries in [-1, 1], zero on the held vertices (a residual's shape).
@@ -152,6 +173,62 @@ TEST(ClusterJacobi, InvertsEachClustersBlockAndJoinsStronglyCoupledVertices) {
   }
   EXPECT_NEAR(rz, expected_rz, 1e-9 * std::abs(expected_rz));
   EXPECT_GE(clusters.clustered_vertices(), 4U);
+}
+
+TEST(ClusterJacobi, RegroupsTheClustersAnEditTouchesAsAFreshGroupingWould) {
+  BoxGridOptions grid;
+  grid.cells = {3, 3, 3};
+  const TetMesh mesh = make_box_grid(grid);
+  constexpr std::uint32_t kSeed = 11;
+  BlockSparseMatrix matrix;
+  matrix.build_pattern(mesh);
+  fill_laplacian(matrix, kSeed, {{0, 1}, {62, 63}});
+  ClusterJacobi clusters;
+  std::vector<char> constrained(matrix.rows(), 0);
+  ASSERT_TRUE(clusters.update(matrix, constrained));
+  ASSERT_EQ(cluster_of_each(clusters, matrix.rows())[0],
+            cluster_of_each(clusters, matrix.rows())[1]);
+
+  // An edit like a cut's: vertices 0 and 1 are parted (no block joins them any more) and a new
+  // vertex n is stiffly tied to 1; 0's and 1's other neighbours stay.
+  const auto n = static_cast<VertexId>(matrix.rows());
+  matrix.add_rows(matrix.rows() + 1);
+  constrained.push_back(0);
+  auto set_row = [&](VertexId row, std::vector<VertexId> columns) {
+    std::sort(columns.begin(), columns.end());
+    columns.erase(std::unique(columns.begin(), columns.end()), columns.end());
+    matrix.edit_row(row, columns);
+  };
+  auto row_without = [&](VertexId row, VertexId gone) {
+    std::vector<VertexId> columns;
+    for (const VertexId j : matrix.row_columns(row)) {
+      if (j != gone) {
+        columns.push_back(j);
+      }
+    }
+    return columns;
+  };
+  set_row(0, row_without(0, 1));
+  std::vector<VertexId> row1 = row_without(1, 0);
+  row1.push_back(n);
+  set_row(1, row1);
+  set_row(n, {1, n});
+  fill_laplacian(matrix, kSeed, {{1, n}, {62, 63}});
+  ASSERT_TRUE(clusters.update(matrix, constrained));
+
+  ClusterJacobi fresh;
+  ASSERT_TRUE(fresh.update(matrix, constrained));
+  const std::vector<int> edited = cluster_of_each(clusters, matrix.rows());
+  const std::vector<int> expected = cluster_of_each(fresh, matrix.rows());
+  EXPECT_NE(edited[0], edited[1]) << "a cluster kept two vertices the edit parted";
+  EXPECT_EQ(edited[1], edited[static_cast<std::size_t>(n)]);
+  EXPECT_EQ(edited[62], edited[63]) << "a cluster away from the edit";
+  // The same partition as a fresh grouping (cluster numbers may differ: compare pairs).
+  for (std::size_t a = 0; a < matrix.rows(); ++a) {
+    for (std::size_t b = a + 1; b < matrix.rows(); ++b) {
+      EXPECT_EQ(edited[a] == edited[b], expected[a] == expected[b]) << a << ", " << b;
+    }
+  }
 }
 
 TEST(AggregationCoarseSpace, SolvesTheGalerkinSystemOnAggregatesThatCoverTheFreeVertices) {

@@ -53,11 +53,14 @@ class ClusterJacobi {
   [[nodiscard]] std::span<const std::size_t> first() const { return first_; }
 
  private:
-  /// Groups vertices first_new and above (all for 0) into the clusters, then packs them.
+  /// Groups the vertices into clusters, then packs them: all of them for first_new = 0; else
+  /// (an edit that added vertices first_new and above) the new vertices and the members of
+  /// every cluster that holds a vertex coupled to a new one, the rest kept as they were.
   void group(const BlockSparseMatrix& matrix, std::span<const char> constrained,
              std::size_t first_new);
+  /// Joins the strong pairs with an end in `regroup` (alone in its cluster on entry).
   void join_strong_pairs(const BlockSparseMatrix& matrix, std::span<const char> constrained,
-                         std::size_t first_new);
+                         std::span<const char> regroup);
   /// The packed lists and block places of the clusters the union-find holds.
   void pack(const BlockSparseMatrix& matrix, std::span<const char> constrained);
   VertexId root(VertexId v);
