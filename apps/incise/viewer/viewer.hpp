@@ -3,8 +3,10 @@
 // (play, pause, step, reset; settings; mesh statistics; per-stage timing plot) and the mouse
 // scalpel. The physics steps on its own thread (EngineThread), paced to the scene's frame time;
 // the window draws the latest published snapshot, so a frame costs the larger of physics and
-// drawing, not their sum. A recording holds the pose each physics frame took, so it replays
-// exactly whatever the frame rates were.
+// drawing, not their sum. It draws only when there is something new (a physics frame wakes it
+// through glfwPostEmptyEvent; input; the panels settling after input) and waits for events
+// otherwise: drawing the same picture again took a core from the physics. A recording holds the
+// pose each physics frame took, so it replays exactly whatever the frame rates were.
 
 #include <array>
 #include <chrono>
