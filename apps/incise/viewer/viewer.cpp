@@ -352,6 +352,12 @@ void Viewer::save_screenshot(const std::filesystem::path& path) {
   action("screenshot", path.string());
 }
 
+bool Viewer::preconditioner_applies() const {
+  const auto integrator = static_cast<IntegratorKind>(settings_.integrator);
+  return scene_.model_type == ModelKind::kCorotationalFem &&
+         (integrator == IntegratorKind::kBackwardEuler || integrator == IntegratorKind::kStatic);
+}
+
 void Viewer::apply_settings() {
   nlohmann::json root = nlohmann::json::parse(scene_.source_text);
   root["material"] = {{"young_modulus", settings_.young_modulus},
@@ -362,9 +368,7 @@ void Viewer::apply_settings() {
   }
   root["integrator"]["type"] = name_of(static_cast<IntegratorKind>(settings_.integrator));
   root["integrator"]["dt"] = settings_.dt;
-  const auto integrator = static_cast<IntegratorKind>(settings_.integrator);
-  if (scene_.model_type == ModelKind::kCorotationalFem &&
-      (integrator == IntegratorKind::kBackwardEuler || integrator == IntegratorKind::kStatic)) {
+  if (preconditioner_applies()) {
     nlohmann::json& solver = root["integrator"]["solver"];
     if (!solver.is_object()) {
       solver = nlohmann::json::object();

@@ -79,6 +79,9 @@ class Viewer {
   void save_screenshot(const std::filesystem::path& path);
   void action(const std::string& name, const std::string& value = {});
   void apply_settings();
+  /// Whether the settings' preconditioner is used: an FEM body with an implicit integrator
+  /// (backward Euler or static), the ones that solve with the assembled matrix.
+  [[nodiscard]] bool preconditioner_applies() const;
   [[nodiscard]] double aspect() const;
 
   ViewerOptions options_;

@@ -97,9 +97,7 @@ void Viewer::draw_panels() {
       ImGui::EndCombo();
     }
     ImGui::InputFloat("dt (s)", &settings_.dt, 0, 0, "%.5f");
-    const auto integrator = static_cast<IntegratorKind>(settings_.integrator);
-    if (scene_.model_type == ModelKind::kCorotationalFem &&
-        (integrator == IntegratorKind::kBackwardEuler || integrator == IntegratorKind::kStatic)) {
+    if (preconditioner_applies()) {
       // two-level pays off on large or cut bodies (BENCHMARKS.md); block-Jacobi on small ones.
       const std::array<Preconditioner, 5> preconditioners{
           Preconditioner::kBlockJacobi, Preconditioner::kTwoLevel, Preconditioner::kJacobi,
