@@ -89,10 +89,20 @@ std::vector<Vec3> random_field(std::size_t n, std::mt19937& random,
   return field;
 }
 
-/// The first `count` vertices held (a box grid's bottom layer), the rest free.
-std::vector<char> hold_first(std::size_t n, std::size_t count) {
-  std::vector<char> held(n, 0);
-  std::fill(held.begin(), held.begin() + static_cast<std::ptrdiff_t>(count), 1);
+struct HeldLaplacian {
+  BlockSparseMatrix matrix;
+  std::vector<char> constrained;
+};
+
+/// laplacian_matrix on a box of cells^3 cells, its z = 0 face (the first (cells + 1)^2
+/// vertices of a box grid) held.
+HeldLaplacian held_box_laplacian(int cells, std::mt19937& random) {
+  BoxGridOptions grid;
+  grid.cells = {cells, cells, cells};
+  HeldLaplacian held{laplacian_matrix(make_box_grid(grid), random, {}), {}};
+  held.constrained.assign(held.matrix.rows(), 0);
+  const auto face = static_cast<std::ptrdiff_t>((cells + 1) * (cells + 1));
+  std::fill(held.constrained.begin(), held.constrained.begin() + face, 1);
   return held;
 }
 
@@ -232,12 +242,8 @@ TEST(ClusterJacobi, RegroupsTheClustersAnEditTouchesAsAFreshGroupingWould) {
 }
 
 TEST(AggregationCoarseSpace, SolvesTheGalerkinSystemOnAggregatesThatCoverTheFreeVertices) {
-  BoxGridOptions grid;
-  grid.cells = {4, 4, 4};
-  const TetMesh mesh = make_box_grid(grid);
   std::mt19937 random(11);
-  const BlockSparseMatrix matrix = laplacian_matrix(mesh, random, {});
-  const std::vector<char> constrained = hold_first(matrix.rows(), 25);  // the z = 0 face
+  const auto [matrix, constrained] = held_box_laplacian(4, random);
   AggregationCoarseSpace coarse;
   ASSERT_TRUE(coarse.update(matrix, constrained));
   const auto aggregate_of = coarse.aggregate_of();
@@ -275,12 +281,8 @@ TEST(AggregationCoarseSpace, SolvesTheGalerkinSystemOnAggregatesThatCoverTheFree
 TEST(AggregationCoarseSpace, ThreeLevelCorrectionIsSymmetricAndPositive) {
   // Above its exact limit the coarse correction is additive over three levels; CG needs it to
   // be a symmetric positive definite operator of r: s.B(r) == r.B(s) and r.B(r) > 0.
-  BoxGridOptions grid;
-  grid.cells = {6, 6, 6};
-  const TetMesh mesh = make_box_grid(grid);
   std::mt19937 random(5);
-  const BlockSparseMatrix matrix = laplacian_matrix(mesh, random, {});
-  const std::vector<char> constrained = hold_first(matrix.rows(), 49);  // the z = 0 face
+  const auto [matrix, constrained] = held_box_laplacian(6, random);
   AggregationCoarseSpace coarse;
   coarse.set_exact_limit(0);
   ASSERT_TRUE(coarse.update(matrix, constrained));
