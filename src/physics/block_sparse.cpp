@@ -151,6 +151,20 @@ void multiply_rows_portable(const Mat3* values, const VertexId* columns,
   }
 }
 
+/// The same from the single-precision copy (9 floats per block, column-major).
+void multiply_rows_single_portable(const float* values, const VertexId* columns,
+                                   const std::size_t* row_begin, const std::size_t* row_end,
+                                   std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
+  for (std::size_t i = begin; i < end; ++i) {
+    Vec3 sum = Vec3::Zero();
+    for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
+      const Eigen::Map<const Eigen::Matrix3f> block(values + 9 * k);
+      sum.noalias() += block.cast<double>() * p[columns[k]];
+    }
+    out[i - begin] = sum;
+  }
+}
+
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define INCISE_HAVE_AVX2_ROWS 1
 
@@ -184,6 +198,32 @@ __attribute__((target("avx2,fma"))) void multiply_rows_avx2(
   }
 }
 
+// The same lanes as above from 4-float loads widened to double (a load at offset 5 reads
+// floats 5-8, the block's last four).
+__attribute__((target("avx2,fma"))) void multiply_rows_single_avx2(
+    const float* values, const VertexId* columns, const std::size_t* row_begin,
+    const std::size_t* row_end, std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
+  for (std::size_t i = begin; i < end; ++i) {
+    __m256d first = _mm256_setzero_pd();
+    __m256d second = _mm256_setzero_pd();
+    __m256d third_shifted = _mm256_setzero_pd();
+    for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
+      const float* a = values + 9 * k;
+      const double* q = p[columns[k]].data();
+      first = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(a)), _mm256_broadcast_sd(q), first);
+      second =
+          _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(a + 3)), _mm256_broadcast_sd(q + 1), second);
+      third_shifted = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(a + 5)),
+                                      _mm256_broadcast_sd(q + 2), third_shifted);
+    }
+    alignas(32) double sum[4];
+    alignas(32) double third[4];
+    _mm256_store_pd(sum, _mm256_add_pd(first, second));
+    _mm256_store_pd(third, third_shifted);
+    out[i - begin] = Vec3(sum[0] + third[1], sum[1] + third[2], sum[2] + third[3]);
+  }
+}
+
 bool cpu_has_avx2_fma() {
   __builtin_cpu_init();
   return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
@@ -208,6 +248,41 @@ void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::s
   }
 #endif
   multiply_rows_portable(values_.data(), columns, row_begin, row_end, begin, end, p.data(), out);
+}
+
+void BlockSparseMatrix::refresh_single_precision() {
+  const std::size_t count = 9 * values_.size();
+  if (single_values_.capacity() < count) {
+    single_values_.reserve(count + count / 4);  // slack, as grow_zero
+  }
+  single_values_.resize(count);
+  const double* source = values_.data()->data();
+  float* target = single_values_.data();
+  parallel_for(0, count, 1 << 15, [&](std::size_t first, std::size_t last) {
+    for (std::size_t s = first; s != last; ++s) {
+      target[s] = static_cast<float>(source[s]);
+    }
+  });
+}
+
+void BlockSparseMatrix::multiply_rows_single(std::size_t begin, std::size_t end,
+                                             std::span<const Vec3> p, Vec3* out) const {
+  INCISE_ASSERT(end <= rows() && p.size() >= rows(), "product outside the matrix");
+  INCISE_ASSERT(single_values_.size() == 9 * values_.size(),
+                "single-precision product before refresh_single_precision");
+  const VertexId* columns = pattern_->columns.storage().data();
+  const std::size_t* row_begin = pattern_->columns.begin().data();
+  const std::size_t* row_end = pattern_->columns.end().data();
+#ifdef INCISE_HAVE_AVX2_ROWS
+  static const bool avx2 = cpu_has_avx2_fma();
+  if (avx2) {
+    multiply_rows_single_avx2(single_values_.data(), columns, row_begin, row_end, begin, end,
+                              p.data(), out);
+    return;
+  }
+#endif
+  multiply_rows_single_portable(single_values_.data(), columns, row_begin, row_end, begin, end,
+                                p.data(), out);
 }
 
 template <typename Store>

@@ -354,9 +354,9 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
         integrator.integer("max_iterations", spec.static_solve.max_iterations, 1, 100000);
     spec.static_solve.tolerance = integrator.positive("tolerance", spec.static_solve.tolerance);
     if (integrator.has("solver")) {
-      const ObjectReader solver(
-          context, integrator.at("solver"), "integrator.solver",
-          {"type", "preconditioner", "tolerance", "max_iterations", "warm_start", "start_history"});
+      const ObjectReader solver(context, integrator.at("solver"), "integrator.solver",
+                                {"type", "preconditioner", "tolerance", "max_iterations",
+                                 "warm_start", "start_history", "products"});
       LinearSolverOptions options;
       try {
         options.type = parse_linear_solver_type(
@@ -384,6 +384,12 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
       options.max_iterations = solver.integer("max_iterations", options.max_iterations, 1, 1000000);
       options.warm_start = solver.boolean("warm_start", options.warm_start);
       options.start_history = solver.integer("start_history", options.start_history, 0, 64);
+      const std::string products = solver.string("products", "single");
+      if (products != "single" && products != "double") {
+        context.fail("integrator.solver.products",
+                     "unknown precision '" + products + "' (known: single, double)");
+      }
+      options.single_precision_products = products == "single";
       spec.backward_euler.solver = options;
       spec.static_solve.solver = options;
     }

@@ -5,6 +5,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "incise/core/error.hpp"
 #include "incise/core/parallel_for.hpp"
@@ -266,6 +267,20 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   product_.resize(n);
   preconditioned_.resize(n);
   diagonal_.resize(n);
+  const bool two_level = options_.preconditioner == Preconditioner::kTwoLevel;
+  // Products in single precision read half the bytes; the initial residual of each pass below
+  // is formed in double, so CG stops on the true residual: when the single-precision run ends
+  // above the tolerance, it restarts from there on the true residual (iterative refinement),
+  // and falls back to double products if a restart does not halve it.
+  bool single = options_.single_precision_products;  // the copy is fresh: see fused_solve
+  auto multiply = [&](bool in_single, std::size_t begin, std::size_t end, std::span<const Vec3> p,
+                      Vec3* out) {
+    if (in_single) {
+      assembled_.multiply_rows_single(begin, end, p, out);
+    } else {
+      assembled_.multiply_rows(begin, end, p, out);
+    }
+  };
   // Each pass walks fixed chunks of rows; a chunk's matrix rows are multiplied into `rows`
   // first (the kernel), then combined with the vectors row by row.
   auto chunked = [&](const auto& row_body) {
@@ -276,42 +291,18 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
                           }
                         });
   };
-  auto chunked_products = [&](std::span<const Vec3> p, const auto& row_body) {
+  auto chunked_products = [&](bool in_single, std::span<const Vec3> p, const auto& row_body) {
     return chunked_sums(n, kFusedChunk,
                         [&](std::size_t begin, std::size_t end, double& first, double& second) {
                           std::array<Vec3, kFusedChunk> rows;
-                          assembled_.multiply_rows(begin, end, p, rows.data());
+                          multiply(in_single, begin, end, p, rows.data());
                           for (std::size_t i = begin; i < end; ++i) {
                             row_body(i, rows[i - begin], first, second);
                           }
                         });
   };
-  const bool two_level = options_.preconditioner == Preconditioner::kTwoLevel;
-  // Preconditioner and the initial residual (warm start from x).
-  if (!start_from_x) {
-    std::fill(x.begin(), x.end(), Vec3::Zero());
-  }
-  auto [rr, rz] =
-      chunked_products(x, [&](std::size_t i, const Vec3& row_x, double& sum_rr, double& sum_rz) {
-        if (constrained_[i] != 0) {
-          diagonal_[i].setZero();
-          residual_[i].setZero();
-          preconditioned_[i].setZero();
-          direction_[i].setZero();
-          product_[i].setZero();  // never written again: held rows stay out of every update
-          return;
-        }
-        diagonal_[i] =
-            two_level ? clusters_->single_inverse()[i]
-                      : preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
-        residual_[i] = rhs[i] - row_x;  // x is zero on a cold start
-        preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
-        direction_[i] = preconditioned_[i];
-        sum_rr += residual_[i].squaredNorm();
-        sum_rz += residual_[i].dot(preconditioned_[i]);
-      });
   // The two-level preconditioner's per-row part (vertices alone in their cluster) runs in the
-  // passes above and below; once the whole residual is known, the clusters' blocks and the
+  // passes below; once the whole residual is known, the clusters' blocks and the
   // coarse correction add theirs, and their part of r.z (the coarse one is
   // (P^T r).(A_c^-1 P^T r), so it needs no pass of its own).
   auto precondition_two_level = [&](bool set_direction) {
@@ -329,55 +320,100 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
     }
     return sum;
   };
-  if (two_level) {
-    rz += precondition_two_level(true);
+  if (!start_from_x) {
+    std::fill(x.begin(), x.end(), Vec3::Zero());
   }
-  stats.relative_residual = std::sqrt(rr) / rhs_norm;
-  // q = J p for the first direction; afterwards J p_new = J z + beta J p_old is formed in the
-  // same pass as J z, so an iteration is two passes (the p and q recurrences are exact
-  // identities; only rounding differs from forming J p directly).
-  double beta = 0.0;
   int iteration = 0;
-  while (stats.relative_residual > options_.tolerance && iteration < options_.max_iterations) {
-    const auto product_start = Clock::now();
-    const bool first_direction = iteration == 0;
-    const double curvature =
-        chunked_products(first_direction ? std::span<const Vec3>(direction_)
-                                         : std::span<const Vec3>(preconditioned_),
-                         [&](std::size_t i, const Vec3& row_p, double& sum, double&) {
-                           if (constrained_[i] != 0) {
-                             return;
-                           }
-                           if (first_direction) {
-                             product_[i] = row_p;
-                           } else {
-                             direction_[i] = preconditioned_[i] + beta * direction_[i];
-                             product_[i] = row_p + beta * product_[i];
-                           }
-                           sum += direction_[i].dot(product_[i]);
-                         })
-            .first;
-    stats.seconds_products += seconds_since(product_start);
-    if (!(curvature > 0.0)) {
-      break;  // converged to rounding, or not positive definite: keep x
+  double last_true_residual = std::numeric_limits<double>::infinity();
+  for (;;) {
+    // Preconditioner and the initial residual (warm start from x).
+    auto [rr, rz] = chunked_products(
+        false, x, [&](std::size_t i, const Vec3& row_x, double& sum_rr, double& sum_rz) {
+          if (constrained_[i] != 0) {
+            diagonal_[i].setZero();
+            residual_[i].setZero();
+            preconditioned_[i].setZero();
+            direction_[i].setZero();
+            product_[i].setZero();  // never written again: held rows stay out of every update
+            return;
+          }
+          diagonal_[i] =
+              two_level
+                  ? clusters_->single_inverse()[i]
+                  : preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
+          residual_[i] = rhs[i] - row_x;  // x is zero on a cold start
+          preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
+          direction_[i] = preconditioned_[i];
+          sum_rr += residual_[i].squaredNorm();
+          sum_rz += residual_[i].dot(preconditioned_[i]);
+        });
+    if (two_level) {
+      rz += precondition_two_level(true);
     }
-    const double alpha = rz / curvature;
-    const auto update_start = Clock::now();
-    auto [rr_next, rz_next] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
-      x[i] += alpha * direction_[i];
-      residual_[i] -= alpha * product_[i];
-      preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
-      sum_rr += residual_[i].squaredNorm();
-      sum_rz += residual_[i].dot(preconditioned_[i]);
-    });
-    if (two_level && std::sqrt(rr_next) / rhs_norm > options_.tolerance) {
-      rz_next += precondition_two_level(false);
+    stats.relative_residual = std::sqrt(rr) / rhs_norm;  // the true residual (double products)
+    if (single && stats.relative_residual > options_.tolerance &&
+        !(stats.relative_residual < 0.5 * last_true_residual)) {
+      single = false;  // refinement stalled: the single-precision matrix is too far off
     }
-    stats.seconds_vector_updates += seconds_since(update_start);
-    ++iteration;
-    stats.relative_residual = std::sqrt(rr_next) / rhs_norm;
-    beta = rz_next / rz;
-    rz = rz_next;
+    last_true_residual = stats.relative_residual;
+    if (stats.relative_residual <= options_.tolerance || iteration >= options_.max_iterations) {
+      break;
+    }
+    if (iteration > 0) {
+      ++stats.refinements;
+    }
+    bool broke_down = false;
+    // q = J p for the first direction; afterwards J p_new = J z + beta J p_old is formed in the
+    // same pass as J z, so an iteration is two passes (the p and q recurrences are exact
+    // identities; only rounding differs from forming J p directly).
+    double beta = 0.0;
+    bool first_direction = true;
+    while (stats.relative_residual > options_.tolerance && iteration < options_.max_iterations) {
+      const auto product_start = Clock::now();
+      const double curvature =
+          chunked_products(single,
+                           first_direction ? std::span<const Vec3>(direction_)
+                                           : std::span<const Vec3>(preconditioned_),
+                           [&](std::size_t i, const Vec3& row_p, double& sum, double&) {
+                             if (constrained_[i] != 0) {
+                               return;
+                             }
+                             if (first_direction) {
+                               product_[i] = row_p;
+                             } else {
+                               direction_[i] = preconditioned_[i] + beta * direction_[i];
+                               product_[i] = row_p + beta * product_[i];
+                             }
+                             sum += direction_[i].dot(product_[i]);
+                           })
+              .first;
+      stats.seconds_products += seconds_since(product_start);
+      if (!(curvature > 0.0)) {
+        broke_down = true;  // converged to rounding, or not positive definite: keep x
+        break;
+      }
+      const double alpha = rz / curvature;
+      const auto update_start = Clock::now();
+      auto [rr_next, rz_next] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
+        x[i] += alpha * direction_[i];
+        residual_[i] -= alpha * product_[i];
+        preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
+        sum_rr += residual_[i].squaredNorm();
+        sum_rz += residual_[i].dot(preconditioned_[i]);
+      });
+      if (two_level && std::sqrt(rr_next) / rhs_norm > options_.tolerance) {
+        rz_next += precondition_two_level(false);
+      }
+      stats.seconds_vector_updates += seconds_since(update_start);
+      ++iteration;
+      first_direction = false;
+      stats.relative_residual = std::sqrt(rr_next) / rhs_norm;
+      beta = rz_next / rz;
+      rz = rz_next;
+    }
+    if (!single || broke_down) {
+      break;  // in double the recurrence's residual is the answer, as it always was
+    }
   }
   stats.iterations = iteration;
 }
@@ -474,7 +510,13 @@ LinearSolveStats LinearizedSystemSolver::fused_solve(
     std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
     std::span<const std::span<const Vec3>> start_basis, Clock::time_point start,
     LinearSolveStats& stats) {
+  if (options_.single_precision_products) {
+    const auto refresh_start = Clock::now();
+    assembled_.refresh_single_precision();
+    stats.seconds_products += seconds_since(refresh_start);
+  }
   if (!start_basis.empty()) {
+    // In double: a basis that spans the solution then starts CG at it.
     galerkin_start(
         start_basis, rhs, x,
         [&](std::span<const Vec3> p, std::span<Vec3> y) { assembled_.multiply(p, y); }, stats);

@@ -574,6 +574,77 @@ TEST(FemSolver, GalerkinStartFromABasisThatSpansTheSolutionNeedsNoIterations) {
   EXPECT_LT(max_difference(x_noise, exact), 1e-5 * max_norm(exact));
 }
 
+TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
+  // CG multiplies by a float copy of the matrix; the copy's products agree with the double
+  // ones to float rounding, and a tolerance far below what float alone can reach (1e-12) is
+  // still met on the residual formed in double, by restarting from it.
+  Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
+  body.conditions.fix(at_plane(body.mesh, 2, 0.0));
+  const std::size_t n = body.mesh.vertex_count();
+  const auto rest = body.state.x.values();
+  std::vector<Vec3> x(rest.begin(), rest.end());
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] += Vec3(0.002 * x[i].z(), 0.0, -0.001 * x[i].x());  // a sheared state
+  }
+  body.system.prepare_linearization(0.0, x, std::vector<Vec3>(n, Vec3::Zero()));
+  const double a = 1e-4;
+  const double b = 1e-2;
+  BlockSparseMatrix matrix;
+  ASSERT_TRUE(body.system.assemble_linearization(a, b, matrix));
+  matrix.refresh_single_precision();
+  const std::vector<Vec3> p = random_field(n, 1.0, 3);
+  std::vector<Vec3> in_double(n);
+  std::vector<Vec3> in_single(n);
+  matrix.multiply_rows(0, n, p, in_double.data());
+  matrix.multiply_rows_single(0, n, p, in_single.data());
+  double largest_block = 0.0;
+  for (const Mat3& block : matrix.values()) {
+    largest_block = std::max(largest_block, block.cwiseAbs().maxCoeff());
+  }
+  const double rows_bound = 27.0 * 3.0 * largest_block * max_norm(p) * 0x1p-24;
+  EXPECT_LE(max_difference(in_double, in_single), rows_bound);
+  EXPECT_GT(max_difference(in_double, in_single), 0.0);  // the copy is float, not the same
+
+  std::vector<char> constrained(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    constrained[i] = body.system.is_constrained(static_cast<VertexId>(i)) ? 1 : 0;
+  }
+  const std::vector<Vec3> rhs = random_field(n, 1e-3, 7);
+  auto solve = [&](bool single, std::vector<Vec3>& solution) {
+    LinearSolverOptions options;
+    options.tolerance = 1e-12;
+    options.warm_start = false;
+    options.single_precision_products = single;
+    LinearizedSystemSolver solver(options);
+    solution.assign(n, Vec3::Zero());
+    return solver.solve(body.system, 1.0, a, b, constrained, rhs, solution);
+  };
+  std::vector<Vec3> solution_double;
+  std::vector<Vec3> solution_single;
+  const LinearSolveStats double_stats = solve(false, solution_double);
+  const LinearSolveStats single_stats = solve(true, solution_single);
+  EXPECT_EQ(double_stats.refinements, 0);
+  EXPECT_GE(single_stats.refinements, 1);
+  // The residual of the single-precision run, formed here from the model's own products.
+  const auto masses = body.system.masses();
+  std::vector<Vec3> product(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    product[i] = masses[i] * solution_single[i];
+  }
+  body.system.add_linearized_product(a, b, solution_single, product);
+  double residual = 0.0;
+  double rhs_norm = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (constrained[i] == 0) {
+      residual += (rhs[i] - product[i]).squaredNorm();
+      rhs_norm += rhs[i].squaredNorm();
+    }
+  }
+  EXPECT_LE(single_stats.relative_residual, 1e-12);
+  EXPECT_LE(std::sqrt(residual / rhs_norm), 2e-12);
+  EXPECT_LT(max_difference(solution_single, solution_double), 1e-9 * max_norm(solution_double));
+}
+
 TEST(FemSolver, StartingFromEarlierSolutionsKeepsTheTrajectoryAndSavesIterations) {
   // The peers' box (n = 6) for 40 steps, CG to 1e-9: starting each step from the Galerkin
   // combination of the last eight solutions, from the extrapolation of the last two, and

@@ -159,7 +159,8 @@ TEST(SceneParsing, CorotationalFemKeys) {
       R"({"mesh": {"box": {"cells": [2, 2, 2]}},
           "model": {"type": "corotational-fem", "rayleigh": [0.1, 0.002], "assemble": false},
           "integrator": {"type": "backward-euler", "dt": 0.01, "newton_steps": 2,
-                         "solver": {"type": "direct", "start_history": 3}}})",
+                         "solver": {"type": "direct", "start_history": 3,
+                                    "products": "double"}}})",
       "fem.json");
   EXPECT_EQ(scene.model_type, ModelKind::kCorotationalFem);
   EXPECT_DOUBLE_EQ(scene.fem.rayleigh_mass, 0.1);
@@ -169,6 +170,12 @@ TEST(SceneParsing, CorotationalFemKeys) {
   EXPECT_EQ(scene.integrator.backward_euler.newton_steps, 2);
   EXPECT_EQ(scene.integrator.backward_euler.solver.type, LinearSolverType::kDirect);
   EXPECT_EQ(scene.integrator.backward_euler.solver.start_history, 3);
+  EXPECT_FALSE(scene.integrator.backward_euler.solver.single_precision_products);
+  EXPECT_NE(
+      error_of(
+          R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"solver": {"products": "half"}}})")
+          .find("integrator.solver.products"),
+      std::string::npos);
   EXPECT_NE(
       error_of(
           R"({"mesh": {"box": {"cells": [2, 2, 2]}}, "integrator": {"solver": {"start_history": -1}}})")

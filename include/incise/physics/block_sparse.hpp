@@ -86,6 +86,16 @@ class BlockSparseMatrix {
   /// every product, for callers that fuse other per-row work into the same pass.
   void multiply_rows(std::size_t begin, std::size_t end, std::span<const Vec3> p, Vec3* out) const;
 
+  // ---- single-precision copy, for products that read half the bytes ------------------------
+  /// Copies the values, rounded to float, into the single-precision copy (a pass over the
+  /// storage). Call after the values change and before multiply_rows_single.
+  void refresh_single_precision();
+  /// As multiply_rows, with the blocks read from the single-precision copy (sums in double).
+  /// Products of large bodies are limited by memory bandwidth, so half the bytes is nearly
+  /// twice the speed; each block differs from the double one by at most 2^-24 of each entry.
+  void multiply_rows_single(std::size_t begin, std::size_t end, std::span<const Vec3> p,
+                            Vec3* out) const;
+
  private:
   /// store(row, (A p)_row) for every row, rows in parallel.
   template <typename Store>
@@ -95,6 +105,7 @@ class BlockSparseMatrix {
 
   std::shared_ptr<BlockPattern> pattern_;
   std::vector<Mat3> values_;
+  std::vector<float> single_values_;  ///< 9 per block, column-major as values_
 };
 
 }  // namespace incise

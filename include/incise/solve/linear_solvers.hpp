@@ -47,6 +47,9 @@ struct LinearSolverOptions {
   /// Run CG on the assembled matrix when the system can assemble it (fused passes); false
   /// multiplies through the system's matrix-free products (kept for comparison).
   bool assembled = true;
+  /// Assembled CG multiplies by a single-precision copy of the matrix (half the bytes per
+  /// product), stopping on the residual formed in double: see fused_conjugate_gradients.
+  bool single_precision_products = true;
 };
 
 /// Parses "cg" / "direct" / "auto" and "none" / "jacobi" / "block-jacobi" / "incomplete-cholesky"
@@ -59,6 +62,9 @@ struct LinearSolverOptions {
 struct LinearSolveStats {
   int iterations = 0;
   double relative_residual = 0.0;
+  /// Restarts of CG on the residual formed in double after a run in single precision ended
+  /// above the tolerance (iterative refinement).
+  int refinements = 0;
   double seconds_preconditioner = 0.0;  ///< building it (factorisation for direct solves)
   double seconds_products = 0.0;        ///< matrix-vector products
   double seconds_vector_updates = 0.0;  ///< the x, r, z updates and their dot products
@@ -95,8 +101,10 @@ class LinearizedSystemSolver {
   /// The (block-)Jacobi preconditioner's block for a diagonal block of the system matrix
   /// (identity without preconditioning).
   [[nodiscard]] Mat3 preconditioner_block(const Mat3& diagonal_block) const;
-  /// PCG over the assembled matrix with fused passes (Jacobi, block-Jacobi or none), from x
-  /// when start_from_x, else from zero.
+  /// PCG over the assembled matrix with fused passes (Jacobi, block-Jacobi, two-level or none),
+  /// from x when start_from_x, else from zero. With single-precision products, each run starts
+  /// from the residual formed in double and CG restarts from it until that meets the tolerance
+  /// (iterative refinement; double products if a restart fails to halve it).
   void fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
                                  bool start_from_x, LinearSolveStats& stats);
   /// After the assembled matrix and its preconditioner are built: the start (the Galerkin one
