@@ -10,6 +10,7 @@
 // usage: cut_cost_bench [--cells 10,20,40] [--model corotational-fem|mass-spring]
 //                       [--cutter subdivision|xfem] [--blade-x 0.05] [--per-frame 1]
 //                       [--preconditioner block-jacobi|two-level] [--paired-every 3]
+//                       [--products single|double]
 // --paired-every K (0: off): every K-th cutting frame is also stepped from the same state with
 // the blade held still (the engine resumed from a checkpoint taken just before it), so the cut's
 // own extra is measured without the body's motion, which differs from frame to frame.
@@ -62,7 +63,7 @@ struct Means {
 };
 
 std::string scene_text(int cells, const std::string& model, const std::string& cutter, double x,
-                       const std::string& preconditioner) {
+                       const std::string& preconditioner, const std::string& products) {
   // Frames 1-10: the blade waits outside (y < 0); 11-45: it moves 1 mm per frame to 3 cm deep
   // (5 mm of approach first); 46-65: it rests inside.
   return fmt::format(R"({{
@@ -70,7 +71,8 @@ std::string scene_text(int cells, const std::string& model, const std::string& c
     "material": {{"young_modulus": 3000, "poisson_ratio": 0.45, "density": 1000}},
     "model": {{"type": "{1}"}},
     "integrator": {{"type": "backward-euler", "dt": 0.01,
-                    "solver": {{"type": "cg", "preconditioner": "{4}", "tolerance": 1e-6}}}},
+                    "solver": {{"type": "cg", "preconditioner": "{4}", "tolerance": 1e-6,
+                                "products": "{5}"}}}},
     "fixed": [{{"box": [[-1, -1, -1], [1, 1, 0]]}}],
     "gravity": [0, 0, -9.81],
     "tool": {{"poses": [[0.0, {3}, -0.005, -0.01, {3}, -0.005, 0.11],
@@ -78,7 +80,7 @@ std::string scene_text(int cells, const std::string& model, const std::string& c
                         [0.45, {3}, 0.030, -0.01, {3}, 0.030, 0.11]]}},
     "cutter": {{"type": "{2}"}},
     "frames": 65, "frame_dt": 0.01}})",
-                     cells, model, cutter, x, preconditioner);
+                     cells, model, cutter, x, preconditioner, products);
 }
 
 }  // namespace
@@ -89,7 +91,8 @@ int main(int argc, char** argv) {
   std::string cutter = "subdivision";
   double blade_x = 0.05;  // m
   std::string preconditioner = "block-jacobi";
-  bool per_frame = false;  // --per-frame 1: every frame on stderr
+  std::string products = "single";  // CG's matrix copy (the default), or "double"
+  bool per_frame = false;           // --per-frame 1: every frame on stderr
   int paired_every = 3;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
@@ -111,6 +114,8 @@ int main(int argc, char** argv) {
       blade_x = std::atof(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--preconditioner") == 0) {
       preconditioner = argv[i + 1];
+    } else if (std::strcmp(argv[i], "--products") == 0) {
+      products = argv[i + 1];
     } else if (std::strcmp(argv[i], "--paired-every") == 0) {
       paired_every = std::atoi(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--per-frame") == 0) {
@@ -126,8 +131,8 @@ int main(int argc, char** argv) {
   const std::filesystem::path checkpoint =
       std::filesystem::temp_directory_path() / "cut_cost_bench.checkpoint";
   for (int n : sizes) {
-    Engine engine(incise::parse_scene(scene_text(n, model, cutter, blade_x, preconditioner),
-                                      "cut_cost.json"));
+    Engine engine(incise::parse_scene(
+        scene_text(n, model, cutter, blade_x, preconditioner, products), "cut_cost.json"));
     const std::size_t tets = engine.mesh().tet_count();
     Means cutting;
     Means before;  // the whole body, not cut yet
