@@ -127,22 +127,32 @@ void ClusterJacobi::group(const BlockSparseMatrix& matrix, std::span<const char>
 void ClusterJacobi::pack(const BlockSparseMatrix& matrix, std::span<const char> constrained) {
   const std::size_t n = matrix.rows();
   auto is_free = [&](std::size_t v) { return constrained[v] == 0; };
-  // Clusters in the order of their smallest vertex, members in vertex order.
+  // Clusters in the order of their smallest vertex, members in vertex order: numbered by a
+  // first pass, counted, then filled by a counting sort (no list per cluster: after a cut this
+  // runs every frame, and most of a large body's clusters are single vertices).
   std::vector<std::size_t> cluster_of_root(n, kNoBlock);
-  std::vector<std::vector<VertexId>> clusters;
+  std::vector<std::size_t> cluster_of(n, kNoBlock);
+  first_.assign(1, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (!is_free(i)) {
       continue;
     }
     const auto r = static_cast<std::size_t>(root(static_cast<VertexId>(i)));
     if (cluster_of_root[r] == kNoBlock) {
-      cluster_of_root[r] = clusters.size();
-      clusters.emplace_back();
+      cluster_of_root[r] = first_.size() - 1;
+      first_.push_back(0);
     }
-    clusters[cluster_of_root[r]].push_back(static_cast<VertexId>(i));
+    cluster_of[i] = cluster_of_root[r];
+    ++first_[cluster_of[i] + 1];
   }
-  members_.clear();
-  first_.assign(1, 0);
+  std::partial_sum(first_.begin(), first_.end(), first_.begin());
+  members_.resize(first_.back());
+  std::vector<std::size_t> next(first_.begin(), first_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (cluster_of[i] != kNoBlock) {
+      members_[next[cluster_of[i]]++] = static_cast<VertexId>(i);
+    }
+  }
   multi_.clear();
   offset_.clear();
   block_of_.clear();
@@ -150,26 +160,26 @@ void ClusterJacobi::pack(const BlockSparseMatrix& matrix, std::span<const char> 
   clustered_vertices_ = 0;
   largest_ = 1;
   std::size_t offset = 0;
-  for (const std::vector<VertexId>& cluster : clusters) {
-    const std::size_t k = cluster.size();
-    if (k > 1) {
-      multi_.push_back(first_.size() - 1);
-      offset_.push_back(offset);
-      offset += 9 * k * k;
-      block_first_.push_back(block_of_.size());
-      clustered_vertices_ += k;
-      largest_ = std::max(largest_, k);
-      for (const VertexId a : cluster) {
-        for (const VertexId b : cluster) {
-          block_of_.push_back(matrix.find_if_coupled(a, b).value_or(kNoBlock));
-        }
+  for (std::size_t c = 0; c + 1 < first_.size(); ++c) {
+    const std::size_t k = first_[c + 1] - first_[c];
+    if (k < 2) {
+      continue;
+    }
+    const std::span<const VertexId> cluster(&members_[first_[c]], k);
+    multi_.push_back(c);
+    offset_.push_back(offset);
+    offset += 9 * k * k;
+    block_first_.push_back(block_of_.size());
+    clustered_vertices_ += k;
+    largest_ = std::max(largest_, k);
+    for (const VertexId a : cluster) {
+      for (const VertexId b : cluster) {
+        block_of_.push_back(matrix.find_if_coupled(a, b).value_or(kNoBlock));
       }
     }
-    members_.insert(members_.end(), cluster.begin(), cluster.end());
-    first_.push_back(members_.size());
   }
   inverse_.assign(offset, 0.0);
-  single_inverse_.assign(n, Mat3::Zero());
+  single_inverse_.resize(n);  // every entry is set by update()
 }
 
 bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char> constrained) {
