@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <limits>
+#include <optional>
 
 #include "incise/mesh/tet_mesh.hpp"
 
@@ -98,6 +99,78 @@ bool separated_along(const Vec3& axis, const std::array<Vec3, N>& first,
 
 }  // namespace
 
+namespace {
+
+/// For a tetrahedron on one closed side of the plane of triangle (a, b, c) with the corners
+/// marked on_plane in it: whether the triangle meets the tetrahedron's part in the plane (a
+/// corner, an edge or a face), decided exactly; nothing when no corner is in the plane (they
+/// do not meet, said by the caller's count) or the tetrahedron is flat. In the plane, the
+/// orientation of three points is that of the tetrahedron they form with `eye`, a point off the
+/// plane (exact, and the same sense for every triple). Two convex sets in a plane are apart iff
+/// an edge of one has the other strictly outside it (separating axes), a segment's edge being
+/// the segment itself.
+std::optional<bool> touching_in_plane(const Vec3& a, const Vec3& b, const Vec3& c,
+                                      const std::array<Vec3, 4>& corners,
+                                      const std::array<bool, 4>& on_plane, const Vec3& eye) {
+  std::array<Vec3, 3> touching;
+  std::size_t count = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    if (on_plane[k]) {
+      if (count == 3) {
+        return std::nullopt;  // four corners in the plane: flat
+      }
+      touching[count++] = corners[k];
+    }
+  }
+  if (count == 0) {
+    return false;
+  }
+  if (orient3d(corners[0], corners[1], corners[2], corners[3]) == Sign::kZero) {
+    return std::nullopt;  // a flat tetrahedron: the general test's answer
+  }
+  auto turn = [&](const Vec3& p, const Vec3& q, const Vec3& r) {
+    const Sign sign = orient3d(p, q, r, eye);
+    return sign == Sign::kPositive ? 1 : (sign == Sign::kNegative ? -1 : 0);
+  };
+  const std::array<Vec3, 3> triangle{a, b, c};
+  const int triangle_sense = turn(a, b, c);  // not zero: eye is off the plane
+  // An edge of the triangle with every touching corner strictly outside it.
+  for (std::size_t e = 0; e < 3; ++e) {
+    bool all_outside = true;
+    for (std::size_t k = 0; k < count && all_outside; ++k) {
+      all_outside = turn(triangle[e], triangle[(e + 1) % 3], touching[k]) * triangle_sense < 0;
+    }
+    if (all_outside) {
+      return false;
+    }
+  }
+  if (count == 1) {
+    return true;  // a corner inside or on the triangle
+  }
+  // An edge of the touching part with the whole triangle strictly on its outer side (for a
+  // segment: either side).
+  const int part_sense = count == 3 ? turn(touching[0], touching[1], touching[2]) : 0;
+  for (std::size_t e = 0; e < (count == 3 ? 3U : 1U); ++e) {
+    const Vec3& from = touching[e];
+    const Vec3& to = touching[(e + 1) % count];
+    int positive = 0;
+    int negative = 0;
+    for (const Vec3& corner : triangle) {
+      const int side = turn(from, to, corner);
+      positive += side > 0 ? 1 : 0;
+      negative += side < 0 ? 1 : 0;
+    }
+    const bool outside = count == 3 ? (part_sense > 0 ? negative == 3 : positive == 3)
+                                    : (negative == 3 || positive == 3);
+    if (outside) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 bool triangle_intersects_tet(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& p0,
                              const Vec3& p1, const Vec3& p2, const Vec3& p3) {
   // The triangle's plane and the tetrahedron's face planes first (the axes that separate a
@@ -126,6 +199,32 @@ bool triangle_intersects_tet(const Vec3& a, const Vec3& b, const Vec3& c, const 
           separated_along(face_normal.normalized(), triangle, corners, slack)) {
         return false;
       }
+    }
+  }
+  // A tetrahedron on one side of the triangle's plane, touching it (a blade in a plane of mesh
+  // faces, as when it enters along grid vertices): they meet only in that plane, which exact
+  // orientations decide in 2-D. CGAL's general test spent most of a cut's collision time on
+  // these (its interval filter gives up on the faces' collinear projections, throws, and
+  // recomputes in multiprecision); there are more of them the finer the mesh.
+  const std::array<Vec3, 4> corners{p0, p1, p2, p3};
+  int above = 0;
+  int below = 0;
+  std::array<bool, 4> on_plane{};
+  std::size_t off_plane = 0;  // a corner off the plane: the side the 2-D orientations look from
+  for (std::size_t k = 0; k < 4; ++k) {
+    const Sign side = orient3d(a, b, c, corners[k]);
+    on_plane[k] = side == Sign::kZero;
+    above += side == Sign::kPositive ? 1 : 0;
+    below += side == Sign::kNegative ? 1 : 0;
+    off_plane = side == Sign::kZero ? off_plane : k;
+  }
+  if (above == 0 && below == 0) {
+    return false;  // the triangle is degenerate, or the tetrahedron flat in its plane
+  }
+  if (above == 0 || below == 0) {
+    const auto touched = touching_in_plane(a, b, c, corners, on_plane, corners[off_plane]);
+    if (touched.has_value()) {
+      return *touched;
     }
   }
   const Kernel::Tetrahedron_3 tet(to_cgal(p0), to_cgal(p1), to_cgal(p2), to_cgal(p3));
@@ -208,6 +307,52 @@ int clip_segment_by_tet(const Vec3& p, const Vec3& q, const std::array<Vec3, 4>&
   return !unsure && high > low + kMargin ? 1 : -1;
 }
 
+/// A segment in the plane of one of the tetrahedron's faces (a blade along a plane of mesh
+/// faces): the tetrahedron lies on one side of that plane, so the segment meets it iff it
+/// meets that face, decided exactly in 2-D (orientations seen from the opposite corner; apart
+/// iff an edge of the face has both ends strictly outside, or the segment's line has the whole
+/// face strictly on one side). Nothing when the segment is in no face's plane or the
+/// tetrahedron is flat. CGAL's general test spent most of the blade line's time here, its
+/// interval filter giving up on collinear projections and recomputing in multiprecision.
+std::optional<bool> segment_in_face_plane(const Vec3& p, const Vec3& q,
+                                          const std::array<Vec3, 4>& tet) {
+  if (orient3d(tet[0], tet[1], tet[2], tet[3]) == Sign::kZero) {
+    return std::nullopt;
+  }
+  for (std::size_t f = 0; f < 4; ++f) {
+    const auto& face = tet_local::kFaces[f];
+    const Vec3& a = tet[face[0]];
+    const Vec3& b = tet[face[1]];
+    const Vec3& c = tet[face[2]];
+    if (orient3d(a, b, c, p) != Sign::kZero || orient3d(a, b, c, q) != Sign::kZero) {
+      continue;
+    }
+    const Vec3& eye = tet[f];  // the corner opposite face f
+    auto turn = [&](const Vec3& x, const Vec3& y, const Vec3& z) {
+      const Sign sign = orient3d(x, y, z, eye);
+      return sign == Sign::kPositive ? 1 : (sign == Sign::kNegative ? -1 : 0);
+    };
+    const std::array<Vec3, 3> corners{a, b, c};
+    const int sense = turn(a, b, c);
+    for (std::size_t e = 0; e < 3; ++e) {
+      const Vec3& from = corners[e];
+      const Vec3& to = corners[(e + 1) % 3];
+      if (turn(from, to, p) * sense < 0 && turn(from, to, q) * sense < 0) {
+        return false;
+      }
+    }
+    int positive = 0;
+    int negative = 0;
+    for (const Vec3& corner : corners) {
+      const int side = turn(p, q, corner);
+      positive += side > 0 ? 1 : 0;
+      negative += side < 0 ? 1 : 0;
+    }
+    return positive != 3 && negative != 3;
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 bool segment_intersects_tet(const Vec3& p, const Vec3& q, const Vec3& p0, const Vec3& p1,
@@ -219,6 +364,10 @@ bool segment_intersects_tet(const Vec3& p, const Vec3& q, const Vec3& p0, const 
     const int clipped = clip_segment_by_tet(p, q, {p0, p1, p2, p3});
     if (clipped >= 0) {
       return clipped == 1;
+    }
+    const auto in_face_plane = segment_in_face_plane(p, q, {p0, p1, p2, p3});
+    if (in_face_plane.has_value()) {
+      return *in_face_plane;
     }
   }
   const Kernel::Tetrahedron_3 tet(to_cgal(p0), to_cgal(p1), to_cgal(p2), to_cgal(p3));

@@ -123,12 +123,26 @@ TEST(Predicates, TriangleTetAgreesWithEdgesExactly) {
   // A triangle meets a tetrahedron exactly when one of its edges meets the tetrahedron or one
   // of the tetrahedron's edges meets the triangle: the filters before the exact test must not
   // change a single answer, on integer grids (touching cases) as on random points.
+  // A third of the trials put the triangle in the plane x = 0 and the tetrahedron on one side
+  // of it with corners in it (a blade along a plane of mesh faces): the exact 2-D test of
+  // the part in the plane.
   std::mt19937 rng(11);
   int hits = 0;
-  for (int trial = 0; trial < 20000; ++trial) {
-    const auto point = [&] { return random_point(rng, trial % 2 == 0); };
-    const std::array<Vec3, 4> t{point(), point(), point(), point()};
-    const std::array<Vec3, 3> tri{point(), point(), point()};
+  int touching = 0;
+  for (int trial = 0; trial < 30000; ++trial) {
+    const auto point = [&] { return random_point(rng, trial % 3 == 0); };
+    std::array<Vec3, 4> t{point(), point(), point(), point()};
+    std::array<Vec3, 3> tri{point(), point(), point()};
+    if (trial % 3 == 2) {
+      std::uniform_int_distribution<int> grid(-2, 2);
+      for (Vec3& corner : tri) {
+        corner = Vec3(0.0, grid(rng), grid(rng));
+      }
+      for (Vec3& corner : t) {
+        corner = Vec3(grid(rng) < 0 ? 0.0 : std::abs(corner.x()), grid(rng), grid(rng));
+      }
+      touching += std::any_of(t.begin(), t.end(), [](const Vec3& x) { return x.x() == 0.0; });
+    }
     if (orient3d(t[0], t[1], t[2], t[3]) == Sign::kZero ||
         (tri[1] - tri[0]).cross(tri[2] - tri[0]).squaredNorm() == 0.0) {
       continue;
@@ -145,6 +159,24 @@ TEST(Predicates, TriangleTetAgreesWithEdgesExactly) {
     hits += expected ? 1 : 0;
   }
   EXPECT_GT(hits, 1000);
+  EXPECT_GT(touching, 5000);
+  // Apart only along the line of the tetrahedron's edge in the plane (no edge of the triangle
+  // separates them), then touching at a corner; the triangle both ways round.
+  for (bool flip : {false, true}) {
+    const Vec3 low(0.0, 0.0, -1.0);
+    Vec3 left(0.0, -1.0, 1.0);
+    Vec3 right(0.0, 1.0, 1.0);
+    if (flip) {
+      std::swap(left, right);
+    }
+    for (double z : {-2.0, -1.0}) {
+      const bool expected = z == -1.0;
+      EXPECT_EQ(triangle_intersects_tet(low, left, right, Vec3(0.0, -2.0, z), Vec3(0.0, 2.0, z),
+                                        Vec3(1.0, 0.0, z), Vec3(1.0, 0.0, z - 1.0)),
+                expected)
+          << "flip " << flip << " z " << z;
+    }
+  }
 }
 
 TEST(Predicates, LocateInTet) {
