@@ -101,72 +101,69 @@ bool separated_along(const Vec3& axis, const std::array<Vec3, N>& first,
 
 namespace {
 
+/// The orientation of three points of a plane seen from `eye`, a point off it: +1, -1 or 0
+/// (exact, and the same sense for every triple of the plane).
+int turn_in_plane(const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& eye) {
+  const Sign sign = orient3d(p, q, r, eye);
+  return sign == Sign::kPositive ? 1 : (sign == Sign::kNegative ? -1 : 0);
+}
+
+/// Whether a triangle and the convex hull of `part` (a point, a segment or a triangle that is
+/// not flat), all in one plane with `eye` off it, are apart, decided exactly: two convex sets
+/// in a plane are apart iff an edge of one has the other strictly outside it (separating
+/// axes; a segment's edge is the segment itself, with either side outside).
+bool apart_in_plane(const std::array<Vec3, 3>& triangle, std::span<const Vec3> part,
+                    const Vec3& eye) {
+  const int sense = turn_in_plane(triangle[0], triangle[1], triangle[2], eye);
+  for (std::size_t e = 0; e < 3; ++e) {
+    const bool all_outside = std::all_of(part.begin(), part.end(), [&](const Vec3& x) {
+      return turn_in_plane(triangle[e], triangle[(e + 1) % 3], x, eye) * sense < 0;
+    });
+    if (all_outside) {
+      return true;
+    }
+  }
+  if (part.size() < 2) {
+    return false;
+  }
+  const int part_sense = part.size() == 3 ? turn_in_plane(part[0], part[1], part[2], eye) : 0;
+  for (std::size_t e = 0; e < (part.size() == 3 ? 3U : 1U); ++e) {
+    int positive = 0;
+    int negative = 0;
+    for (const Vec3& corner : triangle) {
+      const int side = turn_in_plane(part[e], part[(e + 1) % part.size()], corner, eye);
+      positive += side > 0 ? 1 : 0;
+      negative += side < 0 ? 1 : 0;
+    }
+    const bool outside = part.size() == 3 ? (part_sense > 0 ? negative == 3 : positive == 3)
+                                          : (negative == 3 || positive == 3);
+    if (outside) {
+      return true;
+    }
+  }
+  return false;
+}
+
 /// For a tetrahedron on one closed side of the plane of triangle (a, b, c) with the corners
 /// marked on_plane in it: whether the triangle meets the tetrahedron's part in the plane (a
-/// corner, an edge or a face), decided exactly; nothing when no corner is in the plane (they
-/// do not meet, said by the caller's count) or the tetrahedron is flat. In the plane, the
-/// orientation of three points is that of the tetrahedron they form with `eye`, a point off the
-/// plane (exact, and the same sense for every triple). Two convex sets in a plane are apart iff
-/// an edge of one has the other strictly outside it (separating axes), a segment's edge being
-/// the segment itself.
+/// corner, an edge or a face), decided exactly; nothing when the tetrahedron is flat.
 std::optional<bool> touching_in_plane(const Vec3& a, const Vec3& b, const Vec3& c,
                                       const std::array<Vec3, 4>& corners,
                                       const std::array<bool, 4>& on_plane, const Vec3& eye) {
-  std::array<Vec3, 3> touching;
+  std::array<Vec3, 4> touching;
   std::size_t count = 0;
   for (std::size_t k = 0; k < 4; ++k) {
     if (on_plane[k]) {
-      if (count == 3) {
-        return std::nullopt;  // four corners in the plane: flat
-      }
       touching[count++] = corners[k];
     }
   }
   if (count == 0) {
     return false;
   }
-  if (orient3d(corners[0], corners[1], corners[2], corners[3]) == Sign::kZero) {
+  if (count == 4 || orient3d(corners[0], corners[1], corners[2], corners[3]) == Sign::kZero) {
     return std::nullopt;  // a flat tetrahedron: the general test's answer
   }
-  auto turn = [&](const Vec3& p, const Vec3& q, const Vec3& r) {
-    const Sign sign = orient3d(p, q, r, eye);
-    return sign == Sign::kPositive ? 1 : (sign == Sign::kNegative ? -1 : 0);
-  };
-  const std::array<Vec3, 3> triangle{a, b, c};
-  const int triangle_sense = turn(a, b, c);  // not zero: eye is off the plane
-  // An edge of the triangle with every touching corner strictly outside it.
-  for (std::size_t e = 0; e < 3; ++e) {
-    bool all_outside = true;
-    for (std::size_t k = 0; k < count && all_outside; ++k) {
-      all_outside = turn(triangle[e], triangle[(e + 1) % 3], touching[k]) * triangle_sense < 0;
-    }
-    if (all_outside) {
-      return false;
-    }
-  }
-  if (count == 1) {
-    return true;  // a corner inside or on the triangle
-  }
-  // An edge of the touching part with the whole triangle strictly on its outer side (for a
-  // segment: either side).
-  const int part_sense = count == 3 ? turn(touching[0], touching[1], touching[2]) : 0;
-  for (std::size_t e = 0; e < (count == 3 ? 3U : 1U); ++e) {
-    const Vec3& from = touching[e];
-    const Vec3& to = touching[(e + 1) % count];
-    int positive = 0;
-    int negative = 0;
-    for (const Vec3& corner : triangle) {
-      const int side = turn(from, to, corner);
-      positive += side > 0 ? 1 : 0;
-      negative += side < 0 ? 1 : 0;
-    }
-    const bool outside = count == 3 ? (part_sense > 0 ? negative == 3 : positive == 3)
-                                    : (negative == 3 || positive == 3);
-    if (outside) {
-      return false;
-    }
-  }
-  return true;
+  return !apart_in_plane({a, b, c}, std::span<const Vec3>(touching.data(), count), eye);
 }
 
 }  // namespace
@@ -327,28 +324,8 @@ std::optional<bool> segment_in_face_plane(const Vec3& p, const Vec3& q,
     if (orient3d(a, b, c, p) != Sign::kZero || orient3d(a, b, c, q) != Sign::kZero) {
       continue;
     }
-    const Vec3& eye = tet[f];  // the corner opposite face f
-    auto turn = [&](const Vec3& x, const Vec3& y, const Vec3& z) {
-      const Sign sign = orient3d(x, y, z, eye);
-      return sign == Sign::kPositive ? 1 : (sign == Sign::kNegative ? -1 : 0);
-    };
-    const std::array<Vec3, 3> corners{a, b, c};
-    const int sense = turn(a, b, c);
-    for (std::size_t e = 0; e < 3; ++e) {
-      const Vec3& from = corners[e];
-      const Vec3& to = corners[(e + 1) % 3];
-      if (turn(from, to, p) * sense < 0 && turn(from, to, q) * sense < 0) {
-        return false;
-      }
-    }
-    int positive = 0;
-    int negative = 0;
-    for (const Vec3& corner : corners) {
-      const int side = turn(p, q, corner);
-      positive += side > 0 ? 1 : 0;
-      negative += side < 0 ? 1 : 0;
-    }
-    return positive != 3 && negative != 3;
+    const std::array<Vec3, 2> segment{p, q};
+    return !apart_in_plane({a, b, c}, segment, tet[f]);  // seen from the opposite corner
   }
   return std::nullopt;
 }
