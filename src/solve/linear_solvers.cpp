@@ -356,7 +356,9 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
       single = false;  // refinement stalled: the single-precision matrix is too far off
     }
     last_true_residual = stats.relative_residual;
-    if (stats.relative_residual <= options_.tolerance || iteration >= options_.max_iterations) {
+    // Done when converged, out of iterations, or not a number (a matrix or start holding NaN:
+    // the caller's divergence check reports it; CG would only restart on it forever).
+    if (!(stats.relative_residual > options_.tolerance) || iteration >= options_.max_iterations) {
       break;
     }
     if (iteration > 0) {

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "incise/core/error.hpp"
@@ -643,6 +644,33 @@ TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
   EXPECT_LE(single_stats.relative_residual, 1e-12);
   EXPECT_LE(std::sqrt(residual / rhs_norm), 2e-12);
   EXPECT_LT(max_difference(solution_single, solution_double), 1e-9 * max_norm(solution_double));
+}
+
+TEST(FemSolver, ANotANumberInTheStartEndsTheSolve) {
+  // A diverged step leaves NaN in the solution CG starts from: the solve must return with a
+  // residual that says so (the engine's divergence check reports it), not restart forever.
+  Body body(box({3, 3, 3}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
+  body.conditions.fix(at_plane(body.mesh, 2, 0.0));
+  const std::size_t n = body.mesh.vertex_count();
+  const auto rest = body.state.x.values();
+  body.system.prepare_linearization(0.0, std::vector<Vec3>(rest.begin(), rest.end()),
+                                    std::vector<Vec3>(n, Vec3::Zero()));
+  std::vector<char> constrained(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    constrained[i] = body.system.is_constrained(static_cast<VertexId>(i)) ? 1 : 0;
+  }
+  const std::vector<Vec3> rhs = random_field(n, 1e-3, 5);
+  for (const bool single : {true, false}) {
+    LinearSolverOptions options;
+    options.tolerance = 1e-8;
+    options.single_precision_products = single;
+    LinearizedSystemSolver solver(options);
+    std::vector<Vec3> solution = random_field(n, 1e-3, 6);
+    solution[n - 1].x() = std::numeric_limits<double>::quiet_NaN();  // a free vertex: top corner
+    const LinearSolveStats stats =
+        solver.solve(body.system, 1.0, 1e-4, 1e-2, constrained, rhs, solution);
+    EXPECT_FALSE(std::isfinite(stats.relative_residual)) << "single " << single;
+  }
 }
 
 TEST(FemSolver, StartingFromEarlierSolutionsKeepsTheTrajectoryAndSavesIterations) {
