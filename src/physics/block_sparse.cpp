@@ -1,6 +1,7 @@
 #include "incise/physics/block_sparse.hpp"
 
 #include <algorithm>
+#include <array>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
@@ -301,6 +302,40 @@ void BlockSparseMatrix::for_each_row_product(std::span<const Vec3> p, const Stor
 
 void BlockSparseMatrix::multiply(std::span<const Vec3> p, std::span<Vec3> y) const {
   for_each_row_product(p, [&](std::size_t i, const Vec3& sum) { y[i] = sum; });
+}
+
+void BlockSparseMatrix::multiply_several(std::span<const std::span<const Vec3>> p,
+                                         std::span<const std::span<Vec3>> y) const {
+  INCISE_ASSERT(p.size() == y.size(), "multiply_several: as many products as vectors");
+  INCISE_ASSERT(values_.size() == pattern_->columns.storage().size(),
+                "product with a matrix that has not matched its pattern since an edit");
+  constexpr std::size_t kGroup = 4;  // vectors per pass over a chunk of rows
+  const VertexId* columns = pattern_->columns.storage().data();
+  const std::size_t* row_begin = pattern_->columns.begin().data();
+  const std::size_t* row_end = pattern_->columns.end().data();
+  const Mat3* values = values_.data();
+  // Chunks of 512 rows: a chunk's blocks stay in cache while each group of vectors passes.
+  parallel_for(0, rows(), 512, [&](std::size_t first, std::size_t last) {
+    for (std::size_t group = 0; group < p.size(); group += kGroup) {
+      const std::size_t count = std::min(kGroup, p.size() - group);
+      for (std::size_t i = first; i < last; ++i) {
+        std::array<Vec3, kGroup> sums;
+        for (std::size_t m = 0; m < count; ++m) {
+          sums[m].setZero();
+        }
+        for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
+          const Mat3& block = values[k];
+          const auto column = static_cast<std::size_t>(columns[k]);
+          for (std::size_t m = 0; m < count; ++m) {
+            sums[m].noalias() += block * p[group + m][column];
+          }
+        }
+        for (std::size_t m = 0; m < count; ++m) {
+          y[group + m][i] = sums[m];
+        }
+      }
+    }
+  });
 }
 
 void BlockSparseMatrix::multiply_add(double scale, std::span<const Vec3> p,

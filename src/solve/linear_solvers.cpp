@@ -443,15 +443,24 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
   // solutions can be nearly parallel).
   const std::size_t k = basis.size();
   const std::size_t n = rhs.size();
+  // Held rows are zero in x, so they are dropped from the basis before multiplying.
+  masked_basis_.resize(k);
   basis_products_.resize(k);
+  std::vector<std::span<const Vec3>> masked(k);
+  std::vector<std::span<Vec3>> products(k);
   for (std::size_t j = 0; j < k; ++j) {
-    // Held rows are zero in x, so they are dropped from the basis before multiplying.
-    masked_.resize(n);
-    parallel_vertices(
-        n, [&](std::size_t i) { masked_[i] = constrained_[i] != 0 ? Vec3::Zero() : basis[j][i]; });
+    masked_basis_[j].resize(n);
     basis_products_[j].resize(n);
-    product(std::span<const Vec3>(masked_), std::span<Vec3>(basis_products_[j]));
+    masked[j] = masked_basis_[j];
+    products[j] = basis_products_[j];
   }
+  parallel_vertices(n, [&](std::size_t i) {
+    for (std::size_t j = 0; j < k; ++j) {
+      masked_basis_[j][i] = constrained_[i] != 0 ? Vec3::Zero() : basis[j][i];
+    }
+  });
+  product(std::span<const std::span<const Vec3>>(masked),
+          std::span<const std::span<Vec3>>(products));
   // V^T A V (lower triangle, row by row) and V^T rhs over the free rows, in one pass.
   const std::size_t pairs = k * (k + 1) / 2;
   const std::vector<double> sums =
@@ -521,7 +530,10 @@ LinearSolveStats LinearizedSystemSolver::fused_solve(
     // In double: a basis that spans the solution then starts CG at it.
     galerkin_start(
         start_basis, rhs, x,
-        [&](std::span<const Vec3> p, std::span<Vec3> y) { assembled_.multiply(p, y); }, stats);
+        [&](std::span<const std::span<const Vec3>> p, std::span<const std::span<Vec3>> y) {
+          assembled_.multiply_several(p, y);
+        },
+        stats);
   }
   fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats);
   stats.seconds_total = seconds_since(start);
@@ -703,7 +715,11 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     // Untimed products here: the start's products count in seconds_start.
     galerkin_start(
         start_basis, rhs, x,
-        [&](std::span<const Vec3> p, std::span<Vec3> y) { apply(system, mass_scale, a, b, p, y); },
+        [&](std::span<const std::span<const Vec3>> p, std::span<const std::span<Vec3>> y) {
+          for (std::size_t j = 0; j < p.size(); ++j) {
+            apply(system, mass_scale, a, b, p[j], y[j]);
+          }
+        },
         stats);
   }
   if (starts_from_x(x, !start_basis.empty())) {

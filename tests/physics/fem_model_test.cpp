@@ -575,6 +575,38 @@ TEST(FemSolver, GalerkinStartFromABasisThatSpansTheSolutionNeedsNoIterations) {
   EXPECT_LT(max_difference(x_noise, exact), 1e-5 * max_norm(exact));
 }
 
+TEST(FemSolver, ProductsOfSeveralVectorsAtOnceMatchOneByOne) {
+  // The Galerkin start multiplies its basis in one pass over the matrix, four vectors a time:
+  // five vectors make a full group and a partial one.
+  Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
+  const std::size_t n = body.mesh.vertex_count();
+  const auto rest = body.state.x.values();
+  std::vector<Vec3> x(rest.begin(), rest.end());
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] += Vec3(0.002 * x[i].z(), 0.0, -0.001 * x[i].x());
+  }
+  body.system.prepare_linearization(0.0, x, std::vector<Vec3>(n, Vec3::Zero()));
+  BlockSparseMatrix matrix;
+  ASSERT_TRUE(body.system.assemble_linearization(1e-4, 1e-2, matrix));
+  std::vector<std::vector<Vec3>> fields;
+  std::vector<std::vector<Vec3>> together(5, std::vector<Vec3>(n));
+  std::vector<std::span<const Vec3>> inputs;
+  std::vector<std::span<Vec3>> outputs;
+  for (unsigned m = 0; m < 5; ++m) {
+    fields.push_back(random_field(n, 1.0, 40 + m));
+  }
+  for (std::size_t m = 0; m < 5; ++m) {
+    inputs.emplace_back(fields[m]);
+    outputs.emplace_back(together[m]);
+  }
+  matrix.multiply_several(inputs, outputs);
+  for (std::size_t m = 0; m < 5; ++m) {
+    std::vector<Vec3> alone(n);
+    matrix.multiply(fields[m], alone);
+    EXPECT_LE(max_difference(alone, together[m]), 1e-12 * max_norm(alone)) << "vector " << m;
+  }
+}
+
 TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
   // CG multiplies by a float copy of the matrix; the copy's products agree with the double
   // ones to float rounding, and a tolerance far below what float alone can reach (1e-12) is

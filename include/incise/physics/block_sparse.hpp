@@ -82,6 +82,11 @@ class BlockSparseMatrix {
   void multiply(std::span<const Vec3> p, std::span<Vec3> y) const;
   /// y += scale A p.
   void multiply_add(double scale, std::span<const Vec3> p, std::span<Vec3> y) const;
+  /// y[m] = A p[m] for several vectors at once, reading the matrix once for every four of them
+  /// (a product of a large body is limited by memory bandwidth). Rows in parallel, each summed
+  /// in a fixed order: the result does not depend on the thread count.
+  void multiply_several(std::span<const std::span<const Vec3>> p,
+                        std::span<const std::span<Vec3>> y) const;
   /// out[i - begin] = (A p)_i for begin <= i < end, on the calling thread: the kernel under
   /// every product, for callers that fuse other per-row work into the same pass.
   void multiply_rows(std::size_t begin, std::size_t end, std::span<const Vec3> p, Vec3* out) const;

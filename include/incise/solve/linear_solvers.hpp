@@ -115,8 +115,8 @@ class LinearizedSystemSolver {
   /// Whether CG starts from the caller's x: a warm start or a basis start was asked for and
   /// x is nonzero on some free row.
   [[nodiscard]] bool starts_from_x(std::span<const Vec3> x, bool basis_given) const;
-  /// x = the Galerkin combination of `basis` (see solve()); `product` applies the matrix. Its
-  /// time goes to stats.seconds_start.
+  /// x = the Galerkin combination of `basis` (see solve()); `product(p, y)` applies the
+  /// matrix to every vector of p at once. Its time goes to stats.seconds_start.
   template <typename Product>
   void galerkin_start(std::span<const std::span<const Vec3>> basis, std::span<const Vec3> rhs,
                       std::span<Vec3> x, const Product& product, LinearSolveStats& stats);
@@ -129,7 +129,7 @@ class LinearizedSystemSolver {
   std::vector<Vec3> residual_, direction_, product_, preconditioned_;
   std::vector<Mat3> diagonal_;
   std::vector<std::vector<Vec3>> basis_products_;
-  std::vector<Vec3> masked_;
+  std::vector<std::vector<Vec3>> masked_basis_;
   BlockSparseMatrix assembled_;
   // Scalar copy of the free rows and columns for LDL^T and incomplete Cholesky.
   /// The block pattern the scalar one was built from (held, so its address is not reused).
