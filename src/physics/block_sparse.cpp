@@ -139,28 +139,17 @@ void BlockSparseMatrix::set_zero() {
 
 namespace {
 
-/// One row after another, Eigen's 3x3 block times vector.
-void multiply_rows_portable(const Mat3* values, const VertexId* columns,
+/// One row after another, Eigen's 3x3 block times vector. `values` holds 9 numbers per block,
+/// column-major: the matrix's own doubles or its single-precision copy (widened to double).
+template <typename Scalar>
+void multiply_rows_portable(const Scalar* values, const VertexId* columns,
                             const std::size_t* row_begin, const std::size_t* row_end,
                             std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
   for (std::size_t i = begin; i < end; ++i) {
     Vec3 sum = Vec3::Zero();
     for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
-      sum.noalias() += values[k] * p[columns[k]];
-    }
-    out[i - begin] = sum;
-  }
-}
-
-/// The same from the single-precision copy (9 floats per block, column-major).
-void multiply_rows_single_portable(const float* values, const VertexId* columns,
-                                   const std::size_t* row_begin, const std::size_t* row_end,
-                                   std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
-  for (std::size_t i = begin; i < end; ++i) {
-    Vec3 sum = Vec3::Zero();
-    for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
-      const Eigen::Map<const Eigen::Matrix3f> block(values + 9 * k);
-      sum.noalias() += block.cast<double>() * p[columns[k]];
+      const Eigen::Map<const Eigen::Matrix<Scalar, 3, 3>> block(values + 9 * k);
+      sum.noalias() += block.template cast<double>() * p[columns[k]];
     }
     out[i - begin] = sum;
   }
@@ -169,53 +158,34 @@ void multiply_rows_single_portable(const float* values, const VertexId* columns,
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define INCISE_HAVE_AVX2_ROWS 1
 
+/// Four numbers of a block from offset `a` as doubles (a float load widened).
+__attribute__((target("avx2,fma"))) inline __m256d load4(const double* a) {
+  return _mm256_loadu_pd(a);
+}
+__attribute__((target("avx2,fma"))) inline __m256d load4(const float* a) {
+  return _mm256_cvtps_pd(_mm_loadu_ps(a));
+}
+
 // Written by hand because Eigen picks its SIMD width when compiled, and the portable build
 // (SSE2) would leave AVX2/FMA unused on the machines that have it; a product is a third
-// faster this way (BENCHMARKS.md). A column-major 3x3 block is nine contiguous doubles, so
+// faster this way (BENCHMARKS.md). A column-major 3x3 block is nine contiguous numbers, so
 // columns 0 and 1 are the first three lanes of 4-wide loads at offsets 0 and 3, and column 2
 // is the last three lanes of the load at offset 5 (no load reads past the block); that
 // column is summed in its own register and shifted into place once per row.
+template <typename Scalar>
 __attribute__((target("avx2,fma"))) void multiply_rows_avx2(
-    const Mat3* blocks, const VertexId* columns, const std::size_t* row_begin,
-    const std::size_t* row_end, std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
-  const double* values = blocks->data();
-  for (std::size_t i = begin; i < end; ++i) {
-    __m256d first = _mm256_setzero_pd();
-    __m256d second = _mm256_setzero_pd();
-    __m256d third_shifted = _mm256_setzero_pd();
-    for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
-      const double* a = values + 9 * k;
-      const double* q = p[columns[k]].data();
-      first = _mm256_fmadd_pd(_mm256_loadu_pd(a), _mm256_broadcast_sd(q), first);
-      second = _mm256_fmadd_pd(_mm256_loadu_pd(a + 3), _mm256_broadcast_sd(q + 1), second);
-      third_shifted =
-          _mm256_fmadd_pd(_mm256_loadu_pd(a + 5), _mm256_broadcast_sd(q + 2), third_shifted);
-    }
-    alignas(32) double sum[4];
-    alignas(32) double third[4];
-    _mm256_store_pd(sum, _mm256_add_pd(first, second));
-    _mm256_store_pd(third, third_shifted);
-    out[i - begin] = Vec3(sum[0] + third[1], sum[1] + third[2], sum[2] + third[3]);
-  }
-}
-
-// The same lanes as above from 4-float loads widened to double (a load at offset 5 reads
-// floats 5-8, the block's last four).
-__attribute__((target("avx2,fma"))) void multiply_rows_single_avx2(
-    const float* values, const VertexId* columns, const std::size_t* row_begin,
+    const Scalar* values, const VertexId* columns, const std::size_t* row_begin,
     const std::size_t* row_end, std::size_t begin, std::size_t end, const Vec3* p, Vec3* out) {
   for (std::size_t i = begin; i < end; ++i) {
     __m256d first = _mm256_setzero_pd();
     __m256d second = _mm256_setzero_pd();
     __m256d third_shifted = _mm256_setzero_pd();
     for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
-      const float* a = values + 9 * k;
+      const Scalar* a = values + 9 * k;
       const double* q = p[columns[k]].data();
-      first = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(a)), _mm256_broadcast_sd(q), first);
-      second =
-          _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(a + 3)), _mm256_broadcast_sd(q + 1), second);
-      third_shifted = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(a + 5)),
-                                      _mm256_broadcast_sd(q + 2), third_shifted);
+      first = _mm256_fmadd_pd(load4(a), _mm256_broadcast_sd(q), first);
+      second = _mm256_fmadd_pd(load4(a + 3), _mm256_broadcast_sd(q + 1), second);
+      third_shifted = _mm256_fmadd_pd(load4(a + 5), _mm256_broadcast_sd(q + 2), third_shifted);
     }
     alignas(32) double sum[4];
     alignas(32) double third[4];
@@ -231,6 +201,24 @@ bool cpu_has_avx2_fma() {
 }
 #endif
 
+/// Rows begin..end of the product with the blocks in `values` (either precision): the AVX2
+/// kernel where the CPU has it, else the portable one.
+template <typename Scalar>
+void multiply_rows_of(const Scalar* values, const BlockPattern& pattern, std::size_t begin,
+                      std::size_t end, const Vec3* p, Vec3* out) {
+  const VertexId* columns = pattern.columns.storage().data();
+  const std::size_t* row_begin = pattern.columns.begin().data();
+  const std::size_t* row_end = pattern.columns.end().data();
+#ifdef INCISE_HAVE_AVX2_ROWS
+  static const bool avx2 = cpu_has_avx2_fma();  // a property of the machine, asked once
+  if (avx2) {
+    multiply_rows_avx2(values, columns, row_begin, row_end, begin, end, p, out);
+    return;
+  }
+#endif
+  multiply_rows_portable(values, columns, row_begin, row_end, begin, end, p, out);
+}
+
 }  // namespace
 
 void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::span<const Vec3> p,
@@ -238,17 +226,7 @@ void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::s
   INCISE_ASSERT(end <= rows() && p.size() >= rows(), "product outside the matrix");
   INCISE_ASSERT(values_.size() == pattern_->columns.storage().size(),
                 "product with a matrix that has not matched its pattern since an edit");
-  const VertexId* columns = pattern_->columns.storage().data();
-  const std::size_t* row_begin = pattern_->columns.begin().data();
-  const std::size_t* row_end = pattern_->columns.end().data();
-#ifdef INCISE_HAVE_AVX2_ROWS
-  static const bool avx2 = cpu_has_avx2_fma();  // a property of the machine, asked once
-  if (avx2) {
-    multiply_rows_avx2(values_.data(), columns, row_begin, row_end, begin, end, p.data(), out);
-    return;
-  }
-#endif
-  multiply_rows_portable(values_.data(), columns, row_begin, row_end, begin, end, p.data(), out);
+  multiply_rows_of(values_.data()->data(), *pattern_, begin, end, p.data(), out);
 }
 
 void BlockSparseMatrix::refresh_single_precision() {
@@ -271,19 +249,7 @@ void BlockSparseMatrix::multiply_rows_single(std::size_t begin, std::size_t end,
   INCISE_ASSERT(end <= rows() && p.size() >= rows(), "product outside the matrix");
   INCISE_ASSERT(single_values_.size() == 9 * values_.size(),
                 "single-precision product before refresh_single_precision");
-  const VertexId* columns = pattern_->columns.storage().data();
-  const std::size_t* row_begin = pattern_->columns.begin().data();
-  const std::size_t* row_end = pattern_->columns.end().data();
-#ifdef INCISE_HAVE_AVX2_ROWS
-  static const bool avx2 = cpu_has_avx2_fma();
-  if (avx2) {
-    multiply_rows_single_avx2(single_values_.data(), columns, row_begin, row_end, begin, end,
-                              p.data(), out);
-    return;
-  }
-#endif
-  multiply_rows_single_portable(single_values_.data(), columns, row_begin, row_end, begin, end,
-                                p.data(), out);
+  multiply_rows_of(single_values_.data(), *pattern_, begin, end, p.data(), out);
 }
 
 template <typename Store>
