@@ -78,6 +78,26 @@ double max_norm(std::span<const Vec3> a) {
   return worst;
 }
 
+/// Prepares the body's linearisation at a sheared state (away from rest, so the rotations
+/// matter), at rest velocities.
+void linearize_sheared(Body& body) {
+  const auto rest = body.state.x.values();
+  std::vector<Vec3> x(rest.begin(), rest.end());
+  for (Vec3& p : x) {
+    p += Vec3(0.002 * p.z(), 0.0, -0.001 * p.x());
+  }
+  body.system.prepare_linearization(0.0, x, std::vector<Vec3>(x.size(), Vec3::Zero()));
+}
+
+/// The solver's flags of the held rows.
+std::vector<char> held_rows(const Body& body) {
+  std::vector<char> constrained(body.mesh.vertex_count(), 0);
+  for (std::size_t i = 0; i < constrained.size(); ++i) {
+    constrained[i] = body.system.is_constrained(static_cast<VertexId>(i)) ? 1 : 0;
+  }
+  return constrained;
+}
+
 TEST(FemModel, MassIsDensityTimesVolumeAndRestIsForceFree) {
   Body body(box({3, 2, 2}, Vec3(0.03, 0.02, 0.02)), material(3e3, 0.45, 1000.0));
   EXPECT_NEAR(body.model.total_mass(), 1000.0 * 0.03 * 0.02 * 0.02, 1e-15);
@@ -530,17 +550,8 @@ TEST(FemSolver, GalerkinStartFromABasisThatSpansTheSolutionNeedsNoIterations) {
   Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
   body.conditions.fix(at_plane(body.mesh, 2, 0.0));
   const std::size_t n = body.mesh.vertex_count();
-  const auto rest = body.state.x.values();
-  std::vector<Vec3> x(rest.begin(), rest.end());
-  for (std::size_t i = 0; i < n; ++i) {
-    x[i] += Vec3(0.002 * x[i].z(), 0.0, -0.001 * x[i].x());  // a sheared state
-  }
-  const std::vector<Vec3> v(n, Vec3::Zero());
-  body.system.prepare_linearization(0.0, x, v);
-  std::vector<char> constrained(n, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    constrained[i] = body.system.is_constrained(static_cast<VertexId>(i)) ? 1 : 0;
-  }
+  linearize_sheared(body);
+  const std::vector<char> constrained = held_rows(body);
   std::vector<Vec3> rhs = random_field(n, 1e-3, 7);
   LinearSolverOptions options;
   options.tolerance = 1e-12;
@@ -580,12 +591,7 @@ TEST(FemSolver, ProductsOfSeveralVectorsAtOnceMatchOneByOne) {
   // five vectors make a full group and a partial one.
   Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
   const std::size_t n = body.mesh.vertex_count();
-  const auto rest = body.state.x.values();
-  std::vector<Vec3> x(rest.begin(), rest.end());
-  for (std::size_t i = 0; i < n; ++i) {
-    x[i] += Vec3(0.002 * x[i].z(), 0.0, -0.001 * x[i].x());
-  }
-  body.system.prepare_linearization(0.0, x, std::vector<Vec3>(n, Vec3::Zero()));
+  linearize_sheared(body);
   BlockSparseMatrix matrix;
   ASSERT_TRUE(body.system.assemble_linearization(1e-4, 1e-2, matrix));
   std::vector<std::vector<Vec3>> fields;
@@ -614,12 +620,7 @@ TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
   Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
   body.conditions.fix(at_plane(body.mesh, 2, 0.0));
   const std::size_t n = body.mesh.vertex_count();
-  const auto rest = body.state.x.values();
-  std::vector<Vec3> x(rest.begin(), rest.end());
-  for (std::size_t i = 0; i < n; ++i) {
-    x[i] += Vec3(0.002 * x[i].z(), 0.0, -0.001 * x[i].x());  // a sheared state
-  }
-  body.system.prepare_linearization(0.0, x, std::vector<Vec3>(n, Vec3::Zero()));
+  linearize_sheared(body);
   const double a = 1e-4;
   const double b = 1e-2;
   BlockSparseMatrix matrix;
@@ -638,10 +639,7 @@ TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
   EXPECT_LE(max_difference(in_double, in_single), rows_bound);
   EXPECT_GT(max_difference(in_double, in_single), 0.0);  // the copy is float, not the same
 
-  std::vector<char> constrained(n, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    constrained[i] = body.system.is_constrained(static_cast<VertexId>(i)) ? 1 : 0;
-  }
+  const std::vector<char> constrained = held_rows(body);
   const std::vector<Vec3> rhs = random_field(n, 1e-3, 7);
   auto solve = [&](bool single, std::vector<Vec3>& solution) {
     LinearSolverOptions options;
@@ -687,10 +685,7 @@ TEST(FemSolver, ANotANumberInTheStartEndsTheSolve) {
   const auto rest = body.state.x.values();
   body.system.prepare_linearization(0.0, std::vector<Vec3>(rest.begin(), rest.end()),
                                     std::vector<Vec3>(n, Vec3::Zero()));
-  std::vector<char> constrained(n, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    constrained[i] = body.system.is_constrained(static_cast<VertexId>(i)) ? 1 : 0;
-  }
+  const std::vector<char> constrained = held_rows(body);
   const std::vector<Vec3> rhs = random_field(n, 1e-3, 5);
   for (const bool single : {true, false}) {
     LinearSolverOptions options;
