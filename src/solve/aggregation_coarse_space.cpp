@@ -1,6 +1,10 @@
 #include "incise/solve/aggregation_coarse_space.hpp"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
+#include <stdexcept>
 
 #include "incise/core/parallel_for.hpp"
 #include "incise/solve/direct_factorization.hpp"
@@ -85,6 +89,73 @@ std::pair<std::vector<int>, int> greedy_aggregates(const Graph& graph,
   return {std::move(aggregate), count};
 }
 
+using ModeMatrix = AggregationCoarseSpace::ModeMatrix;
+using Modes = AggregationCoarseSpace::Modes;
+using VertexModes = AggregationCoarseSpace::VertexModes;
+constexpr int kModes = AggregationCoarseSpace::kModes;
+
+/// A displacement field's rigid coordinates: translation (m) and small rotation about a centre:
+/// u(x) = t + w x (x - centre) = [I, -[x - centre]x] (t, w).
+VertexModes raw_rigid_modes(const Vec3& offset_from_centre) {
+  VertexModes modes;
+  modes.leftCols<3>().setIdentity();
+  modes.rightCols<3>() = -cross_matrix(offset_from_centre);
+  return modes;
+}
+
+/// Orthonormal modes of a span with Gram matrix `gram` (raw coordinates): W with
+/// W^T gram W = I on the kept modes and zero columns for the dropped ones, and its
+/// pseudo-inverse. Scaled to unit diagonal first, so metres and radians compare; modes below
+/// 1e-6 of the largest eigenvalue are dropped (a rotation the members cannot carry).
+struct OrthonormalModes {
+  ModeMatrix raw_from_modes = ModeMatrix::Zero();
+  ModeMatrix modes_from_raw = ModeMatrix::Zero();
+  unsigned dropped = 0;
+};
+OrthonormalModes orthonormal_modes(const ModeMatrix& gram) {
+  constexpr double kDropBelow = 1e-6;
+  Modes scale;
+  for (int k = 0; k < kModes; ++k) {
+    scale[k] = gram(k, k) > 0.0 ? 1.0 / std::sqrt(gram(k, k)) : 0.0;
+  }
+  const ModeMatrix scaled = scale.asDiagonal() * gram * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<ModeMatrix> eigen(scaled);
+  const double largest = eigen.eigenvalues().maxCoeff();
+  OrthonormalModes result;
+  for (int k = 0; k < kModes; ++k) {
+    const double lambda = eigen.eigenvalues()[k];
+    if (!(largest > 0.0) || !(lambda > kDropBelow * largest)) {
+      result.dropped |= 1U << static_cast<unsigned>(k);
+      continue;
+    }
+    const Modes v = eigen.eigenvectors().col(k);
+    result.raw_from_modes.col(k) = scale.asDiagonal() * v / std::sqrt(lambda);
+    for (int c = 0; c < kModes; ++c) {
+      result.modes_from_raw(k, c) = scale[c] > 0.0 ? std::sqrt(lambda) * v[c] / scale[c] : 0.0;
+    }
+  }
+  return result;
+}
+
+/// A coarse diagonal block's dropped modes get a diagonal entry of the kept ones' mean
+/// (their rows are zero: the block stays positive definite and the mode's correction zero).
+void fill_dropped(ModeMatrix& block, unsigned dropped) {
+  double kept_sum = 0.0;
+  int kept = 0;
+  for (int k = 0; k < kModes; ++k) {
+    if ((dropped & (1U << static_cast<unsigned>(k))) == 0) {
+      kept_sum += block(k, k);
+      ++kept;
+    }
+  }
+  const double fill = kept > 0 && kept_sum > 0.0 ? kept_sum / kept : 1.0;
+  for (int k = 0; k < kModes; ++k) {
+    if ((dropped & (1U << static_cast<unsigned>(k))) != 0) {
+      block(k, k) = fill;
+    }
+  }
+}
+
 }  // namespace
 
 void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
@@ -125,6 +196,8 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   std::vector<int> neighbours;
   std::vector<std::vector<int>> coarse_columns(aggregates);
   int slots = 0;
+  slot_row_.clear();
+  slot_column_.clear();
   for (std::size_t a = 0; a < aggregates; ++a) {
     neighbours.clear();
     for (const VertexId v : members_[a]) {
@@ -139,6 +212,8 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     std::sort(neighbours.begin(), neighbours.end());
     for (const int b : neighbours) {
       slot_of[static_cast<std::size_t>(b)] = slots++;
+      slot_row_.push_back(static_cast<int>(a));
+      slot_column_.push_back(b);
     }
     for (const VertexId v : members_[a]) {
       const std::size_t first = matrix.row_begin()[static_cast<std::size_t>(v)];
@@ -152,7 +227,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     }
     coarse_columns[a] = neighbours;
   }
-  coarse_blocks_.assign(static_cast<std::size_t>(slots), Mat3::Zero());
+  coarse_blocks_.assign(static_cast<std::size_t>(slots), ModeMatrix::Zero());
   diagonal_slot_.assign(aggregates, -1);
   for (std::size_t a = 0, row_slot = 0; a < aggregates; row_slot += coarse_columns[a].size(), ++a) {
     const auto found =
@@ -165,7 +240,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   // unknowns on the 384k-tet box: 4 ms against 3.5). Above exact_limit_ unknowns the
   // aggregates are aggregated once more: their level gets its block-Jacobi, and only the top
   // level is factorised (additive three-level).
-  three_level_ = 3 * aggregates > exact_limit_;
+  three_level_ = kModes * aggregates > exact_limit_;
   std::vector<std::vector<int>> top_columns;
   if (three_level_) {
     Graph aggregate_graph;
@@ -205,38 +280,48 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
         top_slot_[s1++] = top_row_slot[t] + static_cast<int>(found - top_columns[t].begin());
       }
     }
-    top_blocks_.assign(static_cast<std::size_t>(top_row_slot.back()), Mat3::Zero());
-    level_inverse_.assign(aggregates, Mat3::Zero());
+    top_diagonal_slot_.assign(top_columns.size(), -1);
+    for (std::size_t t = 0; t < top_columns.size(); ++t) {
+      const auto found =
+          std::lower_bound(top_columns[t].begin(), top_columns[t].end(), static_cast<int>(t));
+      top_diagonal_slot_[t] = top_row_slot[t] + static_cast<int>(found - top_columns[t].begin());
+    }
+    top_blocks_.assign(static_cast<std::size_t>(top_row_slot.back()), ModeMatrix::Zero());
+    level_inverse_.assign(aggregates, ModeMatrix::Zero());
+    top_map_.assign(aggregates, ModeMatrix::Zero());
+    top_dropped_.assign(top_columns.size(), 0);
   } else {
     top_of_.clear();
     top_slot_.clear();
     top_blocks_.clear();
     level_inverse_.clear();
+    top_map_.clear();
+    top_dropped_.clear();
   }
   const std::vector<std::vector<int>>& factored_columns =
       three_level_ ? top_columns : coarse_columns;
 
-  // Scalar column 3a + c holds, for each coupled b and each r, entry (3b + r, 3a + c) =
-  // block(b, a)(r, c) = block(a, b)(c, r) (the matrix is symmetric): offset 3 r + c of the
+  // Scalar column 6a + c holds, for each coupled b and each r, entry (6b + r, 6a + c) =
+  // block(b, a)(r, c) = block(a, b)(c, r) (the matrix is symmetric): offset 6 r + c of the
   // column-major block (a, b).
   const std::size_t rows = factored_columns.size();
-  const auto unknowns = static_cast<int>(3 * rows);
+  const auto unknowns = static_cast<int>(kModes * rows);
   std::vector<int> outer(static_cast<std::size_t>(unknowns) + 1, 0);
   std::vector<int> inner;
   scalar_source_.clear();
   int slot = 0;
   for (std::size_t a = 0; a < rows; ++a) {
     const int row_slot = slot;
-    for (int c = 0; c < 3; ++c) {
+    for (int c = 0; c < kModes; ++c) {
       int s = row_slot;
       for (const int b : factored_columns[a]) {
-        for (int r = 0; r < 3; ++r) {
-          inner.push_back(3 * b + r);
-          scalar_source_.emplace_back(s, 3 * r + c);
+        for (int r = 0; r < kModes; ++r) {
+          inner.push_back(kModes * b + r);
+          scalar_source_.emplace_back(s, kModes * r + c);
         }
         ++s;
       }
-      outer[3 * a + static_cast<std::size_t>(c) + 1] = static_cast<int>(inner.size());
+      outer[kModes * a + static_cast<std::size_t>(c) + 1] = static_cast<int>(inner.size());
     }
     slot += static_cast<int>(factored_columns[a].size());
   }
@@ -245,21 +330,109 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
   factor_->reset_pattern();
-  coarse_solution_.assign(aggregates, Vec3::Zero());
+  coarse_solution_.assign(aggregates, Modes::Zero());
+}
+
+VertexModes AggregationCoarseSpace::vertex_modes(std::size_t aggregate,
+                                                 std::span<const Vec3> positions,
+                                                 std::size_t vertex) const {
+  const Vec3 offset =
+      positions.empty() ? Vec3::Zero() : Vec3(positions[vertex] - centre_[aggregate]);
+  return raw_rigid_modes(offset) * raw_from_modes_[aggregate];
+}
+
+void AggregationCoarseSpace::shape_modes(std::span<const Vec3> positions) {
+  const std::size_t aggregates = members_.size();
+  const std::size_t n = aggregate_of_.size();
+  prolongation_.resize(n);
+  centre_.assign(aggregates, Vec3::Zero());
+  raw_from_modes_.resize(aggregates);
+  modes_from_raw_.resize(aggregates);
+  dropped_.resize(aggregates);
+  parallel_for(0, aggregates, 64, [&](std::size_t first, std::size_t last) {
+    for (std::size_t a = first; a != last; ++a) {
+      const auto& group = members_[a];
+      Vec3 centre = Vec3::Zero();
+      if (!positions.empty()) {
+        for (const VertexId v : group) {
+          centre += positions[static_cast<std::size_t>(v)];
+        }
+        centre /= static_cast<double>(group.size());
+      }
+      centre_[a] = centre;
+      ModeMatrix gram = ModeMatrix::Zero();
+      for (const VertexId v : group) {
+        const VertexModes raw = raw_rigid_modes(
+            positions.empty() ? Vec3::Zero()
+                              : Vec3(positions[static_cast<std::size_t>(v)] - centre));
+        gram += raw.transpose() * raw;
+      }
+      const OrthonormalModes modes = orthonormal_modes(gram);
+      raw_from_modes_[a] = modes.raw_from_modes;
+      modes_from_raw_[a] = modes.modes_from_raw;
+      dropped_[a] = modes.dropped;
+      for (const VertexId v : group) {
+        prolongation_[static_cast<std::size_t>(v)] =
+            vertex_modes(a, positions, static_cast<std::size_t>(v));
+      }
+    }
+  });
+  for (std::size_t v = 0; v < n; ++v) {
+    if (aggregate_of_[v] < 0) {
+      prolongation_[v].setZero();
+    }
+  }
+  if (!three_level_) {
+    return;
+  }
+  // A group's rigid motion (t, w) about its centre C moves aggregate a rigidly with
+  // (t + w x (c_a - C), w): its modes' coordinates are modes_from_raw_a of that.
+  const std::size_t groups = top_dropped_.size();
+  std::vector<Vec3> group_centre(groups, Vec3::Zero());
+  std::vector<double> group_weight(groups, 0.0);
+  for (std::size_t a = 0; a < aggregates; ++a) {
+    const auto t = static_cast<std::size_t>(top_of_[a]);
+    const auto weight = static_cast<double>(members_[a].size());
+    group_centre[t] += weight * centre_[a];
+    group_weight[t] += weight;
+  }
+  for (std::size_t t = 0; t < groups; ++t) {
+    group_centre[t] /= std::max(group_weight[t], 1.0);
+  }
+  std::vector<ModeMatrix> gram(groups, ModeMatrix::Zero());
+  for (std::size_t a = 0; a < aggregates; ++a) {
+    const auto t = static_cast<std::size_t>(top_of_[a]);
+    ModeMatrix raw_from_group = ModeMatrix::Identity();
+    raw_from_group.topRightCorner<3, 3>() = -cross_matrix(centre_[a] - group_centre[t]);
+    top_map_[a] = modes_from_raw_[a] * raw_from_group;
+    gram[t] += top_map_[a].transpose() * top_map_[a];
+  }
+  std::vector<ModeMatrix> group_modes(groups);
+  for (std::size_t t = 0; t < groups; ++t) {
+    const OrthonormalModes modes = orthonormal_modes(gram[t]);
+    group_modes[t] = modes.raw_from_modes;
+    top_dropped_[t] = modes.dropped;
+  }
+  for (std::size_t a = 0; a < aggregates; ++a) {
+    top_map_[a] = top_map_[a] * group_modes[static_cast<std::size_t>(top_of_[a])];
+  }
 }
 
 void AggregationCoarseSpace::extend(const BlockSparseMatrix& matrix,
-                                    std::span<const char> constrained) {
+                                    std::span<const char> constrained,
+                                    std::span<const Vec3> positions) {
   // New vertices (a cut) join the aggregate of their most strongly coupled neighbour that has
   // one; vertices held since are dropped. The aggregates, and so the factor, stay as they are:
   // a vertex with no aggregate beside it gets no coarse correction until the next
   // refactorisation.
   const std::size_t n = matrix.rows();
   aggregate_of_.resize(n, -1);
+  prolongation_.resize(n, VertexModes::Zero());
   const auto values = matrix.values();
   for (std::size_t i = 0; i < n; ++i) {
     if (constrained[i] != 0) {
       aggregate_of_[i] = -1;
+      prolongation_[i].setZero();
       continue;
     }
     if (aggregate_of_[i] >= 0) {
@@ -276,6 +449,9 @@ void AggregationCoarseSpace::extend(const BlockSparseMatrix& matrix,
         aggregate_of_[i] = other;
       }
     }
+    prolongation_[i] = aggregate_of_[i] < 0
+                           ? VertexModes::Zero()
+                           : vertex_modes(static_cast<std::size_t>(aggregate_of_[i]), positions, i);
   }
   collect_members();
 }
@@ -292,7 +468,11 @@ void AggregationCoarseSpace::collect_members() {
 }
 
 bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
-                                    std::span<const char> constrained) {
+                                    std::span<const char> constrained,
+                                    std::span<const Vec3> positions) {
+  if (!positions.empty() && positions.size() != matrix.rows()) {
+    throw std::invalid_argument("AggregationCoarseSpace::update: one position per matrix row");
+  }
   auto same_as = [&](const Look& look) {
     return look.pattern == matrix.pattern() && look.version == matrix.pattern_version() &&
            std::equal(constrained.begin(), constrained.end(), look.constrained.begin(),
@@ -309,7 +489,7 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
     // The factor of an earlier matrix is a good preconditioner still (the corotational
     // matrix changes with the elements' rotations, slowly; a cut changes it near the blade).
     if (!same_as(seen_)) {
-      extend(matrix, constrained);
+      extend(matrix, constrained, positions);
       remember(seen_);
     }
     return true;
@@ -321,33 +501,46 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
   }
   updates_since_factor_ = 0;
   factored_ = true;
+  shape_modes(positions);
   // P^T A P: each aggregate's coarse row from its members' rows (rows in parallel, each coarse
   // row summed in member order by one thread: deterministic).
   const auto values = matrix.values();
   const auto row_begin = matrix.row_begin();
   const auto row_end = matrix.row_end();
-  std::fill(coarse_blocks_.begin(), coarse_blocks_.end(), Mat3::Zero());
-  parallel_for(0, members_.size(), 64, [&](std::size_t first, std::size_t last) {
+  std::fill(coarse_blocks_.begin(), coarse_blocks_.end(), ModeMatrix::Zero());
+  parallel_for(0, members_.size(), 16, [&](std::size_t first, std::size_t last) {
     for (std::size_t a = first; a != last; ++a) {
       for (const VertexId v : members_[a]) {
         const auto i = static_cast<std::size_t>(v);
+        const auto columns = matrix.row_columns(v);
         for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
           const int slot = coarse_slot_[k];
           if (slot >= 0) {
-            coarse_blocks_[static_cast<std::size_t>(slot)] += values[k];
+            const Eigen::Matrix<double, kModes, 3> left = prolongation_[i].transpose() * values[k];
+            coarse_blocks_[static_cast<std::size_t>(slot)].noalias() +=
+                left * prolongation_[static_cast<std::size_t>(columns[k - row_begin[i]])];
           }
         }
       }
+      fill_dropped(coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])], dropped_[a]);
     }
   });
-  const std::vector<Mat3>* factored = &coarse_blocks_;
+  const std::vector<ModeMatrix>* factored = &coarse_blocks_;
   if (three_level_) {
     for (std::size_t a = 0; a < level_inverse_.size(); ++a) {
-      level_inverse_[a] = coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])].inverse();
+      const ModeMatrix inverse =
+          Eigen::LLT<ModeMatrix>(coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])])
+              .solve(ModeMatrix::Identity());
+      level_inverse_[a] = 0.5 * (inverse + inverse.transpose());
     }
-    std::fill(top_blocks_.begin(), top_blocks_.end(), Mat3::Zero());
+    std::fill(top_blocks_.begin(), top_blocks_.end(), ModeMatrix::Zero());
     for (std::size_t s = 0; s < coarse_blocks_.size(); ++s) {
-      top_blocks_[static_cast<std::size_t>(top_slot_[s])] += coarse_blocks_[s];
+      top_blocks_[static_cast<std::size_t>(top_slot_[s])].noalias() +=
+          top_map_[static_cast<std::size_t>(slot_row_[s])].transpose() * coarse_blocks_[s] *
+          top_map_[static_cast<std::size_t>(slot_column_[s])];
+    }
+    for (std::size_t t = 0; t < top_dropped_.size(); ++t) {
+      fill_dropped(top_blocks_[static_cast<std::size_t>(top_diagonal_slot_[t])], top_dropped_[t]);
     }
     factored = &top_blocks_;
   }
@@ -361,9 +554,9 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
 
 void AggregationCoarseSpace::add_correction(std::span<Vec3> z) const {
   for (std::size_t a = 0; a < members_.size(); ++a) {
-    const Vec3& correction = coarse_solution_[a];
+    const Modes& correction = coarse_solution_[a];
     for (const VertexId v : members_[a]) {
-      z[static_cast<std::size_t>(v)] += correction;
+      z[static_cast<std::size_t>(v)] += prolongation_[static_cast<std::size_t>(v)] * correction;
     }
   }
 }
@@ -373,19 +566,20 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
   if (aggregates == 0) {
     return 0.0;
   }
-  coarse_rhs_.resize(static_cast<Eigen::Index>(3 * aggregates));
+  coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * aggregates));
   // P^T r on the calling thread (lighter than handing it to the workers).
   for (std::size_t a = 0; a < aggregates; ++a) {
-    Vec3 sum = Vec3::Zero();
+    Modes sum = Modes::Zero();
     for (const VertexId v : members_[a]) {
-      sum += residual[static_cast<std::size_t>(v)];
+      const auto i = static_cast<std::size_t>(v);
+      sum.noalias() += prolongation_[i].transpose() * residual[i];
     }
-    coarse_rhs_.segment<3>(static_cast<Eigen::Index>(3 * a)) = sum;
+    coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a)) = sum;
   }
   if (!three_level_) {
     const Eigen::VectorXd solution = factor_->solve(coarse_rhs_);
     for (std::size_t a = 0; a < aggregates; ++a) {
-      coarse_solution_[a] = solution.segment<3>(static_cast<Eigen::Index>(3 * a));
+      coarse_solution_[a] = solution.segment<kModes>(static_cast<Eigen::Index>(kModes * a));
     }
     return coarse_rhs_.dot(solution);
   }
@@ -393,14 +587,16 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
   Eigen::VectorXd top_rhs = Eigen::VectorXd::Zero(scalar_.rows());
   double sum = 0.0;
   for (std::size_t a = 0; a < aggregates; ++a) {
-    const auto r = coarse_rhs_.segment<3>(static_cast<Eigen::Index>(3 * a));
+    const Modes r = coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a));
     coarse_solution_[a] = level_inverse_[a] * r;
     sum += r.dot(coarse_solution_[a]);
-    top_rhs.segment<3>(static_cast<Eigen::Index>(3 * top_of_[a])) += r;
+    top_rhs.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a])).noalias() +=
+        top_map_[a].transpose() * r;
   }
   const Eigen::VectorXd top_solution = factor_->solve(top_rhs);
   for (std::size_t a = 0; a < aggregates; ++a) {
-    coarse_solution_[a] += top_solution.segment<3>(static_cast<Eigen::Index>(3 * top_of_[a]));
+    coarse_solution_[a].noalias() +=
+        top_map_[a] * top_solution.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a]));
   }
   return sum + top_rhs.dot(top_solution);
 }

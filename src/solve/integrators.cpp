@@ -378,6 +378,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
       }
     }
     ++stats_.force_evaluations;
+    solver_.set_linearization_positions(x_trial_);
     const LinearSolveStats solve =
         solver_.solve(system, 1.0, dt * dt, dt, constrained_, rhs_, delta_, basis);
     stats_.solver_iterations_last_step += static_cast<std::size_t>(solve.iterations);

@@ -599,7 +599,8 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
           "the two-level preconditioner found a vertex block that is not positive definite "
           "(is every free vertex given a mass?)");
     }
-    if (!coarse_->update(assembled_, constrained_)) {
+    if (!coarse_->update(assembled_, constrained_,
+                         positions_.size() == n ? positions_ : std::span<const Vec3>{})) {
       throw InputError(
           "the two-level preconditioner could not factorise its coarse matrix (is the system "
           "positive definite?)");

@@ -86,6 +86,7 @@ bool StaticEquilibrium::solve(DynamicSystem& system, std::span<Vec3> x, double t
     }
     system.prepare_linearization(t, x, zero_);
     // Newton step: K dx = f on the free vertices (warm start from the last step).
+    solver_.set_linearization_positions(x);
     const LinearSolveStats linear =
         solver_.solve(system, 0.0, 1.0, 0.0, constrained_, force_, step_);
     last_linear_iterations_ += linear.iterations;

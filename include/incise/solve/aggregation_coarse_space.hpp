@@ -1,14 +1,18 @@
 #pragma once
 // The coarse level of the two-level preconditioner ("two-level"): vertices grouped into
 // aggregates of a vertex and its neighbours (Vanek, Mandel and Brezina's greedy aggregation),
-// each aggregate moving as one rigid translation. CG adds the coarse correction to the
-// clusters' block-Jacobi one (additive Schwarz). On a small body the coarse matrix P^T A P is
-// factorised exactly: P (P^T A P)^-1 P^T r. Above 300 coarse unknowns its exact solve would
-// cost more than a product at every iteration (4 ms on the 384k-tet box), so the aggregates
-// are aggregated once more and the correction is additive over three levels: each
-// aggregate's own block inverted, plus the top level's exact solve. It needs more iterations
-// than the exact coarse solve (125 against 92 there) and costs less in all (656 against 892 ms
-// a cutting frame).
+// each aggregate moving as one rigid body: three translations and three rotations about its
+// centre at the positions where the matrix was linearised (the near-kernel of elasticity;
+// with translations alone CG needed more iterations, see BENCHMARKS.md). Each aggregate's six
+// modes are orthonormalised over its members, and a mode its members cannot carry (the
+// rotation about the line through two vertices, any rotation of one vertex) is dropped. CG adds the
+// coarse correction to the clusters' block-Jacobi one (additive Schwarz). On a small body the
+// coarse matrix P^T A P is factorised exactly: P (P^T A P)^-1 P^T r. Above 1,000 coarse unknowns
+// its exact solve would cost more than a product at every iteration (4 ms on the 384k-tet box), so
+// the aggregates are aggregated once more and the correction is additive over three levels: each
+// aggregate's own block inverted, plus the top level's exact solve (its groups rigid too). It needs
+// more iterations than the exact coarse solve (125 against 92 there) and costs less in all (656
+// against 892 ms a cutting frame).
 //
 // Why: block-Jacobi CG needs iterations in proportion to the mesh's resolution (47 / 99 / 209
 // on the peers' box at n = 10 / 20 / 40) and twice as many on a body that a cut has set free
@@ -39,7 +43,8 @@ class DirectFactorization;
 class AggregationCoarseSpace {
  public:
   AggregationCoarseSpace();
-  /// Coarse unknowns above which a third level is used (default 300).
+  /// Coarse unknowns above which a third level is used (default 1,000: on the cut 6k-tet box
+  /// frames cost 10-15 % less than with 300, the exact solve's iterations outweighing its cost).
   void set_exact_limit(std::size_t unknowns) { exact_limit_ = unknowns; }
   [[nodiscard]] bool three_level() const { return three_level_; }
   /// Calls of update() between factorisations (default 10; 1: every call).
@@ -48,21 +53,36 @@ class AggregationCoarseSpace {
   AggregationCoarseSpace(const AggregationCoarseSpace&) = delete;
   AggregationCoarseSpace& operator=(const AggregationCoarseSpace&) = delete;
 
+  /// Rigid modes per aggregate: three translations, three rotations.
+  static constexpr int kModes = 6;
+  using Modes = Eigen::Matrix<double, kModes, 1>;
+  using ModeMatrix = Eigen::Matrix<double, kModes, kModes>;
+  /// A vertex's rows of the prolongation P: its displacement (m) under each coarse mode.
+  using VertexModes = Eigen::Matrix<double, 3, kModes>;
+
   /// Forms P^T A P from the matrix's current values (free rows and columns only) and
   /// factorises it on the first call and every refactor_every() calls after, aggregating the
-  /// free vertices again first if the matrix's pattern or the held rows changed. In between,
-  /// the factor is kept and new vertices join their neighbours' aggregates. False if the
-  /// factorisation fails (A not positive definite on free rows).
-  [[nodiscard]] bool update(const BlockSparseMatrix& matrix, std::span<const char> constrained);
+  /// free vertices again first if the matrix's pattern or the held rows changed, and taking
+  /// the rotations about `positions` (m; where the matrix was linearised; empty: translations
+  /// only). In between, the factor is kept and new vertices join their neighbours'
+  /// aggregates. False if the factorisation fails (A not positive definite on free rows).
+  [[nodiscard]] bool update(const BlockSparseMatrix& matrix, std::span<const char> constrained,
+                            std::span<const Vec3> positions = {});
 
-  /// Solves the coarse system for the residual r (restricted by summing over each
-  /// aggregate); the correction of vertex i is then correction(i). Returns r.(P e), the
-  /// correction's part of r.z, as (P^T r).e.
+  /// Solves the coarse system for the residual r (restricted by P^T); the correction of
+  /// vertex i is then correction(i). Returns r.(P e), the correction's part of r.z, as
+  /// (P^T r).e.
   double solve(std::span<const Vec3> residual);
   /// The coarse correction at vertex i (zero for a held vertex).
   [[nodiscard]] Vec3 correction(std::size_t vertex) const {
     const int aggregate = aggregate_of_[vertex];
-    return aggregate < 0 ? Vec3::Zero() : coarse_solution_[aggregate];
+    return aggregate < 0 ? Vec3::Zero()
+                         : Vec3(prolongation_[vertex] *
+                                coarse_solution_[static_cast<std::size_t>(aggregate)]);
+  }
+  /// Vertex i's rows of P (zero for a held vertex).
+  [[nodiscard]] const VertexModes& prolongation(std::size_t vertex) const {
+    return prolongation_[vertex];
   }
 
   /// z += P e: each aggregate's correction added to its members (on the calling thread: a
@@ -75,9 +95,16 @@ class AggregationCoarseSpace {
 
  private:
   void aggregate(const BlockSparseMatrix& matrix, std::span<const char> constrained);
-  void extend(const BlockSparseMatrix& matrix, std::span<const char> constrained);
+  void extend(const BlockSparseMatrix& matrix, std::span<const char> constrained,
+              std::span<const Vec3> positions);
   /// members_ from aggregate_of_, each in vertex order.
   void collect_members();
+  /// Each aggregate's centre and orthonormal modes at `positions`, every member's rows of P,
+  /// and with three levels the top groups' modes in their aggregates' coordinates.
+  void shape_modes(std::span<const Vec3> positions);
+  /// A vertex's rows of P in aggregate a's modes.
+  [[nodiscard]] VertexModes vertex_modes(std::size_t aggregate, std::span<const Vec3> positions,
+                                         std::size_t vertex) const;
 
   /// A look at a matrix's pattern and held rows (the pattern held, so its address is not
   /// reused).
@@ -92,23 +119,33 @@ class AggregationCoarseSpace {
   std::vector<std::vector<VertexId>> members_;
   /// For each live block of A (by storage index), its coarse block's slot, or -1.
   std::vector<int> coarse_slot_;
-  std::vector<Mat3> coarse_blocks_;
-  /// Scalar coarse matrix: nonzero -> (slot, entry in the 3x3 block).
+  std::vector<ModeMatrix> coarse_blocks_;
+  std::vector<VertexModes> prolongation_;  ///< per vertex, zero for held ones
+  std::vector<Vec3> centre_;               ///< per aggregate (m)
+  /// Per aggregate: raw rigid coordinates (translation, rotation about the centre) from its
+  /// orthonormal modes; and its modes' coordinates from a raw rigid motion (the pseudo-inverse).
+  std::vector<ModeMatrix> modes_from_raw_, raw_from_modes_;
+  /// Modes dropped, bit k for mode k: per aggregate, and per top-level group.
+  std::vector<unsigned> dropped_, top_dropped_;
+  /// Scalar coarse matrix: nonzero -> (slot, entry in the 6x6 block).
   std::vector<std::pair<int, int>> scalar_source_;
   Eigen::SparseMatrix<double, Eigen::ColMajor, int> scalar_;
   Eigen::VectorXd coarse_rhs_;
   std::unique_ptr<DirectFactorization> factor_;
-  std::vector<Vec3> coarse_solution_;
+  std::vector<Modes> coarse_solution_;
   int refactor_every_ = 10;
   /// Coarse unknowns up to which the aggregates' system is factorised exactly; above, a third
   /// level (see aggregate()).
-  std::size_t exact_limit_ = 300;
+  std::size_t exact_limit_ = 1000;
   bool three_level_ = false;
-  std::vector<int> diagonal_slot_;   ///< each aggregate's own block among coarse_blocks_
-  std::vector<int> top_of_;          ///< three levels: each aggregate's top-level aggregate
-  std::vector<int> top_slot_;        ///< coarse slot -> top-level slot
-  std::vector<Mat3> top_blocks_;     ///< the top level's matrix
-  std::vector<Mat3> level_inverse_;  ///< the inverse of each aggregate's own block
+  std::vector<int> slot_row_, slot_column_;  ///< each coarse slot's aggregates (a, b)
+  std::vector<int> diagonal_slot_;           ///< each aggregate's own block among coarse_blocks_
+  std::vector<int> top_diagonal_slot_;       ///< each top-level group's own block
+  std::vector<int> top_of_;                  ///< three levels: each aggregate's top-level aggregate
+  std::vector<int> top_slot_;                ///< coarse slot -> top-level slot
+  std::vector<ModeMatrix> top_blocks_;       ///< the top level's matrix
+  std::vector<ModeMatrix> top_map_;          ///< per aggregate: its modes from its group's
+  std::vector<ModeMatrix> level_inverse_;    ///< the inverse of each aggregate's own block
   int updates_since_factor_ = 0;
   bool factored_ = false;
 };

@@ -92,6 +92,10 @@ class LinearizedSystemSolver {
                          std::span<Vec3> x,
                          std::span<const std::span<const Vec3>> start_basis = {});
   [[nodiscard]] const LinearSolverOptions& options() const { return options_; }
+  /// Where the next solves' system is linearised (m, one per vertex; empty: unknown): the
+  /// two-level preconditioner's coarse modes rotate about these positions, else translate
+  /// only. The span must stay valid until the next call.
+  void set_linearization_positions(std::span<const Vec3> positions) { positions_ = positions; }
 
  private:
   using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
@@ -126,6 +130,7 @@ class LinearizedSystemSolver {
   LinearSolverOptions options_;
   std::span<const double> masses_;
   std::span<const char> constrained_;
+  std::span<const Vec3> positions_;
   std::vector<Vec3> residual_, direction_, product_, preconditioned_;
   std::vector<Mat3> diagonal_;
   std::vector<std::vector<Vec3>> basis_products_;
