@@ -76,13 +76,11 @@ class AggregationCoarseSpace {
   /// The coarse correction at vertex i (zero for a held vertex).
   [[nodiscard]] Vec3 correction(std::size_t vertex) const {
     const int aggregate = aggregate_of_[vertex];
-    return aggregate < 0 ? Vec3::Zero()
-                         : Vec3(prolongation_[vertex] *
-                                coarse_solution_[static_cast<std::size_t>(aggregate)]);
-  }
-  /// Vertex i's rows of P (zero for a held vertex).
-  [[nodiscard]] const VertexModes& prolongation(std::size_t vertex) const {
-    return prolongation_[vertex];
+    if (aggregate < 0) {
+      return Vec3::Zero();
+    }
+    const Modes& motion = coarse_motion_[static_cast<std::size_t>(aggregate)];
+    return motion.head<3>() + motion.tail<3>().cross(offset_[vertex]);
   }
 
   /// z += P e: each aggregate's correction added to its members (on the calling thread: a
@@ -102,9 +100,6 @@ class AggregationCoarseSpace {
   /// Each aggregate's centre and orthonormal modes at `positions`, every member's rows of P,
   /// and with three levels the top groups' modes in their aggregates' coordinates.
   void shape_modes(std::span<const Vec3> positions);
-  /// A vertex's rows of P in aggregate a's modes.
-  [[nodiscard]] VertexModes vertex_modes(std::size_t aggregate, std::span<const Vec3> positions,
-                                         std::size_t vertex) const;
 
   /// A look at a matrix's pattern and held rows (the pattern held, so its address is not
   /// reused).
@@ -121,7 +116,10 @@ class AggregationCoarseSpace {
   std::vector<int> coarse_slot_;
   std::vector<ModeMatrix> coarse_blocks_;
   std::vector<VertexModes> prolongation_;  ///< per vertex, zero for held ones
-  std::vector<Vec3> centre_;               ///< per aggregate (m)
+  /// Per vertex: its offset from its aggregate's centre (m), zero for held ones. CG's
+  /// restriction and prolongation read these instead of prolongation_ (6x less memory).
+  std::vector<Vec3> offset_;
+  std::vector<Vec3> centre_;  ///< per aggregate (m)
   /// Per aggregate: raw rigid coordinates (translation, rotation about the centre) from its
   /// orthonormal modes; and its modes' coordinates from a raw rigid motion (the pseudo-inverse).
   std::vector<ModeMatrix> modes_from_raw_, raw_from_modes_;
@@ -133,6 +131,8 @@ class AggregationCoarseSpace {
   Eigen::VectorXd coarse_rhs_;
   std::unique_ptr<DirectFactorization> factor_;
   std::vector<Modes> coarse_solution_;
+  /// Each aggregate's correction as a raw rigid motion W_a e_a (translation, rotation).
+  std::vector<Modes> coarse_motion_;
   int refactor_every_ = 10;
   /// Coarse unknowns up to which the aggregates' system is factorised exactly; above, a third
   /// level (see aggregate()).
