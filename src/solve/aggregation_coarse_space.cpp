@@ -287,14 +287,16 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
       top_diagonal_slot_[t] = top_row_slot[t] + static_cast<int>(found - top_columns[t].begin());
     }
     top_blocks_.assign(static_cast<std::size_t>(top_row_slot.back()), ModeMatrix::Zero());
-    level_inverse_.assign(aggregates, ModeMatrix::Zero());
+    level_motion_.assign(aggregates, ModeMatrix::Zero());
+    top_motion_.assign(aggregates, ModeMatrix::Zero());
     top_map_.assign(aggregates, ModeMatrix::Zero());
     top_dropped_.assign(top_columns.size(), 0);
   } else {
     top_of_.clear();
     top_slot_.clear();
     top_blocks_.clear();
-    level_inverse_.clear();
+    level_motion_.clear();
+    top_motion_.clear();
     top_map_.clear();
     top_dropped_.clear();
   }
@@ -330,7 +332,6 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
   factor_->reset_pattern();
-  coarse_solution_.assign(aggregates, Modes::Zero());
   coarse_motion_.assign(aggregates, Modes::Zero());
 }
 
@@ -530,11 +531,14 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
   });
   const std::vector<ModeMatrix>* factored = &coarse_blocks_;
   if (three_level_) {
-    for (std::size_t a = 0; a < level_inverse_.size(); ++a) {
+    for (std::size_t a = 0; a < level_motion_.size(); ++a) {
       const ModeMatrix inverse =
           Eigen::LLT<ModeMatrix>(coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])])
               .solve(ModeMatrix::Identity());
-      level_inverse_[a] = 0.5 * (inverse + inverse.transpose());
+      // In raw rigid coordinates, so CG's pass reads two 6x6 matrices per aggregate.
+      level_motion_[a].noalias() = raw_from_modes_[a] * (0.5 * (inverse + inverse.transpose())) *
+                                   raw_from_modes_[a].transpose();
+      top_motion_[a].noalias() = raw_from_modes_[a] * top_map_[a];
     }
     std::fill(top_blocks_.begin(), top_blocks_.end(), ModeMatrix::Zero());
     for (std::size_t s = 0; s < coarse_blocks_.size(); ++s) {
@@ -557,15 +561,17 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
 
 void AggregationCoarseSpace::add_correction(std::span<Vec3> z) const {
   // P e at vertex v: the aggregate's rigid motion t + w x d_v (P_v = [I, -[d_v]x] W_a), which
-  // reads 24 bytes per vertex where P_v's rows would be 144.
-  for (std::size_t a = 0; a < members_.size(); ++a) {
-    const Vec3 translation = coarse_motion_[a].head<3>();
-    const Vec3 rotation = coarse_motion_[a].tail<3>();
-    for (const VertexId v : members_[a]) {
-      const auto i = static_cast<std::size_t>(v);
-      z[i] += translation + rotation.cross(offset_[i]);
+  // reads 24 bytes per vertex where P_v's rows would be 144. In vertex order, on the workers:
+  // each vertex written once.
+  parallel_for(0, aggregate_of_.size(), 4096, [&](std::size_t first, std::size_t last) {
+    for (std::size_t i = first; i != last; ++i) {
+      const int a = aggregate_of_[i];
+      if (a >= 0) {
+        const Modes& motion = coarse_motion_[static_cast<std::size_t>(a)];
+        z[i] += motion.head<3>() + motion.tail<3>().cross(offset_[i]);
+      }
     }
-  }
+  });
 }
 
 double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
@@ -574,44 +580,46 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
     return 0.0;
   }
   coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * aggregates));
-  // P^T r on the calling thread (lighter than handing it to the workers): P_v^T r_v =
-  // W_a^T (r_v, d_v x r_v), summed over the members before W_a^T.
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    Vec3 force = Vec3::Zero();
-    Vec3 moment = Vec3::Zero();
-    for (const VertexId v : members_[a]) {
-      const auto i = static_cast<std::size_t>(v);
-      force += residual[i];
-      moment += offset_[i].cross(residual[i]);
+  // P^T r on the calling thread (it runs beside the clusters' solve): P_v^T r_v =
+  // W_a^T (r_v, d_v x r_v), summed over the members in vertex order (a streaming pass) before
+  // W_a^T.
+  raw_rhs_.assign(aggregates, Modes::Zero());
+  for (std::size_t i = 0; i < aggregate_of_.size(); ++i) {
+    const int a = aggregate_of_[i];
+    if (a >= 0) {
+      Modes& raw = raw_rhs_[static_cast<std::size_t>(a)];
+      raw.head<3>() += residual[i];
+      raw.tail<3>() += offset_[i].cross(residual[i]);
     }
-    Modes raw;
-    raw << force, moment;
-    coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a)).noalias() =
-        raw_from_modes_[a].transpose() * raw;
   }
   if (!three_level_) {
+    for (std::size_t a = 0; a < aggregates; ++a) {
+      coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a)).noalias() =
+          raw_from_modes_[a].transpose() * raw_rhs_[a];
+    }
     const Eigen::VectorXd solution = factor_->solve(coarse_rhs_);
     for (std::size_t a = 0; a < aggregates; ++a) {
-      coarse_solution_[a] = solution.segment<kModes>(static_cast<Eigen::Index>(kModes * a));
-      coarse_motion_[a].noalias() = raw_from_modes_[a] * coarse_solution_[a];
+      coarse_motion_[a].noalias() =
+          raw_from_modes_[a] * solution.segment<kModes>(static_cast<Eigen::Index>(kModes * a));
     }
     return coarse_rhs_.dot(solution);
   }
-  // Three levels: each aggregate's block-Jacobi correction plus the top level's exact one.
+  // Three levels: each aggregate's block-Jacobi correction plus the top level's exact one,
+  // in raw rigid coordinates: motion_a = W_a L_a W_a^T raw_a + W_a Q_a y_t.
   Eigen::VectorXd top_rhs = Eigen::VectorXd::Zero(scalar_.rows());
   double sum = 0.0;
   for (std::size_t a = 0; a < aggregates; ++a) {
-    const Modes r = coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a));
-    coarse_solution_[a] = level_inverse_[a] * r;
-    sum += r.dot(coarse_solution_[a]);
+    const Modes& raw = raw_rhs_[a];
+    coarse_motion_[a].noalias() = level_motion_[a] * raw;
+    sum += raw.dot(coarse_motion_[a]);
     top_rhs.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a])).noalias() +=
-        top_map_[a].transpose() * r;
+        top_motion_[a].transpose() * raw;
   }
   const Eigen::VectorXd top_solution = factor_->solve(top_rhs);
   for (std::size_t a = 0; a < aggregates; ++a) {
-    coarse_solution_[a].noalias() +=
-        top_map_[a] * top_solution.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a]));
-    coarse_motion_[a].noalias() = raw_from_modes_[a] * coarse_solution_[a];
+    coarse_motion_[a].noalias() +=
+        top_motion_[a] *
+        top_solution.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a]));
   }
   return sum + top_rhs.dot(top_solution);
 }

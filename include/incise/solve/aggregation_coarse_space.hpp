@@ -83,8 +83,7 @@ class AggregationCoarseSpace {
     return motion.head<3>() + motion.tail<3>().cross(offset_[vertex]);
   }
 
-  /// z += P e: each aggregate's correction added to its members (on the calling thread: a
-  /// pass this light costs less than handing it to the workers).
+  /// z += P e: each aggregate's correction added to its members.
   void add_correction(std::span<Vec3> z) const;
 
   [[nodiscard]] std::size_t aggregate_count() const { return members_.size(); }
@@ -129,8 +128,8 @@ class AggregationCoarseSpace {
   std::vector<std::pair<int, int>> scalar_source_;
   Eigen::SparseMatrix<double, Eigen::ColMajor, int> scalar_;
   Eigen::VectorXd coarse_rhs_;
+  std::vector<Modes> raw_rhs_;  ///< per aggregate: its members' summed force and moment
   std::unique_ptr<DirectFactorization> factor_;
-  std::vector<Modes> coarse_solution_;
   /// Each aggregate's correction as a raw rigid motion W_a e_a (translation, rotation).
   std::vector<Modes> coarse_motion_;
   int refactor_every_ = 10;
@@ -145,7 +144,9 @@ class AggregationCoarseSpace {
   std::vector<int> top_slot_;                ///< coarse slot -> top-level slot
   std::vector<ModeMatrix> top_blocks_;       ///< the top level's matrix
   std::vector<ModeMatrix> top_map_;          ///< per aggregate: its modes from its group's
-  std::vector<ModeMatrix> level_inverse_;    ///< the inverse of each aggregate's own block
+  /// Per aggregate, raw rigid coordinates in and out: W_a L_a W_a^T (L_a the inverse of its
+  /// own block) and W_a Q_a (its motion from its group's modes).
+  std::vector<ModeMatrix> level_motion_, top_motion_;
   int updates_since_factor_ = 0;
   bool factored_ = false;
 };
