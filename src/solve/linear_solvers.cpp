@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "incise/core/error.hpp"
 #include "incise/core/parallel_for.hpp"
@@ -547,6 +548,8 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
                                                std::span<const std::span<const Vec3>> start_basis) {
   const auto start = Clock::now();
   const std::size_t n = rhs.size();
+  // Read once: the caller's span is not kept past this solve.
+  const std::span<const Vec3> positions = std::exchange(positions_, {});
   masses_ = system.masses();
   constrained_ = constrained;
   LinearSolveStats stats;
@@ -600,7 +603,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
           "(is every free vertex given a mass?)");
     }
     if (!coarse_->update(assembled_, constrained_,
-                         positions_.size() == n ? positions_ : std::span<const Vec3>{})) {
+                         positions.size() == n ? positions : std::span<const Vec3>{})) {
       throw InputError(
           "the two-level preconditioner could not factorise its coarse matrix (is the system "
           "positive definite?)");

@@ -92,9 +92,9 @@ class LinearizedSystemSolver {
                          std::span<Vec3> x,
                          std::span<const std::span<const Vec3>> start_basis = {});
   [[nodiscard]] const LinearSolverOptions& options() const { return options_; }
-  /// Where the next solves' system is linearised (m, one per vertex; empty: unknown): the
+  /// Where the next solve's system is linearised (m, one per vertex; empty: unknown): the
   /// two-level preconditioner's coarse modes rotate about these positions, else translate
-  /// only. The span must stay valid until the next call.
+  /// only. Read by the next solve() only, so the span must stay valid until then.
   void set_linearization_positions(std::span<const Vec3> positions) { positions_ = positions; }
 
  private:
