@@ -7,6 +7,7 @@
 #include <string>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 
 namespace incise {
 namespace {
@@ -308,6 +309,21 @@ void TetMesh::build_adjacency() {
     }
     i = j;
   }
+  reserve_all_for_edits();
+}
+
+void TetMesh::reserve_all_for_edits() {
+  reserve_for_edits(rest_positions_);
+  reserve_for_edits(vertex_origins_);
+  reserve_for_edits(tets_);
+  reserve_for_edits(tet_labels_);
+  reserve_for_edits(tet_fractions_);
+  reserve_for_edits(tet_neighbors_);
+  reserve_for_edits(tet_edges_);
+  reserve_for_edits(vertex_tets_);
+  reserve_for_edits(edges_);
+  reserve_for_edits(edge_tets_);
+  edge_index_.reserve(edges_.capacity());
 }
 
 // ---- incremental maintenance -------------------------------------------------------------
@@ -873,6 +889,7 @@ void TetMesh::load_state(StateReader& in) {
   }
   edit_created_edges_.clear();
   edit_unused_edges_.clear();
+  reserve_all_for_edits();
   const auto observers = in.value<std::uint64_t>("observer count");
   if (observers != observers_.size()) {
     in.fail("observer count", "the checkpoint has " + std::to_string(observers) +

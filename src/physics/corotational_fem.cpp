@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/physics/lumped_mass.hpp"
@@ -252,7 +253,7 @@ void CorotationalFemModel::add_forces(std::span<const Vec3> x, std::span<const V
 void CorotationalFemModel::add_forces_and_linearize(std::span<const Vec3> x,
                                                     std::span<const Vec3> v, std::span<Vec3> f) {
   refresh();
-  linearization_.resize(mesh_->tet_count());
+  resize_for_edits(linearization_, mesh_->tet_count());
   rotated_gradients_.resize(mesh_->tet_count());
   element_forces(x, v, f, true);
   assemble_linearization_matrix();
@@ -264,7 +265,7 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
   const TetMesh& mesh = *mesh_;
   const double beta = parameters_.rayleigh_stiffness;
   // Pass 1, elements in memory order: -w V P per element (and the tangent data).
-  scaled_stress_.resize(mesh.tet_count());
+  resize_for_edits(scaled_stress_, mesh.tet_count());
   parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
     for (std::size_t t = first; t != last; ++t) {
       const auto tet = static_cast<TetId>(t);
@@ -371,7 +372,7 @@ std::span<const VertexId> CorotationalFemModel::neighbors(VertexId vertex) const
 void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
   refresh();
   const TetMesh& mesh = *mesh_;
-  linearization_.resize(mesh.tet_count());
+  resize_for_edits(linearization_, mesh.tet_count());
   rotated_gradients_.resize(mesh.tet_count());
   for_each_valid_element_in_order([&](TetId tet, const FemElement& element) {
     const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
@@ -408,7 +409,7 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
   } else {
     // Per element dP (into scaled_stress_, free between force evaluations), then per vertex.
     const TetMesh& mesh = *mesh_;
-    scaled_stress_.resize(mesh.tet_count());
+    resize_for_edits(scaled_stress_, mesh.tet_count());
     parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
       for (std::size_t t = first; t != last; ++t) {
         const auto tet = static_cast<TetId>(t);

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 
 namespace incise {
 
@@ -176,7 +177,7 @@ void apply_constraints(DynamicSystem& system, double t, std::span<Vec3> x, std::
 
 void MechanicalSystem::extend_vertex_values(std::vector<Vec3>& values) const {
   const std::size_t first = values.size();
-  values.resize(mesh_.vertex_count(), Vec3::Zero());
+  resize_for_edits(values, mesh_.vertex_count(), Vec3(Vec3::Zero()));
   // Parents always precede their children, so one pass in order suffices.
   for (std::size_t v = first; v < values.size(); ++v) {
     const VertexOrigin& origin = mesh_.vertex_origin(static_cast<VertexId>(v));

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/core/timing.hpp"
 
 namespace incise {
@@ -116,11 +117,11 @@ void RungeKutta4::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3>
   check_step(dt);
   system.refresh();
   const std::size_t n = x.size();
-  xs_.resize(n);
-  vs_.resize(n);
+  resize_for_edits(xs_, n);
+  resize_for_edits(vs_, n);
   for (int s = 0; s < 4; ++s) {
-    k_[s].resize(n);
-    l_[s].resize(n);
+    resize_for_edits(k_[s], n);
+    resize_for_edits(l_[s], n);
   }
   // Seed eq. 5 with its typesetting slips corrected: the velocity estimates are
   // k2 = v + dt/2 l1, k3 = v + dt/2 l2, k4 = v + dt l3 (the seed prints l_i dt), as in the
@@ -322,16 +323,16 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   // Unknown: the end velocity v1. Newton on r(v1) = M (v1 - v0) - dt f(x0 + dt v1, v1) with
   // Jacobian J = M + dt D + dt^2 K, from v1 = v0 (prescribed velocities for held vertices).
   v_trial_.assign(v.begin(), v.end());
-  x_trial_.resize(n);
+  resize_for_edits(x_trial_, n);
   for (std::size_t i = 0; i < n; ++i) {
     if (system.is_constrained(static_cast<VertexId>(i))) {
       Vec3 position;
       system.prescribed_state(end, static_cast<VertexId>(i), position, v_trial_[i]);
     }
   }
-  force_.resize(n);
-  rhs_.resize(n);
-  delta_.resize(n);
+  resize_for_edits(force_, n);
+  resize_for_edits(rhs_, n);
+  resize_for_edits(delta_, n);
   // A cut added vertices: earlier solutions are carried onto them as positions are, so the
   // next solve still starts close (clearing the history cost a cutting frame 1.8x the CG
   // iterations of a frame that does not cut).

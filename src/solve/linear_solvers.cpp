@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/solve/aggregation_coarse_space.hpp"
@@ -263,11 +264,11 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   // and z updates with r.r and r.z. Held rows are identity with r = z = p = 0 there.
   const std::size_t n = rhs.size();
   const auto values = assembled_.values();
-  residual_.resize(n);
-  direction_.resize(n);
-  product_.resize(n);
-  preconditioned_.resize(n);
-  diagonal_.resize(n);
+  resize_for_edits(residual_, n);
+  resize_for_edits(direction_, n);
+  resize_for_edits(product_, n);
+  resize_for_edits(preconditioned_, n);
+  resize_for_edits(diagonal_, n);
   const bool two_level = options_.preconditioner == Preconditioner::kTwoLevel;
   // Products in single precision read half the bytes; the initial residual of each pass below
   // is formed in double, so CG stops on the true residual: when the single-precision run ends
@@ -450,8 +451,8 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
   std::vector<std::span<const Vec3>> masked(k);
   std::vector<std::span<Vec3>> products(k);
   for (std::size_t j = 0; j < k; ++j) {
-    masked_basis_[j].resize(n);
-    basis_products_[j].resize(n);
+    resize_for_edits(masked_basis_[j], n);
+    resize_for_edits(basis_products_[j], n);
     masked[j] = masked_basis_[j];
     products[j] = basis_products_[j];
   }
@@ -651,7 +652,7 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
     scalar_solution_ = direct_->solve(scalar_rhs_);
     from_scalar(scalar_solution_, x);
     stats.iterations = 1;
-    residual_.resize(n);
+    resize_for_edits(residual_, n);
     apply(system, mass_scale, a, b, x, residual_);
     stats.relative_residual =
         std::sqrt(parallel_sum(n,
@@ -674,15 +675,15 @@ LinearSolveStats LinearizedSystemSolver::solve(const DynamicSystem& system, doub
   }
 
   // Preconditioned conjugate gradients on the system's products (models that do not assemble).
-  residual_.resize(n);
-  direction_.resize(n);
-  product_.resize(n);
-  preconditioned_.resize(n);
+  resize_for_edits(residual_, n);
+  resize_for_edits(direction_, n);
+  resize_for_edits(product_, n);
+  resize_for_edits(preconditioned_, n);
   const auto build_start = Clock::now();
   if (options_.preconditioner == Preconditioner::kJacobi ||
       options_.preconditioner == Preconditioner::kBlockJacobi ||
       options_.preconditioner == Preconditioner::kTwoLevel) {
-    diagonal_.resize(n);
+    resize_for_edits(diagonal_, n);
     parallel_vertices(
         n, [&](std::size_t i) { diagonal_[i] = mass_scale * masses_[i] * Mat3::Identity(); });
     system.add_linearized_diagonal(a, b, diagonal_);

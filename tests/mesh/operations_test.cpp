@@ -37,6 +37,28 @@ TEST(Operations, SplitEdgeReplacesEveryTetAroundIt) {
   EXPECT_TRUE(check_boundary(mesh).watertight());  // no hanging node: still conforming
 }
 
+TEST(Operations, TheFirstCutDoesNotMoveTheBodysArrays) {
+  // Arrays built at exactly the body's size would all be reallocated by the first edit, a
+  // copy of the whole body in one frame (core/growth.hpp): the first splits must find room.
+  BoxGridOptions options;
+  options.cells = {8, 8, 8};
+  TetMesh mesh = make_box_grid(options);
+  TetData<double> per_tet(mesh, 1.0);
+  VertexData<Vec3> per_vertex(mesh, Vec3::Zero(), VertexRule::kInterpolate);
+  const Tet* tets = mesh.tets().data();
+  const Vec3* rest = mesh.rest_positions().data();
+  const double* tet_values = per_tet.values().data();
+  const Vec3* vertex_values = per_vertex.values().data();
+  for (TetId t = 0; t < 20; ++t) {
+    (void)split_edge(mesh, mesh.tet_edges(t * 50)[0], 0.5);
+  }
+  EXPECT_EQ(mesh.tets().data(), tets);
+  EXPECT_EQ(mesh.rest_positions().data(), rest);
+  EXPECT_EQ(per_tet.values().data(), tet_values);
+  EXPECT_EQ(per_vertex.values().data(), vertex_values);
+  EXPECT_TRUE(validate(mesh).ok());
+}
+
 TEST(Operations, SplitInteriorAndBoundaryFaces) {
   TetMesh mesh = grid();
   int interior = -1;

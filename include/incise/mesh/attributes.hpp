@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
 namespace incise {
@@ -86,6 +87,7 @@ class AttributeBase : public MeshObserver {
                                       std::to_string(count_in(*mesh_)) + " mesh entities");
     }
     values_ = std::move(values);
+    reserve_for_edits(values_);
   }
 
  protected:
@@ -94,6 +96,7 @@ class AttributeBase : public MeshObserver {
 
   AttributeBase(TetMesh& mesh, std::size_t count, T default_value)
       : mesh_(&mesh), values_(count, default_value), default_value_(std::move(default_value)) {
+    reserve_for_edits(values_);
     mesh.add_observer(this);
   }
 

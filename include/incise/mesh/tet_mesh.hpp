@@ -263,6 +263,8 @@ class TetMesh {
   /// Emits edge events and drops unused edges at the end of an edit.
   void finish_edit();
   void build_adjacency();
+  /// Capacity for the edits to come in every array (see core/growth.hpp).
+  void reserve_all_for_edits();
 
   std::vector<Vec3> rest_positions_;
   std::vector<VertexOrigin> vertex_origins_;
