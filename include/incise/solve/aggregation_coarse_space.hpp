@@ -10,9 +10,9 @@
 // coarse matrix P^T A P is factorised exactly: P (P^T A P)^-1 P^T r. Above 1,000 coarse unknowns
 // its exact solve would cost more than a product at every iteration (4 ms on the 384k-tet box), so
 // the aggregates are aggregated once more and the correction is additive over three levels: each
-// aggregate's own block inverted, plus the top level's exact solve (its groups rigid too). It needs
-// more iterations than the exact coarse solve (125 against 92 there) and costs less in all (656
-// against 892 ms a cutting frame).
+// aggregate's own block inverted, plus the top level's exact solve (its groups rigid too). With
+// aggregates that only translated it needed more iterations than the exact coarse solve (125
+// against 92 there) and cost less in all (656 against 892 ms a cutting frame).
 //
 // Why: block-Jacobi CG needs iterations in proportion to the mesh's resolution (47 / 99 / 209
 // on the peers' box at n = 10 / 20 / 40) and twice as many on a body that a cut has set free
