@@ -254,7 +254,7 @@ void CorotationalFemModel::add_forces_and_linearize(std::span<const Vec3> x,
                                                     std::span<const Vec3> v, std::span<Vec3> f) {
   refresh();
   resize_for_edits(linearization_, mesh_->tet_count());
-  rotated_gradients_.resize(mesh_->tet_count());
+  resize_for_edits(rotated_gradients_, mesh_->tet_count());
   element_forces(x, v, f, true);
   assemble_linearization_matrix();
 }
@@ -373,7 +373,7 @@ void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::s
   refresh();
   const TetMesh& mesh = *mesh_;
   resize_for_edits(linearization_, mesh.tet_count());
-  rotated_gradients_.resize(mesh.tet_count());
+  resize_for_edits(rotated_gradients_, mesh.tet_count());
   for_each_valid_element_in_order([&](TetId tet, const FemElement& element) {
     const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
     store_linearization(tet, F, polar_rotation(F, rotations_[tet]));
