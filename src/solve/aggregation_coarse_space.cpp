@@ -335,10 +335,14 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   coarse_motion_.assign(aggregates, Modes::Zero());
 }
 
+Vec3 AggregationCoarseSpace::offset_in(std::size_t aggregate, std::span<const Vec3> positions,
+                                       std::size_t vertex) const {
+  return positions.empty() ? Vec3::Zero() : Vec3(positions[vertex] - centre_[aggregate]);
+}
+
 void AggregationCoarseSpace::shape_modes(std::span<const Vec3> positions) {
   const std::size_t aggregates = members_.size();
   const std::size_t n = aggregate_of_.size();
-  prolongation_.resize(n);
   offset_.resize(n);
   centre_.assign(aggregates, Vec3::Zero());
   raw_from_modes_.resize(aggregates);
@@ -357,25 +361,19 @@ void AggregationCoarseSpace::shape_modes(std::span<const Vec3> positions) {
       centre_[a] = centre;
       ModeMatrix gram = ModeMatrix::Zero();
       for (const VertexId v : group) {
-        const VertexModes raw = raw_rigid_modes(
-            positions.empty() ? Vec3::Zero()
-                              : Vec3(positions[static_cast<std::size_t>(v)] - centre));
+        const auto i = static_cast<std::size_t>(v);
+        offset_[i] = offset_in(a, positions, i);
+        const VertexModes raw = raw_rigid_modes(offset_[i]);
         gram += raw.transpose() * raw;
       }
       const OrthonormalModes modes = orthonormal_modes(gram);
       raw_from_modes_[a] = modes.raw_from_modes;
       modes_from_raw_[a] = modes.modes_from_raw;
       dropped_[a] = modes.dropped;
-      for (const VertexId v : group) {
-        const auto i = static_cast<std::size_t>(v);
-        offset_[i] = positions.empty() ? Vec3::Zero() : Vec3(positions[i] - centre);
-        prolongation_[i] = raw_rigid_modes(offset_[i]) * modes.raw_from_modes;
-      }
     }
   });
   for (std::size_t v = 0; v < n; ++v) {
     if (aggregate_of_[v] < 0) {
-      prolongation_[v].setZero();
       offset_[v].setZero();
     }
   }
@@ -424,13 +422,11 @@ void AggregationCoarseSpace::extend(const BlockSparseMatrix& matrix,
   // refactorisation.
   const std::size_t n = matrix.rows();
   aggregate_of_.resize(n, -1);
-  prolongation_.resize(n, VertexModes::Zero());
   offset_.resize(n, Vec3::Zero());
   const auto values = matrix.values();
   for (std::size_t i = 0; i < n; ++i) {
     if (constrained[i] != 0) {
       aggregate_of_[i] = -1;
-      prolongation_[i].setZero();
       offset_[i].setZero();
       continue;
     }
@@ -448,14 +444,9 @@ void AggregationCoarseSpace::extend(const BlockSparseMatrix& matrix,
         aggregate_of_[i] = other;
       }
     }
-    if (aggregate_of_[i] < 0) {
-      prolongation_[i].setZero();
-      offset_[i].setZero();
-    } else {
-      const auto a = static_cast<std::size_t>(aggregate_of_[i]);
-      offset_[i] = positions.empty() ? Vec3::Zero() : Vec3(positions[i] - centre_[a]);
-      prolongation_[i] = raw_rigid_modes(offset_[i]) * raw_from_modes_[a];
-    }
+    offset_[i] = aggregate_of_[i] < 0
+                     ? Vec3::Zero()
+                     : offset_in(static_cast<std::size_t>(aggregate_of_[i]), positions, i);
   }
   collect_members();
 }
@@ -507,7 +498,9 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
   factored_ = true;
   shape_modes(positions);
   // P^T A P: each aggregate's coarse row from its members' rows (rows in parallel, each coarse
-  // row summed in member order by one thread: deterministic).
+  // row summed in member order by one thread: deterministic). With P_v = R_v W_a, R_v =
+  // [I, -[d_v]x]: the rows are summed in raw rigid coordinates, R_i^T A_ij R_j, and each coarse
+  // block is turned into the modes' coordinates once, W_a^T (sum) W_b.
   const auto values = matrix.values();
   const auto row_begin = matrix.row_begin();
   const auto row_end = matrix.row_end();
@@ -517,16 +510,28 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
       for (const VertexId v : members_[a]) {
         const auto i = static_cast<std::size_t>(v);
         const auto columns = matrix.row_columns(v);
+        const VertexModes raw_i = raw_rigid_modes(offset_[i]);
         for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
           const int slot = coarse_slot_[k];
           if (slot >= 0) {
-            const Eigen::Matrix<double, kModes, 3> left = prolongation_[i].transpose() * values[k];
+            const Eigen::Matrix<double, kModes, 3> left = raw_i.transpose() * values[k];
             coarse_blocks_[static_cast<std::size_t>(slot)].noalias() +=
-                left * prolongation_[static_cast<std::size_t>(columns[k - row_begin[i]])];
+                left *
+                raw_rigid_modes(offset_[static_cast<std::size_t>(columns[k - row_begin[i]])]);
           }
         }
       }
-      fill_dropped(coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])], dropped_[a]);
+    }
+  });
+  parallel_for(0, coarse_blocks_.size(), 256, [&](std::size_t first, std::size_t last) {
+    for (std::size_t s = first; s != last; ++s) {
+      const auto a = static_cast<std::size_t>(slot_row_[s]);
+      const auto b = static_cast<std::size_t>(slot_column_[s]);
+      ModeMatrix& block = coarse_blocks_[s];
+      block = raw_from_modes_[a].transpose() * block * raw_from_modes_[b];
+      if (a == b) {
+        fill_dropped(block, dropped_[a]);
+      }
     }
   });
   const std::vector<ModeMatrix>* factored = &coarse_blocks_;

@@ -57,7 +57,8 @@ class AggregationCoarseSpace {
   static constexpr int kModes = 6;
   using Modes = Eigen::Matrix<double, kModes, 1>;
   using ModeMatrix = Eigen::Matrix<double, kModes, kModes>;
-  /// A vertex's rows of the prolongation P: its displacement (m) under each coarse mode.
+  /// A vertex's rows of the prolongation P, or of its raw rigid coordinates: its displacement
+  /// (m) under each coarse mode.
   using VertexModes = Eigen::Matrix<double, 3, kModes>;
 
   /// Forms P^T A P from the matrix's current values (free rows and columns only) and
@@ -96,9 +97,12 @@ class AggregationCoarseSpace {
               std::span<const Vec3> positions);
   /// members_ from aggregate_of_, each in vertex order.
   void collect_members();
-  /// Each aggregate's centre and orthonormal modes at `positions`, every member's rows of P,
+  /// Each aggregate's centre and orthonormal modes at `positions`, every member's offset,
   /// and with three levels the top groups' modes in their aggregates' coordinates.
   void shape_modes(std::span<const Vec3> positions);
+  /// A vertex's offset from the centre of `aggregate` (m; zero without positions).
+  [[nodiscard]] Vec3 offset_in(std::size_t aggregate, std::span<const Vec3> positions,
+                               std::size_t vertex) const;
 
   /// A look at a matrix's pattern and held rows (the pattern held, so its address is not
   /// reused).
@@ -114,9 +118,8 @@ class AggregationCoarseSpace {
   /// For each live block of A (by storage index), its coarse block's slot, or -1.
   std::vector<int> coarse_slot_;
   std::vector<ModeMatrix> coarse_blocks_;
-  std::vector<VertexModes> prolongation_;  ///< per vertex, zero for held ones
-  /// Per vertex: its offset from its aggregate's centre (m), zero for held ones. CG's
-  /// restriction and prolongation read these instead of prolongation_ (6x less memory).
+  /// Per vertex: its offset d_v from its aggregate's centre (m), zero for held ones. Its rows
+  /// of P are [I, -[d_v]x] W_a, derived where needed: CG's pass reads 24 bytes per vertex.
   std::vector<Vec3> offset_;
   std::vector<Vec3> centre_;  ///< per aggregate (m)
   /// Per aggregate: raw rigid coordinates (translation, rotation about the centre) from its
