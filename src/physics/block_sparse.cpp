@@ -8,22 +8,11 @@
 #endif
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/mesh/vertex_graph.hpp"
 
 namespace incise {
-namespace {
-
-/// Grows `values` to `size` with slack, so small growth does not reallocate (and fault in
-/// fresh pages for) the whole array every frame, a cost of the body's size. New blocks are zero.
-void grow_zero(std::vector<Mat3>& values, std::size_t size) {
-  if (values.capacity() < size) {
-    values.reserve(size + size / 4);
-  }
-  values.resize(size, Mat3::Zero());
-}
-
-}  // namespace
 
 BlockSparseMatrix::BlockSparseMatrix() : pattern_(std::make_shared<BlockPattern>()) {}
 
@@ -63,7 +52,8 @@ void BlockSparseMatrix::match_pattern(const BlockSparseMatrix& other) {
 }
 
 void BlockSparseMatrix::fit_values() {
-  grow_zero(values_, pattern_->columns.storage().size());
+  // New blocks zero; capacity kept so an edit does not copy the whole matrix (core/growth.hpp).
+  resize_for_edits(values_, pattern_->columns.storage().size(), Mat3(Mat3::Zero()));
 }
 
 void BlockSparseMatrix::zero_values() {
@@ -231,10 +221,7 @@ void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::s
 
 void BlockSparseMatrix::refresh_single_precision() {
   const std::size_t count = 9 * values_.size();
-  if (single_values_.capacity() < count) {
-    single_values_.reserve(count + count / 4);  // slack, as grow_zero
-  }
-  single_values_.resize(count);
+  resize_for_edits(single_values_, count);
   const double* source = values_.data()->data();
   float* target = single_values_.data();
   parallel_for(0, count, 1 << 15, [&](std::size_t first, std::size_t last) {
