@@ -125,7 +125,9 @@ int serve(const ServeOptions& options) {
   int reaction_pushes = 0;
   double largest_reaction = 0.0;  // N
   while (!stop_requested.load()) {
-    if (options.exit_when_idle && clients_seen.load() > 0 && !server->has_client()) {
+    // (Once the last device's poses are all cut: it may have left between two frames.)
+    if (options.exit_when_idle && clients_seen.load() > 0 && !server->has_client() &&
+        !live_pose.has_passed()) {
       ended = "idle (the last device left)";
       break;
     }

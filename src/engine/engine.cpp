@@ -277,6 +277,7 @@ void Engine::set_tool_source(std::unique_ptr<ToolPoseSource> source) {
   Parts& p = *parts_;
   p.tool = std::move(source);
   p.blade = p.tool ? p.tool->pose(p.last.frame, p.state.time) : std::nullopt;
+  p.blade_passed.clear();
   p.blade_frame = p.tool ? p.tool->frame() : PoseFrame::kRest;
   p.blade_rest =
       p.blade ? std::optional<BladePose>(p.rest_pose(*p.blade, p.blade_frame)) : std::nullopt;
@@ -392,39 +393,49 @@ bool Engine::step() {
   const double dt = p.description.integrator.dt;
 
   // ---- the tool: cd and gc --------------------------------------------------------------------
-  const std::optional<BladePose> given =
-      p.tool ? p.tool->pose(record.frame, frame_dt * record.frame) : std::nullopt;
+  ToolMotion motion = p.tool ? p.tool->motion(record.frame, frame_dt * record.frame) : ToolMotion{};
   const PoseFrame frame = p.tool ? p.tool->frame() : PoseFrame::kRest;
-  // The cutters cut the rest mesh: a pose given in the world is carried back first.
-  const std::optional<BladePose> pose =
-      given ? std::optional<BladePose>(p.rest_pose(*given, frame)) : std::nullopt;
-  // Either cutter: a stroke starts where the blade was at the start of the frame (or here, when
-  // it was lifted); the blade moves to its pose at the end of this frame and cuts what it
-  // swept. True when the blade moved.
-  const auto cut_with = [&](auto& cutter) {
+  // Either cutter: a stroke starts where the blade was at the start of the step (or here, when
+  // it was lifted); the blade moves to `pose` and cuts what it swept. True when it moved.
+  const auto cut_with = [&](auto& cutter, const BladePose& pose) {
     if (!cutter.started() || !p.blade_rest) {
-      cutter.start(p.blade_rest ? *p.blade_rest : *pose);
+      cutter.start(p.blade_rest ? *p.blade_rest : pose);
     }
     if (!p.blade_rest) {
       return false;
     }
     const std::uint64_t revision = p.mesh.revision();
-    cutter.move_to(*pose);
-    record.edited = p.mesh.revision() != revision;
-    record.cd = cutter.stats().cd_seconds;
-    record.gc = cutter.stats().gc_seconds;
+    cutter.move_to(pose);
+    record.edited = record.edited || p.mesh.revision() != revision;
+    record.cd += cutter.stats().cd_seconds;
+    record.gc += cutter.stats().gc_seconds;
     record.cut = true;
     return true;
   };
-  if (p.cutter && pose) {
-    (void)cut_with(*p.cutter);
+  // The strokes' ends the source passed through since the last frame, then where it is now. The
+  // cutters cut the rest mesh: a pose given in the world is carried back first.
+  motion.passed.push_back(motion.pose);
+  bool xfem_moved = false;
+  for (const std::optional<BladePose>& given : motion.passed) {
+    const std::optional<BladePose> pose =
+        given ? std::optional<BladePose>(p.rest_pose(*given, frame)) : std::nullopt;
+    if (p.cutter && pose) {
+      (void)cut_with(*p.cutter, *pose);
+    }
+    if (p.xfem && pose) {
+      xfem_moved = cut_with(*p.xfem, *pose) || xfem_moved;
+    }
+    p.blade_rest = pose;
+  }
+  motion.passed.pop_back();
+  if (p.cutter && p.blade_rest) {
     // Local relaxation starts at the vertex nearest the blade tip.
     const TetId holder = p.cutter->active_point_tet();
     if (holder != kInvalidId) {
       VertexId nearest = p.mesh.tet(holder)[0];
       for (VertexId v : p.mesh.tet(holder)) {
-        if ((p.cutter->position(v) - pose->tip).norm() <
-            (p.cutter->position(nearest) - pose->tip).norm()) {
+        if ((p.cutter->position(v) - p.blade_rest->tip).norm() <
+            (p.cutter->position(nearest) - p.blade_rest->tip).norm()) {
           nearest = v;
         }
       }
@@ -432,7 +443,7 @@ bool Engine::step() {
     }
   }
   // The picture follows splits, and the blade inside the tetrahedra it has only partly crossed.
-  if (p.xfem && pose && cut_with(*p.xfem) && (p.visual || p.collision)) {
+  if (xfem_moved && (p.visual || p.collision)) {
     const auto start = Clock::now();
     for (VisualSurface* surface : {p.visual.get(), p.collision.get()}) {
       if (surface != nullptr) {
@@ -441,9 +452,9 @@ bool Engine::step() {
     }
     record.gc += seconds_since(start);
   }
-  p.blade = given;
+  p.blade = motion.pose;
+  p.blade_passed = std::move(motion.passed);
   p.blade_frame = frame;
-  p.blade_rest = pose;
   p.blade_world.reset();
 
   // ---- relaxation: rx -------------------------------------------------------------------------
@@ -574,6 +585,9 @@ const std::optional<BladePose>& Engine::blade() const {
   return parts_->blade;
 }
 
+const std::vector<std::optional<BladePose>>& Engine::blade_passed() const {
+  return parts_->blade_passed;
+}
 PoseFrame Engine::blade_frame() const {
   return parts_->blade_frame;
 }

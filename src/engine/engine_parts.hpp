@@ -34,7 +34,8 @@ struct Engine::Parts {
   std::unique_ptr<VisualSurface> collision;       ///< the scene's collision surface, if any
   std::vector<std::pair<VertexId, Vec3>> pushes;  ///< N, for the next step only
   std::unique_ptr<ToolPoseSource> tool;
-  std::optional<BladePose> blade;  ///< as the tool gave it (drawn there)
+  std::optional<BladePose> blade;                      ///< as the tool gave it (drawn there)
+  std::vector<std::optional<BladePose>> blade_passed;  ///< the last frame's ToolMotion::passed
   PoseFrame blade_frame = PoseFrame::kRest;
   std::optional<BladePose> blade_rest;  ///< what the cutter was given: in the rest frame
   RestMap rest_map;  ///< the last world-to-rest map around the blade (held while it is outside)

@@ -42,8 +42,16 @@ void write_session(const std::filesystem::path& path, const SessionRecording& re
       const auto& pose = segment.poses[frame];
       Json row = pose ? Json{{"frame", frame}, {"pose", pose_json(*pose)}}
                       : Json{{"frame", frame}, {"lift", true}};
-      if (pose && frame < segment.world.size() && segment.world[frame] != 0) {
+      const bool passed = frame < segment.passed.size() && !segment.passed[frame].empty();
+      if ((pose || passed) && frame < segment.world.size() && segment.world[frame] != 0) {
         row["world"] = true;
+      }
+      if (passed) {
+        Json through = Json::array();
+        for (const auto& through_pose : segment.passed[frame]) {
+          through.push_back(through_pose ? pose_json(*through_pose) : Json(nullptr));
+        }
+        row["through"] = std::move(through);
       }
       out << row.dump() << "\n";
       while (next_action < segment.actions.size() &&
@@ -124,20 +132,35 @@ SessionRecording read_session(const std::filesystem::path& path) {
     if (row.contains("world") && !row["world"].is_boolean()) {
       fail("\"world\" must be true or false");
     }
+    const auto blade_pose = [&](const Json& p, const char* key) {
+      if (!p.is_array() || p.size() != 7 ||
+          !std::all_of(p.begin(), p.end(), [](const Json& v) { return v.is_number(); })) {
+        fail(std::string("\"") + key +
+             "\" must hold 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+      }
+      return BladePose{p[0].get<double>(),
+                       Vec3(p[1].get<double>(), p[2].get<double>(), p[3].get<double>()),
+                       Vec3(p[4].get<double>(), p[5].get<double>(), p[6].get<double>())};
+    };
     segment.world.push_back(row.value("world", false) ? 1 : 0);
     if (row.contains("lift")) {
       segment.poses.emplace_back();
     } else if (row.contains("pose")) {
-      const Json& p = row["pose"];
-      if (!p.is_array() || p.size() != 7 ||
-          !std::all_of(p.begin(), p.end(), [](const Json& v) { return v.is_number(); })) {
-        fail("\"pose\" must be 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
-      }
-      segment.poses.push_back(BladePose{
-          p[0].get<double>(), Vec3(p[1].get<double>(), p[2].get<double>(), p[3].get<double>()),
-          Vec3(p[4].get<double>(), p[5].get<double>(), p[6].get<double>())});
+      segment.poses.push_back(blade_pose(row["pose"], "pose"));
     } else {
       fail("a line needs \"start\", \"pose\", \"lift\" or \"action\"");
+    }
+    if (row.contains("through")) {
+      const Json& through = row["through"];
+      if (!through.is_array()) {
+        fail("\"through\" must be a list of poses and nulls");
+      }
+      segment.passed.resize(segment.poses.size());
+      for (const Json& passed : through) {
+        segment.passed.back().push_back(
+            passed.is_null() ? std::nullopt
+                             : std::optional<BladePose>(blade_pose(passed, "through")));
+      }
     }
   }
   if (line == 0) {
@@ -162,7 +185,12 @@ bool SessionRecorder::frame(const Engine& engine, const FrameRecord& record) {
   auto& poses = recording_->segments.back().poses;
   INCISE_ASSERT(record.frame == static_cast<int>(poses.size()), "frames recorded out of order");
   poses.push_back(engine.blade());
-  recording_->segments.back().world.push_back(engine.blade_frame() == PoseFrame::kWorld ? 1 : 0);
+  SessionSegment& segment = recording_->segments.back();
+  segment.world.push_back(engine.blade_frame() == PoseFrame::kWorld ? 1 : 0);
+  if (!engine.blade_passed().empty()) {
+    segment.passed.resize(poses.size());
+    segment.passed.back() = engine.blade_passed();
+  }
   return false;
 }
 
@@ -180,6 +208,14 @@ std::optional<BladePose> RecordedToolPoses::pose(int frame, double /*time*/) {
   return poses_[at];
 }
 
+ToolMotion RecordedToolPoses::motion(int frame, double time) {
+  ToolMotion motion{{}, pose(frame, time)};
+  if (frame >= 0 && static_cast<std::size_t>(frame) < passed_.size()) {
+    motion.passed = passed_[static_cast<std::size_t>(frame)];
+  }
+  return motion;
+}
+
 SceneDescription viewer_scene(SceneDescription scene) {
   if (scene.tool.cutter == CutterKind::kNone) {
     scene.tool.cutter = CutterKind::kSubdivision;  // the viewer's scalpel cuts any scene
@@ -189,7 +225,8 @@ SceneDescription viewer_scene(SceneDescription scene) {
 
 std::unique_ptr<Engine> replay_engine(const SessionSegment& segment) {
   auto engine = std::make_unique<Engine>(viewer_scene(segment.scene()));
-  engine->set_tool_source(std::make_unique<RecordedToolPoses>(segment.poses, segment.world));
+  engine->set_tool_source(
+      std::make_unique<RecordedToolPoses>(segment.poses, segment.world, segment.passed));
   return engine;
 }
 

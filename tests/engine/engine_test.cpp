@@ -96,6 +96,101 @@ TEST(Engine, ALiveToolCutsWhereItIsSetAndALiftStartsANewStroke) {
   EXPECT_TRUE(validate(engine.mesh()).ok());
 }
 
+TEST(LiveToolPose, KeepsTheStrokesEndsThatFellBetweenTwoFrames) {
+  LiveToolPose tool;
+  const auto at = [](double y) { return BladePose{0.0, Vec3(0, y, 0), Vec3(0, y, 1)}; };
+  const auto tip_y = [](const std::optional<BladePose>& pose) {
+    return pose ? pose->tip.y() : -1.0;  // -1: a lift
+  };
+  // Between two frames: a stroke from 1 to 2, lifted, and another from 3 to 4 still going.
+  for (const double y : {1.0, 1.5, 2.0}) {
+    tool.set(at(y));
+  }
+  tool.lift();
+  tool.set(at(3.0));
+  tool.set(at(4.0));
+  EXPECT_TRUE(tool.has_passed());
+  ToolMotion motion = tool.motion(7, 0.07);
+  ASSERT_EQ(motion.passed.size(), 4u);
+  EXPECT_EQ(tip_y(motion.passed[0]), 1.0);  // where the first stroke began
+  EXPECT_EQ(tip_y(motion.passed[1]), 2.0);  // where it was lifted
+  EXPECT_EQ(tip_y(motion.passed[2]), -1.0);
+  EXPECT_EQ(tip_y(motion.passed[3]), 3.0);  // where the second began
+  EXPECT_EQ(tip_y(motion.pose), 4.0);
+  EXPECT_EQ(motion.pose->time, 0.07);  // stamped by the engine's clock
+  EXPECT_EQ(motion.passed[0]->time, 0.07);
+  EXPECT_FALSE(tool.has_passed());
+  // The stroke goes on: only where it is now.
+  tool.set(at(5.0));
+  motion = tool.motion(8, 0.08);
+  EXPECT_TRUE(motion.passed.empty());
+  EXPECT_EQ(tip_y(motion.pose), 5.0);
+  // Lifted where the engine last saw it: the lift alone. A stroke that begins at the newest
+  // pose is that pose alone.
+  tool.lift();
+  tool.set(at(6.0));
+  motion = tool.motion(9, 0.09);
+  ASSERT_EQ(motion.passed.size(), 1u);
+  EXPECT_EQ(tip_y(motion.passed[0]), -1.0);
+  EXPECT_EQ(tip_y(motion.pose), 6.0);
+  // Moved, then lifted: where it was lifted, then the lift.
+  tool.set(at(6.5));
+  tool.lift();
+  motion = tool.motion(10, 0.1);
+  ASSERT_EQ(motion.passed.size(), 2u);
+  EXPECT_EQ(tip_y(motion.passed[0]), 6.5);
+  EXPECT_EQ(tip_y(motion.passed[1]), -1.0);
+  EXPECT_FALSE(motion.pose.has_value());
+  // A device that flickers while the engine stalls holds bounded memory, newest ends kept.
+  for (int k = 0; k < 1000; ++k) {
+    tool.set(at(k));
+    tool.lift();
+  }
+  motion = tool.motion(11, 0.11);
+  EXPECT_EQ(motion.passed.size(), LiveToolPose::kMaxPassed);
+  EXPECT_EQ(tip_y(motion.passed[motion.passed.size() - 2]), 999.0);
+  EXPECT_FALSE(motion.pose.has_value());
+}
+
+// What a live stroke cuts does not depend on when the physics looked: a loaded machine that
+// steps once while a device plays its whole stroke (here: set and lifted between two frames)
+// still cuts from where the stroke began to where it was lifted, and a full cut separates.
+TEST(Engine, AStrokeBetweenTwoFramesCutsAsFarAsOneSampledEveryFrame) {
+  const auto pose_at_y = [](double y) {
+    return BladePose{0.0, Vec3(0.0213, y, -0.01), Vec3(0.0213, y, 0.05)};
+  };
+  const auto cut_by = [&](bool every_frame) {
+    SceneDescription scene = short_default(0);
+    scene.tool.poses.clear();
+    auto engine = std::make_unique<Engine>(scene);
+    auto live = std::make_unique<LiveToolPose>();
+    LiveToolPose* tool = live.get();
+    engine->set_tool_source(std::move(live));
+    EXPECT_TRUE(engine->step());
+    for (int k = 0; k <= 40; ++k) {
+      tool->set(pose_at_y(-0.01 + 0.002 * k));
+      if (every_frame) {
+        EXPECT_TRUE(engine->step());
+      }
+    }
+    tool->lift();
+    EXPECT_TRUE(engine->step());
+    // Sampled every frame, the lift comes where the engine already was: nothing left to cut.
+    EXPECT_EQ(engine->last_frame().cut, !every_frame);
+    EXPECT_FALSE(engine->blade().has_value());
+    return engine;
+  };
+  const auto sampled = cut_by(true);
+  const auto between = cut_by(false);
+  EXPECT_EQ(between->blade_passed().size(), 3u);  // began, lifted, the lift
+  for (const Engine* engine : {sampled.get(), between.get()}) {
+    EXPECT_TRUE(validate(engine->mesh()).ok());
+    int pieces = 0;
+    (void)tet_components(engine->mesh(), &pieces);
+    EXPECT_EQ(pieces, 2);
+  }
+}
+
 TEST(Engine, ReadersOnAnotherThreadSeeWholeFramesWhileItSteps) {
   Engine engine(short_default(80));
   engine.publish_snapshots(true);

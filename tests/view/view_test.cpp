@@ -163,6 +163,50 @@ TEST(SessionRecording, AHandMadeCutReplaysBitForBitFromTheFile) {
   }
 }
 
+// A quick stroke made between two frames (a click-drag-release faster than the physics)
+// cuts, is recorded with the poses it passed through, and replays bit for bit.
+TEST(SessionRecording, AStrokeMadeBetweenTwoFramesIsRecordedAndReplayed) {
+  SessionRecording recording;
+  SceneDescription scene = default_scene();
+  scene.tool.poses.clear();
+  Engine engine(scene);
+  auto tool = std::make_unique<HandOverTool>(nullptr);
+  HandOverTool& hand = *tool;
+  engine.set_tool_source(std::move(tool));
+  SessionRecorder recorder(recording);
+  engine.add_sink(recorder);
+  hand.take();
+  ASSERT_TRUE(engine.step());
+  const std::size_t tets_before = engine.mesh().tet_count();
+  for (int k = 0; k <= 10; ++k) {
+    const double y = -0.01 + 0.005 * k;
+    hand.live().set(BladePose{0.0, Vec3(0.0213, y, 0.012), Vec3(0.0213, y, 0.06)});
+  }
+  hand.live().lift();
+  ASSERT_TRUE(engine.step());
+  ASSERT_TRUE(engine.step());
+  engine.finish();
+  EXPECT_GT(engine.mesh().tet_count(), tets_before + 20);
+
+  const auto dir = test::scratch_dir("session-through");
+  write_session(dir / "quick.jsonl", recording);
+  const SessionRecording read = read_session(dir / "quick.jsonl");
+  ASSERT_EQ(read.segments.size(), 1u);
+  const SessionSegment& segment = read.segments.front();
+  ASSERT_GE(segment.passed.size(), 3u);
+  EXPECT_EQ(segment.passed[2].size(), 3u);  // began, lifted, the lift
+  EXPECT_EQ(segment.world[2], 1);
+  const auto replay = replay_engine(segment);
+  for (int k = 0; k < segment.frames(); ++k) {
+    ASSERT_TRUE(replay->step());
+  }
+  EXPECT_EQ(replay->mesh().tet_count(), engine.mesh().tet_count());
+  ASSERT_EQ(replay->positions().size(), engine.positions().size());
+  for (std::size_t i = 0; i < engine.positions().size(); ++i) {
+    ASSERT_EQ(replay->positions()[i], engine.positions()[i]) << "vertex " << i;
+  }
+}
+
 TEST(SessionRecording, ABadFileNamesItsLine) {
   const auto dir = test::scratch_dir("bad-session");
   const auto expect_error = [&](const std::string& text, const std::string& line) {
@@ -182,6 +226,8 @@ TEST(SessionRecording, ABadFileNamesItsLine) {
   expect_error(start + "{\"frame\": 0, \"pose\": [1, 2, 3]}\n", "3");
   expect_error(start + "{\"frame\": 0, \"pose\": [0, 0, 0, 0, 0, 0, 1], \"world\": 1}\n", "3");
   expect_error(start + "not json\n", "3");
+  expect_error(start + "{\"frame\": 0, \"lift\": true, \"through\": [[0, 1]]}\n", "3");
+  expect_error(start + "{\"frame\": 0, \"lift\": true, \"through\": 5}\n", "3");
   expect_error("{\"incise_session\": 1}\n{\"frame\": 0, \"lift\": true}\n", "2");
 }
 

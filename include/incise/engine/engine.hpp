@@ -118,6 +118,9 @@ class Engine {
   /// The blade at the end of the last frame, if the tool was on, as its source gave it (in
   /// blade_frame(): the world for a mouse or device, else the rest frame).
   [[nodiscard]] const std::optional<BladePose>& blade() const;
+  /// The strokes' ends the blade passed through during the last frame, before blade(), in the
+  /// same frame (ToolMotion::passed; empty but for a live source between two frames).
+  [[nodiscard]] const std::vector<std::optional<BladePose>>& blade_passed() const;
   [[nodiscard]] PoseFrame blade_frame() const;
   /// The same blade in the body's rest frame: what the cutter cut with.
   [[nodiscard]] const std::optional<BladePose>& blade_rest() const;

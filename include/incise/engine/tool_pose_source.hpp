@@ -2,6 +2,12 @@
 // Where the scalpel is: the engine asks a ToolPoseSource for the blade pose at the end of each
 // frame. Sources: a scripted or recorded path (poses over time, interpolated), and a live pose
 // set from another thread (the viewer's mouse, a network device).
+//
+// A live source is sampled at the physics' frame rate, which a loaded machine may drop to a few
+// frames per second while a device sends 1,000 poses per second. So that what is cut does not
+// depend on when the physics looked, a frame also gets the stroke's ends that fell between two
+// frames (ToolMotion::passed): where a stroke began and where it was lifted. Between them the
+// blade sweeps straight from one frame's pose to the next, as it does for a scripted path.
 
 #include <filesystem>
 #include <memory>
@@ -14,6 +20,15 @@
 
 namespace incise {
 
+/// What the tool did over one frame, in the frame of ToolPoseSource::frame().
+struct ToolMotion {
+  /// Poses it passed through since the last frame, in order, before `pose`; an empty entry is a
+  /// lift (the stroke ended just before it).
+  std::vector<std::optional<BladePose>> passed;
+  /// Where it is at the end of the frame; nothing while it is away from the body.
+  std::optional<BladePose> pose;
+};
+
 class ToolPoseSource {
  public:
   ToolPoseSource() = default;
@@ -25,6 +40,11 @@ class ToolPoseSource {
   /// nothing while the tool is away from the body (a later pose starts a new stroke). Called
   /// from the thread that steps the engine, once per frame.
   [[nodiscard]] virtual std::optional<BladePose> pose(int frame, double time) = 0;
+  /// The frame's motion: what the engine cuts with at each step. Default: pose() alone, for a
+  /// path that is the same whenever it is sampled.
+  [[nodiscard]] virtual ToolMotion motion(int frame, double time) {
+    return {{}, pose(frame, time)};
+  }
   /// The frame of the pose pose() returned last: the body's rest frame (scene and recorded
   /// paths, the default) or the world, where the body is now (a mouse, a tracked device).
   [[nodiscard]] virtual PoseFrame frame() const { return PoseFrame::kRest; }
@@ -46,9 +66,10 @@ class ScriptedToolPath final : public ToolPoseSource {
   std::vector<BladePose> poses_;
 };
 
-/// The latest pose set by another thread (a viewer, a device loop). Thread rule: set() and
-/// lift() may be called from any thread at any rate; the engine reads the newest pose once
-/// per frame under a lock held only to copy it.
+/// The latest pose set by another thread (a viewer, a device loop), with the ends of the
+/// strokes that began or ended since the engine last read it. Thread rule: set() and lift() may
+/// be called from any thread at any rate; the engine reads once per frame under a lock held
+/// only to move the poses out.
 class LiveToolPose final : public ToolPoseSource {
  public:
   /// Poses set in `frame`: kWorld for a mouse on the picture or a tracked device.
@@ -57,13 +78,25 @@ class LiveToolPose final : public ToolPoseSource {
   void set(const BladePose& pose);
   /// The blade leaves the body: the next set() starts a new stroke.
   void lift();
+  /// The newest pose, leaving the strokes' ends for motion().
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override;
+  /// The strokes' ends since the last call, then the newest pose; all stamped `time`.
+  [[nodiscard]] ToolMotion motion(int frame, double time) override;
+  /// Whether strokes' ends wait for the next motion(): a device that left between two frames
+  /// still has its last stroke's end to cut.
+  [[nodiscard]] bool has_passed();
   [[nodiscard]] PoseFrame frame() const override { return frame_; }
+
+  /// At most this many strokes' ends are kept between two frames (the oldest go first): a
+  /// stalled engine holds bounded memory however a device flickers.
+  static constexpr std::size_t kMaxPassed = 64;
 
  private:
   PoseFrame frame_;
   std::mutex mutex_;
   std::optional<BladePose> pose_;
+  std::optional<BladePose> read_;  ///< the pose motion() returned last
+  std::vector<std::optional<BladePose>> passed_;
 };
 
 }  // namespace incise

@@ -58,6 +58,13 @@ class HandOverTool final : public ToolPoseSource {
     last_frame_ = PoseFrame::kRest;
     return scripted_ ? scripted_->pose(frame, time) : std::nullopt;
   }
+  [[nodiscard]] ToolMotion motion(int frame, double time) override {
+    if (taken_.load()) {
+      last_frame_ = PoseFrame::kWorld;
+      return live_.motion(frame, time);  // with a stroke made between two frames
+    }
+    return {{}, pose(frame, time)};
+  }
   /// The scene's path is in the rest frame; the mouse works on the picture, in the world.
   [[nodiscard]] PoseFrame frame() const override { return last_frame_; }
 

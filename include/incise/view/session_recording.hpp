@@ -8,7 +8,9 @@
 // {"frame": 0, "start": {"scene_file": PATH, "scene": TEXT}} line, and lines
 // {"frame": N, "pose": [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]} (s, m; with
 // "world": true where the pose is where the body is now, the mouse's, not in its rest frame),
-// {"frame": N, "lift": true} and {"frame": N, "action": NAME, "value": TEXT}.
+// {"frame": N, "lift": true} and {"frame": N, "action": NAME, "value": TEXT}. A pose or lift
+// line may carry "through": [POSE or null, ...], the strokes' ends the blade passed during
+// that frame before it (ToolMotion::passed; null: a lift), in the same frame as the pose.
 
 #include <filesystem>
 #include <memory>
@@ -31,6 +33,8 @@ struct SessionSegment {
   std::string scene_text;
   std::vector<std::optional<BladePose>> poses;  ///< index: frame (0: the start)
   std::vector<std::uint8_t> world;              ///< per frame: the pose is in the world
+  /// Per frame (may be shorter than poses: none after it): ToolMotion::passed.
+  std::vector<std::vector<std::optional<BladePose>>> passed;
   std::vector<SessionAction> actions;
   /// The scene, parsed as it was run (relative paths against scene_file's folder).
   [[nodiscard]] SceneDescription scene() const;
@@ -63,15 +67,19 @@ class SessionRecorder final : public FrameSink {
 /// The poses of a recorded segment, frame by frame; the tool is lifted after its end.
 class RecordedToolPoses final : public ToolPoseSource {
  public:
-  /// `world` per frame (empty: every pose in the rest frame).
-  RecordedToolPoses(std::vector<std::optional<BladePose>> poses, std::vector<std::uint8_t> world)
-      : poses_(std::move(poses)), world_(std::move(world)) {}
+  /// `world` per frame (empty: every pose in the rest frame); `passed` per frame (may be
+  /// shorter: none after it).
+  RecordedToolPoses(std::vector<std::optional<BladePose>> poses, std::vector<std::uint8_t> world,
+                    std::vector<std::vector<std::optional<BladePose>>> passed = {})
+      : poses_(std::move(poses)), world_(std::move(world)), passed_(std::move(passed)) {}
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override;
+  [[nodiscard]] ToolMotion motion(int frame, double time) override;
   [[nodiscard]] PoseFrame frame() const override { return frame_; }
 
  private:
   std::vector<std::optional<BladePose>> poses_;
   std::vector<std::uint8_t> world_;
+  std::vector<std::vector<std::optional<BladePose>>> passed_;
   PoseFrame frame_ = PoseFrame::kRest;
 };
 
