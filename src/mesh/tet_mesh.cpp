@@ -204,8 +204,7 @@ void TetMesh::replace_observer(MeshObserver* old_observer, MeshObserver* new_obs
 }
 
 EdgeId TetMesh::find_edge(VertexId a, VertexId b) const {
-  const auto it = edge_index_.find(edge_key(a, b));
-  return it == edge_index_.end() ? kInvalidId : it->second;
+  return edge_index_.find(edge_key(a, b));
 }
 
 int TetMesh::local_index(TetId tet, VertexId vertex) const {
@@ -271,7 +270,7 @@ void TetMesh::build_adjacency() {
     edges_.push_back({static_cast<VertexId>(edge_slots[i].key >> 32U),
                       static_cast<VertexId>(edge_slots[i].key & 0xffffffffU)});
     edge_tets_.push_back(std::move(around));
-    edge_index_.emplace(edge_slots[i].key, id);
+    edge_index_.assign(edge_slots[i].key, id);
     i = j;
   }
 
@@ -371,13 +370,13 @@ void TetMesh::update_face(VertexId a, VertexId b, VertexId c) {
 
 EdgeId TetMesh::find_or_create_edge(VertexId a, VertexId b) {
   const std::uint64_t key = edge_key(a, b);
-  const auto [it, inserted] = edge_index_.try_emplace(key, static_cast<EdgeId>(edges_.size()));
+  const auto [edge, inserted] = edge_index_.try_emplace(key, static_cast<EdgeId>(edges_.size()));
   if (inserted) {
     edges_.push_back({std::min(a, b), std::max(a, b)});
     edge_tets_.emplace_back();
-    edit_created_edges_.push_back(it->second);
+    edit_created_edges_.push_back(edge);
   }
-  return it->second;
+  return edge;
 }
 
 void TetMesh::attach(TetId t) {
@@ -465,7 +464,7 @@ void TetMesh::finish_edit() {
     if (edge != last) {
       edges_[edge] = edges_[last];
       edge_tets_[edge] = std::move(edge_tets_[last]);
-      edge_index_[edge_key(edges_[edge][0], edges_[edge][1])] = edge;
+      edge_index_.assign(edge_key(edges_[edge][0], edges_[edge][1]), edge);
       for (TetId t : edge_tets_[edge]) {
         std::replace(tet_edges_[t].begin(), tet_edges_[t].end(), last, edge);
       }
@@ -885,7 +884,7 @@ void TetMesh::load_state(StateReader& in) {
   }
   edge_index_.clear();
   for (std::size_t e = 0; e < edges_.size(); ++e) {
-    edge_index_[edge_key(edges_[e][0], edges_[e][1])] = static_cast<EdgeId>(e);
+    edge_index_.assign(edge_key(edges_[e][0], edges_[e][1]), static_cast<EdgeId>(e));
   }
   edit_created_edges_.clear();
   edit_unused_edges_.clear();

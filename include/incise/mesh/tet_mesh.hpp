@@ -7,12 +7,12 @@
 #include <array>
 #include <cstdint>
 #include <span>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 
 #include "incise/core/state_archive.hpp"
 #include "incise/core/types.hpp"
+#include "incise/mesh/edge_index.hpp"
 
 namespace incise {
 
@@ -276,7 +276,7 @@ class TetMesh {
   std::vector<std::vector<TetId>> vertex_tets_;
   std::vector<std::array<VertexId, 2>> edges_;
   std::vector<std::vector<TetId>> edge_tets_;
-  std::unordered_map<std::uint64_t, EdgeId> edge_index_;
+  EdgeIndex edge_index_;
   std::uint64_t revision_ = 0;
 
   // Per-edit bookkeeping: edges appended and edges left without tetrahedra.
