@@ -412,11 +412,9 @@ bool Engine::step() {
     record.cut = true;
     return true;
   };
-  // The strokes' ends the source passed through since the last frame, then where it is now. The
-  // cutters cut the rest mesh: a pose given in the world is carried back first.
-  motion.passed.push_back(motion.pose);
+  // The cutters cut the rest mesh: a pose given in the world is carried back first.
   bool xfem_moved = false;
-  for (const std::optional<BladePose>& given : motion.passed) {
+  const auto advance_to = [&](const std::optional<BladePose>& given) {
     const std::optional<BladePose> pose =
         given ? std::optional<BladePose>(p.rest_pose(*given, frame)) : std::nullopt;
     if (p.cutter && pose) {
@@ -426,8 +424,12 @@ bool Engine::step() {
       xfem_moved = cut_with(*p.xfem, *pose) || xfem_moved;
     }
     p.blade_rest = pose;
+  };
+  // The strokes' ends the source passed through since the last frame, then where it is now.
+  for (const std::optional<BladePose>& given : motion.passed) {
+    advance_to(given);
   }
-  motion.passed.pop_back();
+  advance_to(motion.pose);
   if (p.cutter && p.blade_rest) {
     // Local relaxation starts at the vertex nearest the blade tip.
     const TetId holder = p.cutter->active_point_tet();

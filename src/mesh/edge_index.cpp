@@ -30,12 +30,16 @@ EdgeId EdgeIndex::find(std::uint64_t key) const {
   return slot.key == key ? slot.id : kInvalidId;
 }
 
-std::pair<EdgeId, bool> EdgeIndex::try_emplace(std::uint64_t key, EdgeId id) {
+EdgeIndex::Slot& EdgeIndex::slot_for(std::uint64_t key) {
   INCISE_ASSERT(key != kEmpty, "an edge key with its top bit set");
   if (4 * (size_ + 1) > 3 * slots_.size()) {
     grow_to(std::max<std::size_t>(16, 2 * slots_.size()));
   }
-  Slot& slot = slots_[probe(key)];
+  return slots_[probe(key)];
+}
+
+std::pair<EdgeId, bool> EdgeIndex::try_emplace(std::uint64_t key, EdgeId id) {
+  Slot& slot = slot_for(key);
   if (slot.key == key) {
     return {slot.id, false};
   }
@@ -45,10 +49,12 @@ std::pair<EdgeId, bool> EdgeIndex::try_emplace(std::uint64_t key, EdgeId id) {
 }
 
 void EdgeIndex::assign(std::uint64_t key, EdgeId id) {
-  const auto [stored, inserted] = try_emplace(key, id);
-  if (!inserted && stored != id) {
-    slots_[probe(key)].id = id;
+  Slot& slot = slot_for(key);
+  if (slot.key != key) {
+    slot.key = key;
+    ++size_;
   }
+  slot.id = id;
 }
 
 bool EdgeIndex::erase(std::uint64_t key) {

@@ -77,6 +77,16 @@ SessionRecording read_session(const std::filesystem::path& path) {
   const auto fail = [&](const std::string& message) {
     throw InputError(path.string(), line, message);
   };
+  const auto blade_pose = [&](const Json& p, const char* key) {
+    if (!p.is_array() || p.size() != 7 ||
+        !std::all_of(p.begin(), p.end(), [](const Json& v) { return v.is_number(); })) {
+      fail(std::string("\"") + key +
+           "\" must hold 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
+    }
+    return BladePose{p[0].get<double>(),
+                     Vec3(p[1].get<double>(), p[2].get<double>(), p[3].get<double>()),
+                     Vec3(p[4].get<double>(), p[5].get<double>(), p[6].get<double>())};
+  };
   while (std::getline(in, text)) {
     ++line;
     if (text.empty()) {
@@ -132,16 +142,6 @@ SessionRecording read_session(const std::filesystem::path& path) {
     if (row.contains("world") && !row["world"].is_boolean()) {
       fail("\"world\" must be true or false");
     }
-    const auto blade_pose = [&](const Json& p, const char* key) {
-      if (!p.is_array() || p.size() != 7 ||
-          !std::all_of(p.begin(), p.end(), [](const Json& v) { return v.is_number(); })) {
-        fail(std::string("\"") + key +
-             "\" must hold 7 numbers [t, tip_x, tip_y, tip_z, base_x, base_y, base_z]");
-      }
-      return BladePose{p[0].get<double>(),
-                       Vec3(p[1].get<double>(), p[2].get<double>(), p[3].get<double>()),
-                       Vec3(p[4].get<double>(), p[5].get<double>(), p[6].get<double>())};
-    };
     segment.world.push_back(row.value("world", false) ? 1 : 0);
     if (row.contains("lift")) {
       segment.poses.emplace_back();

@@ -58,6 +58,8 @@ class EdgeIndex {
   [[nodiscard]] std::size_t home(std::uint64_t key) const;
   /// The slot holding `key`, or the empty slot where it would go.
   [[nodiscard]] std::size_t probe(std::uint64_t key) const;
+  /// probe()'s slot, after growing the table if one more key would make it over 3/4 full.
+  [[nodiscard]] Slot& slot_for(std::uint64_t key);
   void grow_to(std::size_t slots);
 
   std::vector<Slot> slots_;  ///< a power of two in size, at most 3/4 full

@@ -63,7 +63,7 @@ class HandOverTool final : public ToolPoseSource {
       last_frame_ = PoseFrame::kWorld;
       return live_.motion(frame, time);  // with a stroke made between two frames
     }
-    return {{}, pose(frame, time)};
+    return ToolPoseSource::motion(frame, time);
   }
   /// The scene's path is in the rest frame; the mouse works on the picture, in the world.
   [[nodiscard]] PoseFrame frame() const override { return last_frame_; }
