@@ -1,6 +1,10 @@
 #pragma once
-// Option values shared by the commands that draw pictures (run --render, view).
+// Options shared by the commands that step a scene and draw pictures (run, view).
 
+#include <tbb/global_control.h>
+
+#include <CLI/CLI.hpp>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -30,6 +34,24 @@ inline RenderMode parse_mode(const std::string& text) {
     throw InputError("--mode " + text + ": expected faces, wire or cut");
   }
   return *mode;
+}
+
+/// --threads N on `command`, read into `threads` (0: all cores).
+inline void add_threads_option(CLI::App& command, int& threads) {
+  command
+      .add_option("--threads", threads,
+                  "Worker threads for element loops and solvers (default: all cores); the "
+                  "output is the same for any count")
+      ->check(CLI::PositiveNumber);
+}
+
+/// Holds TBB to `threads` workers while it lives (nothing for 0).
+inline std::unique_ptr<tbb::global_control> limit_threads(int threads) {
+  if (threads <= 0) {
+    return nullptr;
+  }
+  return std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                               static_cast<std::size_t>(threads));
 }
 
 }  // namespace incise::app

@@ -3,7 +3,6 @@
 // [--video FILE.mp4]]: runs a scene headless, a short loop over the engine.
 
 #include <fmt/format.h>
-#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -148,17 +147,9 @@ Runner add_run_command(CLI::App& app) {
                    "run) fed the same tool poses; the same final mesh, bit for bit")
       ->check(CLI::ExistingFile);
   auto threads = std::make_shared<int>(0);
-  command
-      ->add_option("--threads", *threads,
-                   "Worker threads for element loops and solvers (default: all cores); the "
-                   "output is the same for any count")
-      ->check(CLI::PositiveNumber);
+  add_threads_option(*command, *threads);
   return [=]() {
-    std::unique_ptr<tbb::global_control> thread_limit;
-    if (*threads > 0) {
-      thread_limit = std::make_unique<tbb::global_control>(
-          tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(*threads));
-    }
+    const auto thread_limit = limit_threads(*threads);
     if (!resume_path->empty() && !scene_path->empty()) {
       throw InputError(*resume_path, 0,
                        "--resume takes the scene stored in the checkpoint: "
@@ -319,6 +310,7 @@ Runner add_run_command(CLI::App& app) {
                              {"gc", 1e3 * record.gc},
                              {"rx", 1e3 * record.rx},
                              {"rd", 1e3 * record.rd},
+                             {"solver_iterations", record.solver_iterations},
                              {"vertices", record.vertices},
                              {"tets", record.tets},
                              {"kinetic_energy", record.kinetic_energy},

@@ -1,6 +1,6 @@
 // incise view [SCENE] [--replay FILE] [--record FILE] [--screenshot OUT.png] [--exit-after N]
-// [--size WxH] [--mode faces|wire|cut] [--out DIR]: the interactive viewer with the mouse
-// scalpel (see viewer/viewer.hpp).
+// [--size WxH] [--mode faces|wire|cut] [--out DIR] [--threads N]: the interactive viewer with the
+// mouse scalpel (see viewer/viewer.hpp).
 
 #include <memory>
 #include <string>
@@ -28,6 +28,7 @@ Runner add_view_command(CLI::App& app) {
   auto paced = std::make_shared<bool>(false);
   auto size = std::make_shared<std::string>("1280x800");
   auto mode = std::make_shared<std::string>("faces");
+  auto threads = std::make_shared<int>(0);
   command->add_option("scene", *scene_path, "Scene file (JSON); see scenes/README.md")
       ->check(CLI::ExistingFile);
   command
@@ -52,8 +53,10 @@ Runner add_view_command(CLI::App& app) {
   command->add_option("--mode", *mode, "faces, wire or cut (keys F, G, C)");
   command->add_option("--out", *out,
                       "Write the first and the last frame here as a ParaView series");
+  add_threads_option(*command, *threads);
   return [=]() -> int {
 #ifdef INCISE_HAVE_VIEWER
+    const auto thread_limit = limit_threads(*threads);
     ViewerOptions options;
     if (!scene_path->empty()) {
       if (!replay->empty()) {

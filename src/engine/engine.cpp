@@ -466,6 +466,7 @@ bool Engine::step() {
   auto start = Clock::now();
   for (int s = 0; s < p.steps_per_frame; ++s) {
     p.integrator->step(p.system, p.state.x.values(), p.state.v.values(), p.state.time, dt);
+    record.solver_iterations += p.integrator->stats().solver_iterations_last_step;
     p.state.time = frame_dt * (record.frame - 1) + dt * (s + 1);
   }
   p.state.time = frame_dt * record.frame;

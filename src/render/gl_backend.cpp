@@ -218,7 +218,12 @@ void GlBackend::draw(const DrawCall& call) {
                1.0F);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
   glEnable(GL_DEPTH_TEST);
-  glDisable(GL_CULL_FACE);  // cut bodies show faces from both sides
+  if (call.cull_back_faces) {
+    glCullFace(GL_BACK);  // counter-clockwise faces are front faces (OpenGL's default)
+    glEnable(GL_CULL_FACE);
+  } else {
+    glDisable(GL_CULL_FACE);
+  }
   glUseProgram(program_);
   glUniformMatrix4fv(glGetUniformLocation(program_, "u_view_projection"), 1, GL_FALSE,
                      call.view_projection.data());
@@ -254,6 +259,7 @@ void GlBackend::draw(const DrawCall& call) {
     draw_triangles(0, exterior_triangles_ + cut_triangles_);
     glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
   }
+  glDisable(GL_CULL_FACE);  // the blade is seen from both sides
 
   glBindVertexArray(overlay_vao_);
   glBindBuffer(GL_ARRAY_BUFFER, overlay_buffer_);

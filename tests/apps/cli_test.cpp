@@ -234,6 +234,7 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
   EXPECT_GT(json["tets"].template get<int>(), 576);  // the blade has cut the block
   EXPECT_EQ(json["diverged"], false);
   EXPECT_EQ(json["per_frame_ms"].size(), 40u);
+  EXPECT_EQ(json["per_frame_ms"][0]["solver_iterations"], 0);  // explicit: no linear solve
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default.pvd"));
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000040.vtu"));
 }

@@ -180,5 +180,41 @@ TEST(Offscreen, TheSameFrameGivesTheSamePictureAtAnySizeAsked) {
   EXPECT_GT(body_pixels(a), 2000u);
 }
 
+TEST(Offscreen, SkippingTheBackFacesOfAClosedBodyLeavesThePictureAsItWas) {
+  REQUIRE_RENDERER(renderer);
+  Engine engine(default_scene());
+  for (int k = 0; k < 150; ++k) {
+    ASSERT_TRUE(engine.step());
+  }
+  const FrameScene scene = frame_scene(engine, false);
+  ASSERT_FALSE(engine.cut_surface().empty());
+  RenderOptions options;
+  options.width = 240;
+  options.height = 180;
+  options.camera = fit_camera(scene.bounds(), 4.0 / 3);
+  // All around the cut body and from below, in both modes that draw the exterior: where the
+  // surface is closed the back faces lie behind front faces, so drawing them changes nothing
+  // but the odd pixel on a silhouette edge.
+  for (const RenderMode mode : {RenderMode::kFaces, RenderMode::kWire}) {
+    options.mode = mode;
+    for (int view = 0; view < 6; ++view) {
+      orbit(options.camera, 1.05, view == 3 ? -1.2 : 0.0);
+      options.two_sided = false;
+      const Image culled = renderer->render(scene.input(), options);
+      options.two_sided = true;
+      const Image two_sided = renderer->render(scene.input(), options);
+      std::size_t differ = 0;
+      for (std::size_t i = 0; i < culled.pixels().size(); ++i) {
+        const Rgba& a = culled.pixels()[i];
+        const Rgba& b = two_sided.pixels()[i];
+        differ += std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b) > 30 ? 1 : 0;
+      }
+      const std::size_t body = body_pixels(two_sided);
+      ASSERT_GT(body, 2000u);
+      EXPECT_LT(differ, body / 200) << "view " << view << " in " << name_of(mode);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace incise

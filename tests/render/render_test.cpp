@@ -160,11 +160,67 @@ TEST(Renderer, BuffersFollowEveryCutAndEveryFaceHasTextureCoordinates) {
     }
     // The cut faces are the engine's cut surface.
     ASSERT_EQ(buffers.cut_triangles, engine.cut_surface().size());
+    // A tetrahedral mesh's boundary is closed and faces out after any cut, so its back faces
+    // are skipped, except where only the cut faces are shown.
+    ASSERT_TRUE(buffers.closed_outward) << "frame " << k;
+    ASSERT_TRUE(backend.last_call.cull_back_faces);
   }
   EXPECT_GT(backend.surface.cut_triangles, 20u);
   EXPECT_GT(surface_changes, 10);
   EXPECT_LT(surface_changes, 152);  // not re-uploaded when nothing changed
   EXPECT_FALSE(backend.last_call.blade_quad.empty());
+}
+
+TEST(Renderer, BackFacesAreSkippedOnlyWhereTheSurfaceIsClosedAndFacesOut) {
+  // Two tetrahedra touching along one edge (0-1), each with its four faces outward.
+  const std::vector<Vec3> positions{Vec3(0, 0, 0), Vec3(1, 0, 0),  Vec3(0, 1, 0),
+                                    Vec3(0, 0, 1), Vec3(0, -1, 0), Vec3(0, 0, -1)};
+  const auto faces_of = [](VertexId a, VertexId b, VertexId c, VertexId d) {
+    return std::vector<Triangle>{{a, c, b}, {a, b, d}, {a, d, c}, {b, c, d}};
+  };
+  std::vector<Triangle> closed = faces_of(0, 1, 2, 3);
+  for (const Triangle& t : faces_of(0, 1, 4, 5)) {
+    closed.push_back(t);
+  }
+  EXPECT_TRUE(closed_and_facing_out(closed, positions));
+  std::vector<Triangle> inward = closed;
+  for (Triangle& t : inward) {
+    std::swap(t[1], t[2]);
+  }
+  EXPECT_FALSE(closed_and_facing_out(inward, positions)) << "closed, but facing in";
+  std::vector<Triangle> open(closed.begin() + 1, closed.end());
+  EXPECT_FALSE(closed_and_facing_out(open, positions)) << "a face missing";
+  std::vector<Triangle> flipped = closed;
+  std::swap(flipped[5][1], flipped[5][2]);
+  EXPECT_FALSE(closed_and_facing_out(flipped, positions)) << "one face turned the wrong way";
+  EXPECT_FALSE(closed_and_facing_out({}, positions));
+
+  // The renderer culls the closed pair in faces mode, never in cut mode or when asked not to.
+  const std::vector<std::uint8_t> on_cut(closed.size(), 0);
+  RenderInput input;
+  input.triangles = closed;
+  input.on_cut = on_cut;
+  input.positions = positions;
+  input.rest_positions = positions;
+  NullBackend backend;
+  Renderer renderer(backend);
+  RenderOptions options;
+  options.camera = fit_camera(box(Vec3(-1, -1, -1), Vec3(1, 1, 1)), 1.0);
+  renderer.render(input, options);
+  EXPECT_TRUE(backend.last_call.cull_back_faces);
+  options.mode = RenderMode::kCut;
+  renderer.render(input, options);
+  EXPECT_FALSE(backend.last_call.cull_back_faces);
+  options.mode = RenderMode::kFaces;
+  options.two_sided = true;
+  renderer.render(input, options);
+  EXPECT_FALSE(backend.last_call.cull_back_faces);
+  options.two_sided = false;
+  input.triangles = open;
+  input.on_cut = std::span<const std::uint8_t>(on_cut).first(open.size());
+  input.surface_revision = 1;
+  renderer.render(input, options);
+  EXPECT_FALSE(backend.last_call.cull_back_faces);
 }
 
 TEST(Renderer, HighlightsTheActiveTetrahedraAndTheEdgesTheBladeHasCut) {

@@ -32,11 +32,12 @@ class Integrator;
 /// One frame: stage times (s) named after the seed's Table 1, and the state after it.
 struct FrameRecord {
   int frame = 0;
-  double time = 0.0;  ///< simulated time at the end of the frame (s)
-  double cd = 0.0;    ///< collision detection (s)
-  double gc = 0.0;    ///< topology and geometry changes (s)
-  double rx = 0.0;    ///< relaxation (s)
-  double rd = 0.0;    ///< output: sinks and the published snapshot (s)
+  double time = 0.0;                  ///< simulated time at the end of the frame (s)
+  double cd = 0.0;                    ///< collision detection (s)
+  double gc = 0.0;                    ///< topology and geometry changes (s)
+  double rx = 0.0;                    ///< relaxation (s)
+  double rd = 0.0;                    ///< output: sinks and the published snapshot (s)
+  std::size_t solver_iterations = 0;  ///< the solver's iterations in the frame (0: explicit)
   std::size_t vertices = 0;
   std::size_t tets = 0;
   double kinetic_energy = 0.0;    ///< J

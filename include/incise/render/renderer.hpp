@@ -59,6 +59,8 @@ struct RenderOptions {
   bool draw_blade = true;
   /// The scalars' values at the blue and the red end of the colour map.
   std::array<double, 2> scalar_range{0.0, 1.0};
+  /// Draw back faces even where the surface is closed (they are hidden then: for tests).
+  bool two_sided = false;
 };
 
 /// The CPU side of the surface's buffers: built once per surface revision.
@@ -72,7 +74,16 @@ struct SurfaceBuffers {
   /// Coloured by scalars: each texture coordinate is (t, 0.5, 0.5), t the scalar's place in
   /// the range, into the colour map.
   bool colour_mapped = false;
+  /// Every edge is used as often in one direction as in the other, and the rest volume it
+  /// encloses is positive: the surface bounds solids and faces out, so from outside its back
+  /// faces are always behind front faces and need not be drawn.
+  bool closed_outward = false;
 };
+
+/// Whether `triangles` bound solids and face out (SurfaceBuffers::closed_outward), at
+/// `positions`.
+[[nodiscard]] bool closed_and_facing_out(std::span<const Triangle> triangles,
+                                         std::span<const Vec3> positions);
 
 /// Builds the buffers of `input`'s surface. Throws InputError naming the triangle if it
 /// refers to a vertex that has no position (or scalar), or a rest position is not finite.
@@ -94,6 +105,9 @@ struct DrawCall {
   std::vector<float> lines;       ///< 6 floats per segment
   std::vector<float> cut_lines;   ///< 6 floats per segment, drawn in a second colour
   bool colour_mapped = false;     ///< the surface's texture is the colour map
+  /// Skip back faces (llvmpipe shades every fragment it is given: about a third of the time
+  /// of a large body's picture went to faces hidden behind others).
+  bool cull_back_faces = false;
 };
 
 class RenderBackend {
