@@ -12,5 +12,7 @@ echo "== 50k-tet corotational FEM box, backward Euler, 60 frames, 1280x800"
 "${xvfb[@]}" "$incise" view "$root/bench/viewer_fem_50k.json" --exit-after 60 2>&1 | tail -1
 echo "== the same body with the two-level preconditioner"
 "${xvfb[@]}" "$incise" view "$root/bench/viewer_fem_50k_two_level.json" --exit-after 60 2>&1 | tail -1
+echo "== the same body solved to a real-time tolerance (CG to 1e-3; bench/solver_tolerance.py)"
+"${xvfb[@]}" "$incise" view "$root/bench/viewer_fem_50k_realtime.json" --exit-after 60 2>&1 | tail -1
 echo "== default scene again, the physics paced to the scene's frame time as when a user watches"
 "${xvfb[@]}" "$incise" view --exit-after 150 --paced 2>&1 | tail -1
