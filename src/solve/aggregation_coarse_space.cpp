@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
 
+#include "incise/core/error.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/solve/direct_factorization.hpp"
 
@@ -227,6 +229,14 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     }
     coarse_columns[a] = neighbours;
   }
+  slots_by_row_.clear();
+  for (std::size_t i = 0; i < matrix.rows(); ++i) {
+    for (std::size_t k = matrix.row_begin()[i]; k < matrix.row_end()[i]; ++k) {
+      slots_by_row_.push_back(coarse_slot_[k]);
+    }
+  }
+  placed_pattern_ = matrix.pattern();
+  placed_version_ = matrix.pattern_version();
   coarse_blocks_.assign(static_cast<std::size_t>(slots), ModeMatrix::Zero());
   diagonal_slot_.assign(aggregates, -1);
   for (std::size_t a = 0, row_slot = 0; a < aggregates; row_slot += coarse_columns[a].size(), ++a) {
@@ -462,37 +472,251 @@ void AggregationCoarseSpace::collect_members() {
   }
 }
 
+std::uint64_t AggregationCoarseSpace::pattern_hash(const BlockSparseMatrix& matrix) {
+  if (hashed_pattern_ == matrix.pattern() && hashed_version_ == matrix.pattern_version()) {
+    return hashed_value_;
+  }
+  // Rows, and each row's columns in order (hash_combine's mixing, on 64-bit words).
+  std::uint64_t hash = 0;
+  const auto mix = [&hash](std::uint64_t word) {
+    hash ^= word + 0x9e3779b97f4a7c15ULL + (hash << 6) + (hash >> 2);
+  };
+  mix(matrix.rows());
+  for (std::size_t i = 0; i < matrix.rows(); ++i) {
+    const auto row = matrix.row_columns(static_cast<VertexId>(i));
+    mix(row.size());
+    for (const VertexId column : row) {
+      mix(static_cast<std::uint64_t>(column));
+    }
+  }
+  hashed_pattern_ = matrix.pattern();
+  hashed_version_ = matrix.pattern_version();
+  hashed_value_ = hash;
+  return hash;
+}
+
+bool AggregationCoarseSpace::same_as(const Look& look, const BlockSparseMatrix& matrix,
+                                     std::span<const char> constrained) {
+  return look.taken &&
+         std::equal(constrained.begin(), constrained.end(), look.constrained.begin(),
+                    look.constrained.end()) &&
+         pattern_hash(matrix) == look.hash;
+}
+
+void AggregationCoarseSpace::remember(Look& look, const BlockSparseMatrix& matrix,
+                                      std::span<const char> constrained) {
+  look.taken = true;
+  look.hash = pattern_hash(matrix);
+  look.constrained.assign(constrained.begin(), constrained.end());
+}
+
+void AggregationCoarseSpace::place_slots(const BlockSparseMatrix& matrix) {
+  coarse_slot_.assign(matrix.values().size(), -1);
+  std::size_t entry = 0;
+  for (std::size_t i = 0; i < matrix.rows(); ++i) {
+    for (std::size_t k = matrix.row_begin()[i]; k < matrix.row_end()[i]; ++k) {
+      INCISE_ASSERT(entry < slots_by_row_.size(), "the aggregated pattern has these blocks");
+      coarse_slot_[k] = slots_by_row_[entry++];
+    }
+  }
+  INCISE_ASSERT(entry == slots_by_row_.size(), "the aggregated pattern has these blocks");
+  placed_pattern_ = matrix.pattern();
+  placed_version_ = matrix.pattern_version();
+}
+
+void AggregationCoarseSpace::save_state(StateWriter& out) const {
+  out.tag("coarse space");
+  out.value(factored_);
+  if (!factored_) {
+    return;
+  }
+  out.value(updates_since_factor_);
+  out.value(three_level_);
+  for (const Look* look : {&aggregated_, &seen_}) {
+    out.value(look->taken);
+    out.value(look->hash);
+    out.values(look->constrained);
+  }
+  out.values(slots_by_row_);
+  out.values(aggregate_of_);
+  out.value(static_cast<std::uint64_t>(members_.size()));
+  out.values(offset_);
+  out.values(centre_);
+  out.values(modes_from_raw_);
+  out.values(raw_from_modes_);
+  out.values(dropped_);
+  out.values(top_dropped_);
+  out.values(scalar_source_);
+  out.values(slot_row_);
+  out.values(slot_column_);
+  out.values(diagonal_slot_);
+  out.values(top_diagonal_slot_);
+  out.values(top_of_);
+  out.values(top_slot_);
+  out.values(top_map_);
+  out.values(level_motion_);
+  out.values(top_motion_);
+  out.value(static_cast<std::uint64_t>(coarse_blocks_.size()));
+  out.value(static_cast<std::uint64_t>(top_blocks_.size()));
+  // The coarse matrix as factorised (the factor is made again from it).
+  out.value(static_cast<std::int64_t>(scalar_.rows()));
+  out.values(
+      std::vector<int>(scalar_.outerIndexPtr(), scalar_.outerIndexPtr() + scalar_.outerSize() + 1));
+  out.values(
+      std::vector<int>(scalar_.innerIndexPtr(), scalar_.innerIndexPtr() + scalar_.nonZeros()));
+  out.values(std::vector<double>(scalar_.valuePtr(), scalar_.valuePtr() + scalar_.nonZeros()));
+}
+
+void AggregationCoarseSpace::load_state(StateReader& in) {
+  in.tag("coarse space");
+  const bool factored = in.value<bool>("coarse space factorised");
+  if (!factored) {
+    factored_ = false;  // the next update() builds everything
+    aggregated_ = {};
+    seen_ = {};
+    return;
+  }
+  const int updates = in.value<int>("updates since the coarse factorisation");
+  const bool three_level = in.value<bool>("coarse levels");
+  Look looks[2];
+  for (Look& look : looks) {
+    look.taken = in.value<bool>("coarse look taken");
+    look.hash = in.value<std::uint64_t>("coarse look pattern");
+    look.constrained = in.values<char>("coarse look held rows");
+  }
+  auto slots_by_row = in.values<int>("coarse slots");
+  auto aggregate_of = in.values<int>("aggregates");
+  const auto aggregates = in.value<std::uint64_t>("aggregate count");
+  auto offset = in.values<Vec3>("aggregate offsets");
+  auto centre = in.values<Vec3>("aggregate centres");
+  auto modes_from_raw = in.values<ModeMatrix>("aggregate modes");
+  auto raw_from_modes = in.values<ModeMatrix>("aggregate motions");
+  auto dropped = in.values<unsigned>("aggregate dropped modes");
+  auto top_dropped = in.values<unsigned>("group dropped modes");
+  auto scalar_source = in.values<std::pair<int, int>>("coarse matrix sources");
+  auto slot_row = in.values<int>("coarse slot rows");
+  auto slot_column = in.values<int>("coarse slot columns");
+  auto diagonal_slot = in.values<int>("coarse diagonal slots");
+  auto top_diagonal_slot = in.values<int>("group diagonal slots");
+  auto top_of = in.values<int>("aggregate groups");
+  auto top_slot = in.values<int>("group slots");
+  auto top_map = in.values<ModeMatrix>("group modes");
+  auto level_motion = in.values<ModeMatrix>("aggregate inverses");
+  auto top_motion = in.values<ModeMatrix>("group motions");
+  const auto slots = in.value<std::uint64_t>("coarse slot count");
+  const auto top_slots = in.value<std::uint64_t>("group slot count");
+  const auto unknowns = in.value<std::int64_t>("coarse unknowns");
+  const auto outer = in.values<int>("coarse matrix columns");
+  const auto inner = in.values<int>("coarse matrix rows");
+  const auto values = in.values<double>("coarse matrix values");
+
+  // Every index in range, every size what the others say: a corrupt checkpoint is refused
+  // here, never read out of bounds later.
+  const auto within = [](const std::vector<int>& indices, std::uint64_t end, bool minus_one) {
+    return std::all_of(indices.begin(), indices.end(), [&](int i) {
+      return (minus_one && i == -1) || (i >= 0 && static_cast<std::uint64_t>(i) < end);
+    });
+  };
+  const std::size_t n = aggregate_of.size();
+  const std::uint64_t groups = top_dropped.size();
+  const std::uint64_t factored_slots = three_level ? top_slots : slots;
+  bool valid =
+      updates >= 0 && aggregates <= n && within(aggregate_of, aggregates, true) &&
+      offset.size() == n && centre.size() == aggregates && modes_from_raw.size() == aggregates &&
+      raw_from_modes.size() == aggregates && dropped.size() == aggregates &&
+      within(slots_by_row, slots, true) && slot_row.size() == slots &&
+      slot_column.size() == slots && within(slot_row, aggregates, false) &&
+      within(slot_column, aggregates, false) && diagonal_slot.size() == aggregates &&
+      within(diagonal_slot, slots, false) && unknowns >= 0 &&
+      static_cast<std::uint64_t>(unknowns) == kModes * (three_level ? groups : aggregates) &&
+      outer.size() == static_cast<std::uint64_t>(unknowns) + 1 && !outer.empty() &&
+      outer.front() == 0 && std::is_sorted(outer.begin(), outer.end()) &&
+      static_cast<std::uint64_t>(outer.back()) == inner.size() && values.size() == inner.size() &&
+      within(inner, static_cast<std::uint64_t>(unknowns), false) &&
+      scalar_source.size() == inner.size() &&
+      std::all_of(scalar_source.begin(), scalar_source.end(), [&](const auto& source) {
+        return source.first >= 0 && static_cast<std::uint64_t>(source.first) < factored_slots &&
+               source.second >= 0 && source.second < kModes * kModes;
+      });
+  if (valid && three_level) {
+    valid = top_of.size() == aggregates && within(top_of, groups, false) &&
+            top_slot.size() == slots && within(top_slot, top_slots, false) &&
+            top_diagonal_slot.size() == groups && within(top_diagonal_slot, top_slots, false) &&
+            top_map.size() == aggregates && level_motion.size() == aggregates &&
+            top_motion.size() == aggregates;
+  } else if (valid) {
+    valid = top_of.empty() && top_slot.empty() && top_slots == 0;
+  }
+  if (!valid) {
+    throw InputError("checkpoint: the coarse level of the two-level preconditioner is corrupt");
+  }
+  factored_ = true;
+  updates_since_factor_ = updates;
+  three_level_ = three_level;
+  aggregated_ = std::move(looks[0]);
+  seen_ = std::move(looks[1]);
+  slots_by_row_ = std::move(slots_by_row);
+  placed_pattern_.reset();  // coarse_slot_ is placed in the next matrix's storage when due
+  coarse_slot_.clear();
+  aggregate_of_ = std::move(aggregate_of);
+  members_.assign(static_cast<std::size_t>(aggregates), {});
+  collect_members();
+  offset_ = std::move(offset);
+  centre_ = std::move(centre);
+  modes_from_raw_ = std::move(modes_from_raw);
+  raw_from_modes_ = std::move(raw_from_modes);
+  dropped_ = std::move(dropped);
+  top_dropped_ = std::move(top_dropped);
+  scalar_source_ = std::move(scalar_source);
+  slot_row_ = std::move(slot_row);
+  slot_column_ = std::move(slot_column);
+  diagonal_slot_ = std::move(diagonal_slot);
+  top_diagonal_slot_ = std::move(top_diagonal_slot);
+  top_of_ = std::move(top_of);
+  top_slot_ = std::move(top_slot);
+  top_map_ = std::move(top_map);
+  level_motion_ = std::move(level_motion);
+  top_motion_ = std::move(top_motion);
+  coarse_blocks_.assign(static_cast<std::size_t>(slots), ModeMatrix::Zero());
+  top_blocks_.assign(static_cast<std::size_t>(top_slots), ModeMatrix::Zero());
+  coarse_motion_.assign(static_cast<std::size_t>(aggregates), Modes::Zero());
+  const auto size = static_cast<Eigen::Index>(unknowns);
+  scalar_.resize(size, size);
+  scalar_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
+  std::copy(values.begin(), values.end(), scalar_.valuePtr());
+  factor_->reset_pattern();
+  if (!members_.empty() && !factor_->factorize_positive_definite(scalar_)) {
+    throw InputError(
+        "checkpoint: the coarse matrix of the two-level preconditioner is not positive "
+        "definite");
+  }
+}
+
 bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
                                     std::span<const char> constrained,
                                     std::span<const Vec3> positions) {
   if (!positions.empty() && positions.size() != matrix.rows()) {
     throw std::invalid_argument("AggregationCoarseSpace::update: one position per matrix row");
   }
-  auto same_as = [&](const Look& look) {
-    return look.pattern == matrix.pattern() && look.version == matrix.pattern_version() &&
-           std::equal(constrained.begin(), constrained.end(), look.constrained.begin(),
-                      look.constrained.end());
-  };
-  auto remember = [&](Look& look) {
-    look.pattern = matrix.pattern();
-    look.version = matrix.pattern_version();
-    look.constrained.assign(constrained.begin(), constrained.end());
-  };
   const bool due = !factored_ || ++updates_since_factor_ >= refactor_every_ ||
                    matrix.rows() < aggregate_of_.size();
   if (!due) {
     // The factor of an earlier matrix is a good preconditioner still (the corotational
     // matrix changes with the elements' rotations, slowly; a cut changes it near the blade).
-    if (!same_as(seen_)) {
+    if (!same_as(seen_, matrix, constrained)) {
       extend(matrix, constrained, positions);
-      remember(seen_);
+      remember(seen_, matrix, constrained);
     }
     return true;
   }
-  if (!same_as(aggregated_)) {
+  if (!same_as(aggregated_, matrix, constrained)) {
     aggregate(matrix, constrained);
-    remember(aggregated_);
-    remember(seen_);
+    remember(aggregated_, matrix, constrained);
+    remember(seen_, matrix, constrained);
+  } else if (placed_pattern_ != matrix.pattern() || placed_version_ != matrix.pattern_version()) {
+    place_slots(matrix);
   }
   updates_since_factor_ = 0;
   factored_ = true;

@@ -182,6 +182,37 @@ void ClusterJacobi::pack(const BlockSparseMatrix& matrix, std::span<const char> 
   single_inverse_.resize(n);  // every entry is set by update()
 }
 
+void ClusterJacobi::save_state(StateWriter& out) const {
+  out.tag("clusters");
+  out.values(parent_);
+  out.values(size_);
+  out.values(constrained_);
+}
+
+void ClusterJacobi::load_state(StateReader& in) {
+  in.tag("clusters");
+  std::vector<VertexId> parent = in.values<VertexId>("cluster parents");
+  std::vector<std::size_t> size = in.values<std::size_t>("cluster sizes");
+  std::vector<char> constrained = in.values<char>("clusters' held rows");
+  const std::size_t n = parent.size();
+  // A union-find whose roots are each cluster's smallest vertex, sizes within bounds.
+  bool valid = size.size() == n && constrained.size() >= n;
+  for (std::size_t i = 0; valid && i < n; ++i) {
+    valid =
+        parent[i] >= 0 && static_cast<std::size_t>(parent[i]) <= i && size[i] >= 1 && size[i] <= n;
+  }
+  if (!valid) {
+    throw InputError("checkpoint: the clusters of the two-level preconditioner are corrupt");
+  }
+  parent_ = std::move(parent);
+  size_ = std::move(size);
+  constrained_ = std::move(constrained);
+  // The pattern is a new one after a resume: the next update() groups the vertices added
+  // since (none, if the mesh did not change) and packs the clusters kept, as it would have.
+  pattern_.reset();
+  pattern_version_ = 0;
+}
+
 bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char> constrained) {
   const bool same_pattern =
       pattern_ == matrix.pattern() && pattern_version_ == matrix.pattern_version();

@@ -422,11 +422,13 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
 void BackwardEuler::save_state(StateWriter& out) const {
   out.tag("backward euler");
   out.nested(history_);
+  solver_.save_state(out);
 }
 
 void BackwardEuler::load_state(StateReader& in) {
   in.tag("backward euler");
   history_ = in.nested<Vec3>("earlier solutions");
+  solver_.load_state(in);
 }
 
 void HierarchicalRungeKutta4::save_state(StateWriter& out) const {

@@ -422,6 +422,35 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   stats.iterations = iteration;
 }
 
+void LinearizedSystemSolver::save_state(StateWriter& out) const {
+  out.tag("linear solver");
+  out.value(coarse_ != nullptr);
+  if (coarse_) {
+    clusters_->save_state(out);
+    coarse_->save_state(out);
+  }
+}
+
+void LinearizedSystemSolver::load_state(StateReader& in) {
+  in.tag("linear solver");
+  if (!in.value<bool>("two-level preconditioner present")) {
+    coarse_.reset();
+    clusters_.reset();
+    return;
+  }
+  if (options_.preconditioner != Preconditioner::kTwoLevel ||
+      options_.type == LinearSolverType::kDirect) {
+    throw InputError(
+        "checkpoint: it holds a two-level preconditioner, but the scene's solver has none");
+  }
+  auto clusters = std::make_unique<ClusterJacobi>();
+  auto coarse = std::make_unique<AggregationCoarseSpace>();
+  clusters->load_state(in);
+  coarse->load_state(in);
+  clusters_ = std::move(clusters);
+  coarse_ = std::move(coarse);
+}
+
 bool LinearizedSystemSolver::starts_from_x(std::span<const Vec3> x, bool basis_given) const {
   if (!options_.warm_start && !basis_given) {
     return false;

@@ -11,6 +11,7 @@
 #include <span>
 #include <string>
 
+#include "incise/core/state_archive.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/physics/block_sparse.hpp"
@@ -306,6 +307,142 @@ TEST(AggregationCoarseSpace, ThreeLevelCorrectionIsSymmetricAndPositive) {
     EXPECT_NEAR(s_br, r_bs, 1e-10 * (std::abs(s_br) + std::abs(r_bs)));
     EXPECT_GT(r_br, 0.0);
   }
+}
+
+/// An edit like a cut's on `matrix`: a new vertex stiffly tied to vertex 1 and to its
+/// neighbours (values refilled from `seed`).
+void add_vertex_beside_one(BlockSparseMatrix& matrix, std::vector<char>& constrained,
+                           std::uint32_t seed) {
+  const auto n = static_cast<VertexId>(matrix.rows());
+  matrix.add_rows(matrix.rows() + 1);
+  constrained.push_back(0);
+  std::vector<VertexId> neighbours(matrix.row_columns(1).begin(), matrix.row_columns(1).end());
+  for (const VertexId j : neighbours) {
+    std::vector<VertexId> row(matrix.row_columns(j).begin(), matrix.row_columns(j).end());
+    row.push_back(n);
+    matrix.edit_row(j, row);  // n is the largest: still sorted
+  }
+  neighbours.push_back(n);
+  matrix.edit_row(n, neighbours);
+  fill_laplacian(matrix, seed, {{1, n}});
+}
+
+TEST(TwoLevelPreconditioner, ItsStateSavedAndReadBackContinuesBitForBit) {
+  // A checkpoint keeps the clusters' grouping and the coarse level (aggregates, modes, the
+  // matrix as factorised, its age): restored into new objects and fed new matrices of the
+  // same shape (a new pattern object, as after a resume), they must precondition as the
+  // originals do, through steps that keep the factor, an edit, and a refactorisation; with
+  // the coarse solve exact and with three levels.
+  for (const std::size_t exact_limit : {std::size_t{100000}, std::size_t{0}}) {
+    SCOPED_TRACE(exact_limit);
+    BoxGridOptions grid;
+    grid.cells = {5, 5, 5};
+    const TetMesh box = make_box_grid(grid);
+    std::vector<Vec3> positions(box.rest_positions().begin(), box.rest_positions().end());
+    std::vector<char> constrained(box.vertex_count(), 0);
+    std::fill(constrained.begin(), constrained.begin() + 36, 1);  // the z = 0 face
+    BlockSparseMatrix original;
+    original.build_pattern(box);
+    ClusterJacobi clusters;
+    AggregationCoarseSpace coarse;
+    coarse.set_exact_limit(exact_limit);
+    for (std::uint32_t step = 0; step < 4; ++step) {
+      fill_laplacian(original, 100 + step, {{2, 3}});
+      ASSERT_TRUE(clusters.update(original, constrained));
+      ASSERT_TRUE(coarse.update(original, constrained, positions));
+    }
+    ASSERT_EQ(coarse.three_level(), exact_limit == 0);
+    StateWriter out;
+    clusters.save_state(out);
+    coarse.save_state(out);
+    StateReader in(out.bytes(), "state");
+    ClusterJacobi restored_clusters;
+    AggregationCoarseSpace restored;
+    restored.set_exact_limit(exact_limit);
+    restored_clusters.load_state(in);
+    restored.load_state(in);
+
+    BlockSparseMatrix copy;
+    copy.build_pattern(box);
+    std::vector<char> copy_constrained = constrained;
+    std::mt19937 random(9);
+    for (std::uint32_t step = 4; step < 20; ++step) {
+      for (auto* matrix : {&original, &copy}) {
+        auto& held = matrix == &original ? constrained : copy_constrained;
+        if (step == 7) {
+          add_vertex_beside_one(*matrix, held, 100 + step);
+        } else {
+          fill_laplacian(*matrix, 100 + step, {{2, 3}});
+        }
+      }
+      positions.resize(original.rows(), Vec3(0.5, 0.5, 0.5));
+      for (Vec3& p : positions) {
+        p += Vec3(0.001, -0.002, 0.0005);  // the body moves on
+      }
+      ASSERT_TRUE(clusters.update(original, constrained));
+      ASSERT_TRUE(restored_clusters.update(copy, copy_constrained));
+      ASSERT_TRUE(coarse.update(original, constrained, positions));
+      ASSERT_TRUE(restored.update(copy, copy_constrained, positions));
+      const std::vector<Vec3> r = random_field(original.rows(), random, constrained);
+      std::vector<Vec3> z(r.size(), Vec3::Zero());
+      std::vector<Vec3> restored_z(r.size(), Vec3::Zero());
+      EXPECT_EQ(clusters.apply_clusters(r, z), restored_clusters.apply_clusters(r, restored_z));
+      ASSERT_EQ(clusters.single_inverse().size(), restored_clusters.single_inverse().size());
+      for (std::size_t v = 0; v < r.size(); ++v) {
+        ASSERT_EQ(z[v], restored_z[v]) << "step " << step << ", vertex " << v;
+        ASSERT_EQ(clusters.single_inverse()[v], restored_clusters.single_inverse()[v]);
+      }
+      EXPECT_EQ(coarse.solve(r), restored.solve(r)) << "step " << step;
+      for (std::size_t v = 0; v < r.size(); ++v) {
+        ASSERT_EQ(coarse.correction(v), restored.correction(v))
+            << "step " << step << ", vertex " << v;
+      }
+    }
+  }
+}
+
+TEST(TwoLevelPreconditioner, ACorruptSavedStateIsRefusedWithAClearMessage) {
+  BoxGridOptions grid;
+  grid.cells = {3, 3, 3};
+  const TetMesh box = make_box_grid(grid);
+  BlockSparseMatrix matrix;
+  matrix.build_pattern(box);
+  fill_laplacian(matrix, 3, {});
+  const std::vector<char> constrained(matrix.rows(), 0);
+  AggregationCoarseSpace coarse;
+  ASSERT_TRUE(coarse.update(matrix, constrained, box.rest_positions()));
+  StateWriter out;
+  coarse.save_state(out);
+  // Aggregate numbers out of range of the aggregates saved.
+  const std::string bytes = out.bytes();
+  StateWriter bad;
+  bad.tag("coarse space");
+  bad.value(true);
+  bad.value(0);
+  bad.value(false);
+  for (int look = 0; look < 2; ++look) {
+    bad.value(false);
+    bad.value(std::uint64_t{0});
+    bad.values(std::vector<char>{});
+  }
+  bad.values(std::vector<int>{});
+  bad.values(std::vector<int>{5, 7});  // two vertices in aggregates 5 and 7 ...
+  bad.value(std::uint64_t{1});         // ... of one
+  const std::string padded = bad.bytes() + std::string(512, '\0');  // the reader keeps a view
+  StateReader in(padded, "bad.ck");
+  AggregationCoarseSpace restored;
+  try {
+    restored.load_state(in);
+    FAIL() << "a corrupt coarse level was read";
+  } catch (const InputError& error) {
+    EXPECT_NE(
+        std::string(error.what()).find("coarse level of the two-level preconditioner is corrupt"),
+        std::string::npos)
+        << error.what();
+  }
+  // The good state still reads.
+  StateReader good(bytes, "good.ck");
+  EXPECT_NO_THROW(restored.load_state(good));
 }
 
 /// u = t + w x (x - o) on the free vertices, zero on the held ones.

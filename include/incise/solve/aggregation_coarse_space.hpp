@@ -33,6 +33,7 @@
 #include <span>
 #include <vector>
 
+#include "incise/core/state_archive.hpp"
 #include "incise/core/types.hpp"
 #include "incise/physics/block_sparse.hpp"
 
@@ -88,6 +89,12 @@ class AggregationCoarseSpace {
   void add_correction(std::span<Vec3> z) const;
 
   [[nodiscard]] std::size_t aggregate_count() const { return members_.size(); }
+  /// Everything the next updates and solves depend on (a checkpoint): the aggregates and
+  /// their modes, the coarse matrix as last factorised, how many updates ago, and which
+  /// matrix patterns they were built from and last followed. The factor is made again from
+  /// the saved matrix, so a resumed run solves exactly as it would have.
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
   /// The aggregate of each vertex, -1 for held ones.
   [[nodiscard]] std::span<const int> aggregate_of() const { return aggregate_of_; }
 
@@ -104,15 +111,31 @@ class AggregationCoarseSpace {
   [[nodiscard]] Vec3 offset_in(std::size_t aggregate, std::span<const Vec3> positions,
                                std::size_t vertex) const;
 
-  /// A look at a matrix's pattern and held rows (the pattern held, so its address is not
-  /// reused).
+  /// A look at a matrix's pattern and held rows: the pattern by its rows and columns (a hash),
+  /// so that a pattern edited back to what it was, compacted, or built again after a resume
+  /// from a checkpoint is the same one.
   struct Look {
-    std::shared_ptr<const BlockPattern> pattern;
-    std::uint64_t version = 0;
+    bool taken = false;
+    std::uint64_t hash = 0;
     std::vector<char> constrained;
   };
-  Look aggregated_;  ///< what the aggregates were built from
-  Look seen_;        ///< what they were last extended to
+  [[nodiscard]] bool same_as(const Look& look, const BlockSparseMatrix& matrix,
+                             std::span<const char> constrained);
+  void remember(Look& look, const BlockSparseMatrix& matrix, std::span<const char> constrained);
+  /// The hash of the matrix's pattern, computed once per pattern version.
+  std::uint64_t pattern_hash(const BlockSparseMatrix& matrix);
+  /// coarse_slot_ for the matrix's storage, from slots_by_row_ (after the storage moved).
+  void place_slots(const BlockSparseMatrix& matrix);
+  Look aggregated_;                                     ///< what the aggregates were built from
+  Look seen_;                                           ///< what they were last extended to
+  std::shared_ptr<const BlockPattern> hashed_pattern_;  ///< held, so its address is not reused
+  std::uint64_t hashed_version_ = 0;
+  std::uint64_t hashed_value_ = 0;
+  /// The coarse slot of each block of the aggregated pattern, row by row in column order (-1
+  /// for none): coarse_slot_ independent of where the storage keeps each row.
+  std::vector<int> slots_by_row_;
+  std::shared_ptr<const BlockPattern> placed_pattern_;  ///< what coarse_slot_ is placed for
+  std::uint64_t placed_version_ = 0;
   std::vector<int> aggregate_of_;
   std::vector<std::vector<VertexId>> members_;
   /// For each live block of A (by storage index), its coarse block's slot, or -1.

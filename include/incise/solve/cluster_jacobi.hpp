@@ -18,6 +18,7 @@
 #include <span>
 #include <vector>
 
+#include "incise/core/state_archive.hpp"
 #include "incise/core/types.hpp"
 #include "incise/physics/block_sparse.hpp"
 
@@ -48,6 +49,10 @@ class ClusterJacobi {
   [[nodiscard]] std::size_t cluster_count() const { return first_.size() - 1; }
   /// Vertices in clusters of two or more.
   [[nodiscard]] std::size_t clustered_vertices() const { return clustered_vertices_; }
+  /// The grouping, which follows the cuts step by step (a checkpoint): what update() then
+  /// does next is what it would have done. The inverses are made again from the next matrix.
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
   /// Vertex lists of the clusters, packed: members()[first[c] .. first[c + 1]).
   [[nodiscard]] std::span<const VertexId> members() const { return members_; }
   [[nodiscard]] std::span<const std::size_t> first() const { return first_; }

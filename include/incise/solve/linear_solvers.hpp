@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "incise/core/state_archive.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/physics/block_sparse.hpp"
 #include "incise/physics/dynamic_system.hpp"
@@ -96,6 +97,10 @@ class LinearizedSystemSolver {
   /// two-level preconditioner's coarse modes rotate about these positions, else translate
   /// only. Read by the next solve() only, so the span must stay valid until then.
   void set_linearization_positions(std::span<const Vec3> positions) { positions_ = positions; }
+  /// What the next solves depend on beyond their arguments (a checkpoint): the two-level
+  /// preconditioner's clusters and coarse level, which follow the steps and cuts.
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
 
  private:
   using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
