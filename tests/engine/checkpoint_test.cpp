@@ -97,8 +97,8 @@ TEST(Checkpoint, TheTwoLevelPreconditionerResumesBitForBit) {
   // Its clusters follow each cut and its coarse factor is kept for ten steps, so it carries
   // state from step to step: a resumed run that built it afresh would solve with another
   // preconditioner, to the same tolerance but not to the same bits. A block pulled and cut
-  // (as scenes/fem_cut_pull.json), small enough for the coarse level's exact solve, then
-  // large enough for its third level; the stop falls mid-cut, between two factorisations.
+  // (as scenes/fem_cut_pull.json) at two sizes (6 and 60 aggregates); the stop falls mid-cut,
+  // between two factorisations. (Three levels: TwoLevelPreconditioner.ItsStateSaved...)
   const auto dir = test::scratch_dir("checkpoint-two-level");
   for (const char* cells : {"[4, 6, 4]", "[10, 14, 10]"}) {
     SCOPED_TRACE(cells);
