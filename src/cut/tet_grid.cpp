@@ -62,13 +62,20 @@ std::size_t TetGrid::cell_index(long i, long j, long k) const {
 
 void TetGrid::cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>& first,
                          std::array<long, 3>& last) const {
+  // Points outside the grid fall into its border cells (a deformed body may leave the box the
+  // grid was built on; that costs speed, not correctness). Clamped before the conversion: a
+  // point far off (a blade pose in a path, a diverging body) has no cell number a long holds.
+  const auto cell = [&](double x, int axis) {
+    const double number = std::floor((x - origin_[axis]) / cell_);
+    if (!(number > 0.0)) {
+      return 0L;  // also NaN
+    }
+    const long border = dims_[axis] - 1;
+    return number < static_cast<double>(border) ? static_cast<long>(number) : border;
+  };
   for (int k = 0; k < 3; ++k) {
-    // Points outside the grid fall into its border cells (a deformed body may leave the box the
-    // grid was built on; that costs speed, not correctness).
-    first[k] =
-        std::clamp(static_cast<long>(std::floor((low[k] - origin_[k]) / cell_)), 0L, dims_[k] - 1);
-    last[k] =
-        std::clamp(static_cast<long>(std::floor((high[k] - origin_[k]) / cell_)), 0L, dims_[k] - 1);
+    first[k] = cell(low[k], k);
+    last[k] = cell(high[k], k);
   }
 }
 

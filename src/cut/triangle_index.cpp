@@ -7,6 +7,31 @@
 
 namespace incise::detail {
 
+namespace {
+
+/// Cells farther than this from the origin, in cells of their level, are not filed: no body
+/// lies 2^40 of the finest cells away (10^7 km at a 10 um cell), and the cell number of a
+/// coordinate much beyond would not fit a long. A triangle reaching there (a blade pose far
+/// off in a path, or a corrupt checkpoint) is kept aside and measured by every query.
+constexpr double kFarthestCell = 0x1p40;
+/// Cells a triangle may be filed in; a larger one is kept aside too (see above).
+constexpr double kMaxBoxCells = 4096.0;
+
+/// floor(x / size), saturated at +-kFarthestCell (NaN: the far negative end).
+long cell_number(double x, double size) {
+  const double cell = std::floor(x / size);
+  if (!(cell > -kFarthestCell)) {
+    return -static_cast<long>(kFarthestCell);
+  }
+  return cell < kFarthestCell ? static_cast<long>(cell) : static_cast<long>(kFarthestCell);
+}
+
+Eigen::Array<long, 3, 1> cell_of(const Vec3& point, double size) {
+  return {cell_number(point[0], size), cell_number(point[1], size), cell_number(point[2], size)};
+}
+
+}  // namespace
+
 double TriangleIndex::cell_size(int level) const {
   return std::ldexp(finest_, level);
 }
@@ -45,7 +70,6 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
   while (level + 1 < kLevels && cell_size(level) < wanted) {
     ++level;
   }
-  constexpr double kMaxBoxCells = 4096.0;
   while (level + 1 < kLevels &&
          ((extent.array() / cell_size(level)).floor() + 1.0).prod() > kMaxBoxCells) {
     ++level;
@@ -56,10 +80,16 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
   const auto index = static_cast<std::uint32_t>(triangles_.size());
   triangles_.push_back({t, box_low, box_high, tag});
   const double size = cell_size(level);
+  const double farthest = kFarthestCell * size;
+  if (!((low.array().abs() < farthest).all() && (high.array().abs() < farthest).all()) ||
+      ((extent.array() / size).floor() + 1.0).prod() > kMaxBoxCells) {
+    aside_.push_back(index);
+    return;
+  }
   // A cell meets the triangle only if its centre is within half its diagonal of it.
   const double reach2 = 0.75 * size * size * (1.0 + 1e-9);
-  const Cell first = (low.array() / size).floor().cast<long>();
-  const Cell last = (high.array() / size).floor().cast<long>();
+  const Cell first = cell_of(low, size);
+  const Cell last = cell_of(high, size);
   for (long k = first[2]; k <= last[2]; ++k) {
     for (long j = first[1]; j <= last[1]; ++j) {
       for (long i = first[0]; i <= last[0]; ++i) {
@@ -83,11 +113,39 @@ void TriangleIndex::within(const Vec3& point, double radius, Visit visit, Accept
   // farther than the nearest triangle found: the box of the whole radius held up to a million
   // cells at the finest level.
   double radius2 = radius * radius;
+  // One stored triangle: measured, and visited if within the radius still of interest; true
+  // when the visit asks to stop.
+  const auto try_triangle = [&](std::uint32_t index) {
+    if (!accept(index)) {
+      return false;
+    }
+    const Stored& stored = triangles_[index];
+    const double reach = std::sqrt(radius2);
+    if ((point.array() < stored.low.array() - reach).any() ||
+        (point.array() > stored.high.array() + reach).any()) {
+      return false;
+    }
+    const double d2 = squared_distance_to_triangle(point, stored.corners[0], stored.corners[1],
+                                                   stored.corners[2]);
+    if (d2 <= radius2) {
+      const double next = visit(index, d2);
+      if (next < 0.0) {
+        return true;
+      }
+      radius2 = std::min(radius2, next);
+    }
+    return false;
+  };
+  for (const std::uint32_t index : aside_) {
+    if (try_triangle(index)) {
+      return;
+    }
+  }
   for (int level : levels_) {
     const double size = cell_size(level);
-    const Cell centre = (point.array() / size).floor().cast<long>();
-    const Cell first = ((point.array() - radius) / size).floor().cast<long>();
-    const Cell last = ((point.array() + radius) / size).floor().cast<long>();
+    const Cell centre = cell_of(point, size);
+    const Cell first = cell_of(point.array() - radius, size);
+    const Cell last = cell_of(point.array() + radius, size);
     const long shells = std::max({centre[0] - first[0], last[0] - centre[0], centre[1] - first[1],
                                   last[1] - centre[1], centre[2] - first[2], last[2] - centre[2]});
     const auto visit_cell = [&](long i, long j, long k) {
@@ -99,24 +157,9 @@ void TriangleIndex::within(const Vec3& point, double radius, Visit visit, Accept
       if (it == cells_.end()) {
         return false;
       }
-      const double reach = std::sqrt(radius2);
       for (std::uint32_t index : it->second) {
-        if (!accept(index)) {
-          continue;
-        }
-        const Stored& stored = triangles_[index];
-        if ((point.array() < stored.low.array() - reach).any() ||
-            (point.array() > stored.high.array() + reach).any()) {
-          continue;
-        }
-        const double d2 = squared_distance_to_triangle(point, stored.corners[0], stored.corners[1],
-                                                       stored.corners[2]);
-        if (d2 <= radius2) {
-          const double next = visit(index, d2);
-          if (next < 0.0) {
-            return true;
-          }
-          radius2 = std::min(radius2, next);
+        if (try_triangle(index)) {
+          return true;
         }
       }
       return false;
@@ -221,8 +264,12 @@ void TriangleIndex::save_state(StateWriter& out) const {
 void TriangleIndex::load_state(StateReader& in) {
   in.tag("swept triangles");
   finest_ = in.value<double>("finest cell");
+  if (!(finest_ > 0.0) || !std::isfinite(finest_)) {
+    in.fail("finest cell", "is not a positive length");
+  }
   const std::vector<Stored> stored = in.values<Stored>("swept triangles");
   triangles_.clear();
+  aside_.clear();
   levels_.clear();
   cells_.clear();
   for (auto& cells : occupied_) {

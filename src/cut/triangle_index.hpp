@@ -74,6 +74,9 @@ class TriangleIndex {
 
   double finest_;
   std::vector<Stored> triangles_;
+  /// Triangles too far out or too large to file in cells (see kFarthestCell in the source),
+  /// measured by every query.
+  std::vector<std::uint32_t> aside_;
   std::vector<int> levels_;  ///< levels holding at least one triangle
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells_;
   /// Per level, the cells holding triangles: a query whose box spans more cells than a level

@@ -418,8 +418,12 @@ bool XfemCutter::split(TetId rest_tet, const ElementCut& cut,
 
 void XfemCutter::sweep(const BladePose& from, const BladePose& to, std::vector<TetId>& changed) {
   // The collision quad, re-formed every quad_length of travel (of the faster blade end).
+  // At most kMaxQuads a move: a pose far off (a device's glitch, a path's typo) would ask for
+  // more quads than an int counts, and time without end; beyond the cap the quads are longer.
+  constexpr double kMaxQuads = 4096.0;
   const double travel = std::max((to.tip - from.tip).norm(), (to.base - from.base).norm());
-  const int pieces = std::max(1, static_cast<int>(std::ceil(travel / options_.quad_length)));
+  const double wanted = std::ceil(travel / options_.quad_length);
+  const int pieces = wanted > 1.0 ? static_cast<int>(std::min(wanted, kMaxQuads)) : 1;
   BladePose previous = from;
   for (int k = 1; k <= pieces; ++k) {
     const double w = static_cast<double>(k) / pieces;
