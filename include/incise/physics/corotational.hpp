@@ -113,13 +113,9 @@ struct CorotatedLinearization {
 /// Inline and accumulating in place: assembly calls it 16 times per element.
 inline void add_warped_stiffness_block(Mat3& block, const Vec3& lambda_a, const Vec3& mu_a,
                                        const Vec3& rotated_b, double diagonal) {
-  double* entry = block.data();  // column-major: entry (i, j) at 3 j + i
-  for (int j = 0; j < 3; ++j) {
-    for (int i = 0; i < 3; ++i) {
-      entry[3 * j + i] += lambda_a[i] * rotated_b[j] + rotated_b[i] * mu_a[j];
-    }
-    entry[4 * j] += diagonal;
-  }
+  block.noalias() += lambda_a * rotated_b.transpose();
+  block.noalias() += rotated_b * mu_a.transpose();
+  block.diagonal().array() += diagonal;
 }
 /// The whole 12x12 element stiffness (N/m), corners in order, x, y, z per corner.
 [[nodiscard]] ElementMatrix corotated_stiffness(const Corners& x, const TetRestShape& rest,
