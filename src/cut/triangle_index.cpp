@@ -70,8 +70,10 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
   while (level + 1 < kLevels && cell_size(level) < wanted) {
     ++level;
   }
-  while (level + 1 < kLevels &&
-         ((extent.array() / cell_size(level)).floor() + 1.0).prod() > kMaxBoxCells) {
+  const auto box_cells = [&](int at) {
+    return ((extent.array() / cell_size(at)).floor() + 1.0).prod();
+  };
+  while (level + 1 < kLevels && box_cells(level) > kMaxBoxCells) {
     ++level;
   }
   if (std::find(levels_.begin(), levels_.end(), level) == levels_.end()) {
@@ -82,7 +84,7 @@ void TriangleIndex::add(const std::array<Vec3, 3>& t, const Vec3& box_low, const
   const double size = cell_size(level);
   const double farthest = kFarthestCell * size;
   if (!((low.array().abs() < farthest).all() && (high.array().abs() < farthest).all()) ||
-      ((extent.array() / size).floor() + 1.0).prod() > kMaxBoxCells) {
+      box_cells(level) > kMaxBoxCells) {
     aside_.push_back(index);
     return;
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <numeric>
+#include <tuple>
 #include <unordered_map>
 
 #include "incise/mesh/disjoint_sets.hpp"
@@ -56,6 +57,49 @@ SurfaceEdgeCheck check_surface_edges(std::span<const Triangle> triangles) {
     }
   }
   return check;
+}
+
+bool is_watertight(std::span<const Triangle> triangles) {
+  // Each directed edge as (smaller, larger, +1 or -1), sorted: the signs of a closed surface's
+  // edges sum to zero edge by edge. An edge from a vertex to itself (a degenerate triangle)
+  // is its own reverse and balances itself.
+  std::vector<std::tuple<VertexId, VertexId, int>> edges;
+  edges.reserve(3 * triangles.size());
+  for (const Triangle& t : triangles) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const VertexId a = t[k];
+      const VertexId b = t[(k + 1) % 3];
+      if (a != b) {
+        edges.emplace_back(std::min(a, b), std::max(a, b), a < b ? 1 : -1);
+      }
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size();) {
+    int sum = 0;
+    std::size_t j = i;
+    for (; j < edges.size() && std::get<0>(edges[j]) == std::get<0>(edges[i]) &&
+           std::get<1>(edges[j]) == std::get<1>(edges[i]);
+         ++j) {
+      sum += std::get<2>(edges[j]);
+    }
+    if (sum != 0) {
+      return false;  // an open rim, or neighbours that disagree on which side is out
+    }
+    i = j;
+  }
+  return true;
+}
+
+double enclosed_volume(std::span<const Vec3> points, std::span<const Triangle> triangles) {
+  double six = 0.0;
+  for (const Triangle& t : triangles) {
+    const Vec3& a = points[static_cast<std::size_t>(t[0])];
+    const Vec3& b = points[static_cast<std::size_t>(t[1])];
+    const Vec3& c = points[static_cast<std::size_t>(t[2])];
+    six += a.dot(b.cross(c));
+  }
+  return six / 6.0;
 }
 
 SurfaceEdgeCheck check_boundary(const TetMesh& mesh) {

@@ -4,10 +4,9 @@
 #include <array>
 #include <cmath>
 #include <string>
-#include <tuple>
-#include <vector>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/boundary.hpp"
 
 namespace incise {
 
@@ -64,39 +63,8 @@ std::optional<RenderMode> parse_render_mode(std::string_view name) {
 }
 
 bool closed_and_facing_out(std::span<const Triangle> triangles, std::span<const Vec3> positions) {
-  if (triangles.empty()) {
-    return false;
-  }
-  // Each directed edge as (smaller, larger, +1 or -1): a closed oriented surface's signs sum
-  // to zero on every edge (each side of a manifold edge once, and as many each way where
-  // pieces touch along one).
-  std::vector<std::tuple<VertexId, VertexId, int>> edges;
-  edges.reserve(3 * triangles.size());
-  double six_volume = 0.0;  // m^3, six times the enclosed volume
-  for (const Triangle& t : triangles) {
-    for (int k = 0; k < 3; ++k) {
-      const VertexId a = t[static_cast<std::size_t>(k)];
-      const VertexId b = t[static_cast<std::size_t>((k + 1) % 3)];
-      edges.emplace_back(std::min(a, b), std::max(a, b), a < b ? 1 : -1);
-    }
-    const auto at = [&](VertexId v) { return positions[static_cast<std::size_t>(v)]; };
-    six_volume += at(t[0]).dot(at(t[1]).cross(at(t[2])));
-  }
-  std::sort(edges.begin(), edges.end());
-  for (std::size_t i = 0; i < edges.size();) {
-    int sum = 0;
-    std::size_t j = i;
-    for (; j < edges.size() && std::get<0>(edges[j]) == std::get<0>(edges[i]) &&
-           std::get<1>(edges[j]) == std::get<1>(edges[i]);
-         ++j) {
-      sum += std::get<2>(edges[j]);
-    }
-    if (sum != 0) {
-      return false;  // an open rim, or neighbours that disagree on which side is out
-    }
-    i = j;
-  }
-  return six_volume > 0.0;
+  return !triangles.empty() && is_watertight(triangles) &&
+         enclosed_volume(positions, triangles) > 0.0;
 }
 
 SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_period,

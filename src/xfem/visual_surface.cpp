@@ -844,31 +844,4 @@ std::vector<std::pair<VertexId, double>> carriers(const VisualSurface& surface,
   return result;
 }
 
-double enclosed_volume(std::span<const Vec3> points, std::span<const Triangle> triangles) {
-  double six = 0.0;
-  for (const Triangle& t : triangles) {
-    const Vec3& a = points[static_cast<std::size_t>(t[0])];
-    const Vec3& b = points[static_cast<std::size_t>(t[1])];
-    const Vec3& c = points[static_cast<std::size_t>(t[2])];
-    six += a.dot(b.cross(c));
-  }
-  return six / 6.0;
-}
-
-bool is_watertight(std::span<const Triangle> triangles) {
-  std::map<std::pair<VertexId, VertexId>, int> directed;
-  for (const Triangle& t : triangles) {
-    for (std::size_t k = 0; k < 3; ++k) {
-      ++directed[{t[k], t[(k + 1) % 3]}];
-    }
-  }
-  for (const auto& [edge, count] : directed) {
-    const auto reverse = directed.find({edge.second, edge.first});
-    if (reverse == directed.end() || reverse->second != count) {
-      return false;
-    }
-  }
-  return true;
-}
-
 }  // namespace incise

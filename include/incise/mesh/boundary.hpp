@@ -34,6 +34,15 @@ struct SurfaceEdgeCheck {
 [[nodiscard]] SurfaceEdgeCheck check_surface_edges(std::span<const Triangle> triangles);
 [[nodiscard]] SurfaceEdgeCheck check_boundary(const TetMesh& mesh);
 
+/// Whether the triangles close up: every edge is used as often in one direction as in the
+/// other (once each on a smooth surface; along a partial cut's front, where the two lips meet,
+/// or where two pieces touch along an edge, more than once each).
+[[nodiscard]] bool is_watertight(std::span<const Triangle> triangles);
+/// Volume (m^3) a closed, outward-oriented triangle surface encloses (divergence theorem);
+/// negative when it faces in.
+[[nodiscard]] double enclosed_volume(std::span<const Vec3> points,
+                                     std::span<const Triangle> triangles);
+
 /// Tetrahedra connected through shared faces. Returns one component id per tet (0-based,
 /// numbered in order of first appearance) and sets `count`.
 [[nodiscard]] std::vector<int> tet_components(const TetMesh& mesh, int* count = nullptr);

@@ -128,12 +128,4 @@ class VisualSurface {
 [[nodiscard]] std::vector<std::pair<VertexId, double>> carriers(
     const VisualSurface& surface, std::size_t triangle, const std::array<double, 3>& barycentric);
 
-/// Volume (m^3) a closed, outward-oriented triangle surface encloses (divergence theorem).
-[[nodiscard]] double enclosed_volume(std::span<const Vec3> points,
-                                     std::span<const Triangle> triangles);
-/// Whether the triangles close up: every edge is used as often in one direction as in the
-/// other (once each on a smooth surface; along a partial cut's front, where the two lips meet,
-/// twice each).
-[[nodiscard]] bool is_watertight(std::span<const Triangle> triangles);
-
 }  // namespace incise
