@@ -9,6 +9,7 @@
 #include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/core/timing.hpp"
+#include "incise/physics/corotational_batch.hpp"
 #include "incise/physics/lumped_mass.hpp"
 
 namespace incise {
@@ -253,8 +254,7 @@ void CorotationalFemModel::add_forces(std::span<const Vec3> x, std::span<const V
 void CorotationalFemModel::add_forces_and_linearize(std::span<const Vec3> x,
                                                     std::span<const Vec3> v, std::span<Vec3> f) {
   refresh();
-  resize_for_edits(linearization_, mesh_->tet_count());
-  resize_for_edits(rotated_gradients_, mesh_->tet_count());
+  resize_linearization();
   element_forces(x, v, f, true);
   assemble_linearization_matrix();
 }
@@ -263,10 +263,20 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
                                           std::span<Vec3> f, bool linearize) const {
   INCISE_ASSERT(topology_revision_ == mesh_->revision(), "FEM model used before refresh()");
   const TetMesh& mesh = *mesh_;
-  const double beta = parameters_.rayleigh_stiffness;
-  // Pass 1, elements in memory order: -w V P per element (and the tangent data).
+  // Pass 1, elements in memory order, four at a time (corotational_batch.hpp): -w V P per
+  // element (and the tangent data). An element's result does not depend on its lane.
   resize_for_edits(scaled_stress_, mesh.tet_count());
   parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
+    CorotatedBatch batch;
+    std::array<TetId, kElementLanes> lane_tets{};
+    int count = 0;
+    const auto finish = [&] {
+      corotated_batch(batch, count);
+      for (int lane = 0; lane < count; ++lane) {
+        take_batch_result(batch, lane, lane_tets[static_cast<std::size_t>(lane)], v, linearize);
+      }
+      count = 0;
+    };
     for (std::size_t t = first; t != last; ++t) {
       const auto tet = static_cast<TetId>(t);
       const FemElement& element = elements_[tet];
@@ -275,18 +285,31 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
         scaled_stress_[t].setZero();
         continue;
       }
-      const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
-      const Mat3 R = polar_rotation(F, rotations_[tet]);
-      Mat3 P = corotated_stress(F, R, lame(tet));
-      if (beta > 0.0) {
-        // Stiffness-proportional damping with the element's current rotation.
-        P += beta * warped_stress_differential(
-                        R, lame(tet), deformation_gradient(corners(tet, v), element.shape));
+      const Tet& vertices = mesh.tet(tet);
+      for (int a = 0; a < 4; ++a) {
+        const Vec3& corner = x[static_cast<std::size_t>(vertices[a])];
+        const Vec3& gradient = element.shape.gradients[a];
+        for (int c = 0; c < 3; ++c) {
+          batch.corners[a][c][count] = corner[c];
+          batch.gradients[a][c][count] = gradient[c];
+        }
       }
-      scaled_stress_[t] = (-weight * element.shape.volume) * P;
-      if (linearize) {
-        store_linearization(tet, F, R);
+      const LameParameters& material = lame(tet);
+      batch.mu[count] = material.mu;
+      batch.lambda[count] = material.lambda;
+      batch.stress_scale[count] = -weight * element.shape.volume;
+      const Eigen::Quaterniond& start = rotations_[tet];
+      batch.quaternion[0][count] = start.w();
+      batch.quaternion[1][count] = start.x();
+      batch.quaternion[2][count] = start.y();
+      batch.quaternion[3][count] = start.z();
+      lane_tets[static_cast<std::size_t>(count)] = tet;
+      if (++count == kElementLanes) {
+        finish();
       }
+    }
+    if (count > 0) {
+      finish();
     }
   });
   // Pass 2, vertices: gather f_i = sum over incident elements of (-w V P) grad N_corner, in
@@ -306,15 +329,74 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
   });
 }
 
-void CorotationalFemModel::store_linearization(TetId tet, const Mat3& F, const Mat3& R) const {
-  CorotatedLinearization& linearization = linearization_[static_cast<std::size_t>(tet)];
+void CorotationalFemModel::take_batch_result(const CorotatedBatch& batch, int lane, TetId tet,
+                                             std::span<const Vec3> v, bool linearize) const {
+  const auto t = static_cast<std::size_t>(tet);
+  Mat3 R;
+  Mat3& scaled_stress = scaled_stress_[t];
+  for (int k = 0; k < 9; ++k) {
+    R.data()[k] = batch.rotation[k][lane];
+    scaled_stress.data()[k] = batch.scaled_stress[k][lane];
+  }
+  rotations_[tet] = Eigen::Quaterniond(batch.quaternion[0][lane], batch.quaternion[1][lane],
+                                       batch.quaternion[2][lane], batch.quaternion[3][lane]);
+  const double beta = parameters_.rayleigh_stiffness;
+  if (beta > 0.0) {
+    // Stiffness-proportional damping with the element's current rotation.
+    const TetRestShape& shape = elements_[tet].shape;
+    scaled_stress += (beta * batch.stress_scale[lane]) *
+                     warped_stress_differential(R, lame(tet),
+                                                deformation_gradient(corners(tet, v), shape));
+  }
+  if (!linearize) {
+    return;
+  }
+  if (parameters_.tangent != TangentKind::kWarped) {
+    Mat3 F;
+    for (int k = 0; k < 9; ++k) {
+      F.data()[k] = batch.deformation[k][lane];
+    }
+    store_linearization(tet, F, R);
+    return;
+  }
+  warped_rotations_[t] = R;
+  auto& rotated = rotated_gradients_[t];
+  for (int a = 0; a < 4; ++a) {
+    rotated[a] = Vec3(batch.rotated_gradients[a][0][lane], batch.rotated_gradients[a][1][lane],
+                      batch.rotated_gradients[a][2][lane]);
+  }
+}
+
+void CorotationalFemModel::resize_linearization() {
+  const std::size_t count = mesh_->tet_count();
   if (parameters_.tangent == TangentKind::kWarped) {
-    // Only what the warped tangent reads: a third of the bytes of a full linearisation.
-    linearization.warped = true;
-    linearization.rotation = R;
-    linearization.twist_weights.fill(-2.0 * lame(tet).mu);
+    // The warped tangent is the rotation alone: 72 bytes per element where a full
+    // linearisation takes 320 (the force pass writes one per element each step).
+    resize_for_edits(warped_rotations_, count);
   } else {
-    linearization = corotated_linearization(F, R, lame(tet), parameters_.tangent);
+    resize_for_edits(linearization_, count);
+  }
+  resize_for_edits(rotated_gradients_, count);
+}
+
+CorotatedLinearization CorotationalFemModel::linearization_of(TetId tet) const {
+  const auto t = static_cast<std::size_t>(tet);
+  if (parameters_.tangent != TangentKind::kWarped) {
+    return linearization_[t];
+  }
+  CorotatedLinearization linearization;
+  linearization.warped = true;
+  linearization.rotation = warped_rotations_[t];
+  linearization.twist_weights.fill(-2.0 * lame(tet).mu);
+  return linearization;
+}
+
+void CorotationalFemModel::store_linearization(TetId tet, const Mat3& F, const Mat3& R) const {
+  if (parameters_.tangent == TangentKind::kWarped) {
+    warped_rotations_[static_cast<std::size_t>(tet)] = R;
+  } else {
+    linearization_[static_cast<std::size_t>(tet)] =
+        corotated_linearization(F, R, lame(tet), parameters_.tangent);
   }
   auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
   for (int a = 0; a < 4; ++a) {
@@ -371,9 +453,7 @@ std::span<const VertexId> CorotationalFemModel::neighbors(VertexId vertex) const
 
 void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
   refresh();
-  const TetMesh& mesh = *mesh_;
-  resize_for_edits(linearization_, mesh.tet_count());
-  resize_for_edits(rotated_gradients_, mesh.tet_count());
+  resize_linearization();
   for_each_valid_element_in_order([&](TetId tet, const FemElement& element) {
     const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
     store_linearization(tet, F, polar_rotation(F, rotations_[tet]));
@@ -409,6 +489,7 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
   } else {
     // Per element dP (into scaled_stress_, free between force evaluations), then per vertex.
     const TetMesh& mesh = *mesh_;
+    const bool warped = parameters_.tangent == TangentKind::kWarped;
     resize_for_edits(scaled_stress_, mesh.tet_count());
     parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
       for (std::size_t t = first; t != last; ++t) {
@@ -421,7 +502,9 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
         }
         const Mat3 dF = deformation_gradient(corners(tet, p), element.shape);
         scaled_stress_[t] = (stiffness_scale * weight * element.shape.volume) *
-                            stress_differential(linearization_[tet], lame(tet), dF);
+                            (warped ? warped_stress_differential(
+                                          warped_rotations_[t], lame(tet), dF)
+                                    : stress_differential(linearization_[t], lame(tet), dF));
       }
     });
     parallel_for(0, mesh.vertex_count(), 256, [&](std::size_t first, std::size_t last) {
@@ -459,7 +542,7 @@ void CorotationalFemModel::add_linearized_diagonal(double a, double b,
           const FemElement& element = elements_[tet];
           const double weight = mesh_->material_fraction(tet);
           if (element.valid && weight != 0.0) {
-            diagonal[i] += stiffness_scale * stiffness_block(linearization_[tet], lame(tet),
+            diagonal[i] += stiffness_scale * stiffness_block(linearization_of(tet), lame(tet),
                                                              element.shape, weight, corner, corner);
           }
         });
@@ -525,11 +608,14 @@ void CorotationalFemModel::assemble_rows(std::span<Mat3> out, double scale) cons
           const Vec3 lambda_a = (factor * lame(tet).lambda) * rotated[a];
           const Vec3 mu_a = (factor * lame(tet).mu) * rotated[a];
           const Vec3& gradient_a = element.shape.gradients[a];
+          std::array<Mat3*, 4> blocks;
+          std::array<double, 4> diagonal;
           for (int b = 0; b < 4; ++b) {
-            add_warped_stiffness_block(
-                out[slot[4 * a + b]], lambda_a, mu_a, rotated[b],
-                factor * lame(tet).mu * gradient_a.dot(element.shape.gradients[b]));
+            blocks[static_cast<std::size_t>(b)] = &out[slot[4 * a + b]];
+            diagonal[static_cast<std::size_t>(b)] =
+                factor * lame(tet).mu * gradient_a.dot(element.shape.gradients[b]);
           }
+          add_warped_stiffness_row(blocks, lambda_a, mu_a, rotated, diagonal);
           return;
         }
         const CorotatedLinearization& linearization = linearization_[tet];

@@ -30,6 +30,8 @@
 
 namespace incise {
 
+struct CorotatedBatch;
+
 struct CorotationalFemParameters {
   /// Rayleigh damping D = alpha M + beta K: alpha (1/s) and beta (s).
   double rayleigh_mass = 0.0;
@@ -140,6 +142,14 @@ class CorotationalFemModel final : public ForceModel,
   [[nodiscard]] Corners corners(TetId tet, std::span<const Vec3> x) const;
   void element_forces(std::span<const Vec3> x, std::span<const Vec3> v, std::span<Vec3> f,
                       bool linearize) const;
+  /// Takes lane `lane` of a force batch for element `tet`: its stress (with damping from the
+  /// velocities v), its rotation, and with `linearize` its tangent data.
+  void take_batch_result(const CorotatedBatch& batch, int lane, TetId tet,
+                         std::span<const Vec3> v, bool linearize) const;
+  /// Sizes the tangent data for the mesh's elements.
+  void resize_linearization();
+  /// An element's tangent as the one-element functions take it.
+  [[nodiscard]] CorotatedLinearization linearization_of(TetId tet) const;
   /// Keeps an element's tangent and rotated shape gradients for products and assembly.
   void store_linearization(TetId tet, const Mat3& F, const Mat3& R) const;
   void assemble_linearization_matrix();
@@ -180,7 +190,8 @@ class CorotationalFemModel final : public ForceModel,
   mutable std::vector<CorotatedLinearization> rest_linearizations_;
 
   // Written by the element loops (each element only by its own thread).
-  mutable std::vector<CorotatedLinearization> linearization_;
+  mutable std::vector<CorotatedLinearization> linearization_;  ///< exact or projected tangent
+  mutable std::vector<Mat3> warped_rotations_;  ///< the warped tangent: R per element
   mutable std::vector<std::array<Vec3, 4>> rotated_gradients_;  ///< R grad N_a per element
   mutable std::vector<Mat3> scaled_stress_;  ///< -w V P per element (N m), gathered per vertex
   mutable BlockSparseMatrix stiffness_;
