@@ -263,17 +263,46 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
                                           std::span<Vec3> f, bool linearize) const {
   INCISE_ASSERT(topology_revision_ == mesh_->revision(), "FEM model used before refresh()");
   const TetMesh& mesh = *mesh_;
-  // Pass 1, elements in memory order, four at a time (corotational_batch.hpp): -w V P per
-  // element (and the tangent data). An element's result does not depend on its lane.
+  // Pass 1, elements in memory order: -w V P per element (and the tangent data).
   resize_for_edits(scaled_stress_, mesh.tet_count());
-  parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
+  for_each_element_batch(
+      x, [&](std::size_t t) { scaled_stress_[t].setZero(); },
+      [&](const CorotatedBatch& batch, int lane, TetId tet) {
+        take_batch_result(batch, lane, tet, v, true, linearize);
+      });
+  // Pass 2, vertices: gather f_i = sum over incident elements of (-w V P) grad N_corner, in
+  // a fixed order per vertex, so the sum does not depend on the thread count.
+  parallel_for(0, mesh.vertex_count(), 256, [&](std::size_t first, std::size_t last) {
+    for (std::size_t i = first; i != last; ++i) {
+      Vec3 sum = Vec3::Zero();
+      for_each_incidence(static_cast<VertexId>(i), [&](TetId tet, int corner) {
+        sum.noalias() +=
+            scaled_stress_[static_cast<std::size_t>(tet)] * elements_[tet].shape.gradients[corner];
+      });
+      f[i] += sum;
+      if (parameters_.rayleigh_mass > 0.0) {
+        f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
+      }
+    }
+  });
+}
+
+template <typename Skip, typename Take>
+void CorotationalFemModel::for_each_element_batch(std::span<const Vec3> x, const Skip& skip,
+                                                  const Take& take) const {
+  // Four elements at a time (corotational_batch.hpp), the valid ones with material, in memory
+  // order; an element's result does not depend on its lane. Every pass that moves the
+  // rotations' warm starts goes through here: one implementation, so a rotation that has
+  // settled stays settled bit for bit (a model rebuilt after a cut then equals the one that
+  // followed it).
+  parallel_for(0, mesh_->tet_count(), 256, [&](std::size_t first, std::size_t last) {
     CorotatedBatch batch;
     std::array<TetId, kElementLanes> lane_tets{};
     int count = 0;
     const auto finish = [&] {
       corotated_batch(batch, count);
       for (int lane = 0; lane < count; ++lane) {
-        take_batch_result(batch, lane, lane_tets[static_cast<std::size_t>(lane)], v, linearize);
+        take(batch, lane, lane_tets[static_cast<std::size_t>(lane)]);
       }
       count = 0;
     };
@@ -282,10 +311,10 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
       const FemElement& element = elements_[tet];
       const double weight = mesh_->material_fraction(tet);
       if (!element.valid || weight == 0.0) {
-        scaled_stress_[t].setZero();
+        skip(t);
         continue;
       }
-      const Tet& vertices = mesh.tet(tet);
+      const Tet& vertices = mesh_->tet(tet);
       for (int a = 0; a < 4; ++a) {
         const Vec3& corner = x[static_cast<std::size_t>(vertices[a])];
         const Vec3& gradient = element.shape.gradients[a];
@@ -312,41 +341,31 @@ void CorotationalFemModel::element_forces(std::span<const Vec3> x, std::span<con
       finish();
     }
   });
-  // Pass 2, vertices: gather f_i = sum over incident elements of (-w V P) grad N_corner, in
-  // a fixed order per vertex, so the sum does not depend on the thread count.
-  parallel_for(0, mesh.vertex_count(), 256, [&](std::size_t first, std::size_t last) {
-    for (std::size_t i = first; i != last; ++i) {
-      Vec3 sum = Vec3::Zero();
-      for_each_incidence(static_cast<VertexId>(i), [&](TetId tet, int corner) {
-        sum.noalias() +=
-            scaled_stress_[static_cast<std::size_t>(tet)] * elements_[tet].shape.gradients[corner];
-      });
-      f[i] += sum;
-      if (parameters_.rayleigh_mass > 0.0) {
-        f[i] -= parameters_.rayleigh_mass * masses_[static_cast<VertexId>(i)] * v[i];
-      }
-    }
-  });
 }
 
 void CorotationalFemModel::take_batch_result(const CorotatedBatch& batch, int lane, TetId tet,
-                                             std::span<const Vec3> v, bool linearize) const {
+                                             std::span<const Vec3> v, bool stress,
+                                             bool linearize) const {
   const auto t = static_cast<std::size_t>(tet);
   Mat3 R;
-  Mat3& scaled_stress = scaled_stress_[t];
   for (int k = 0; k < 9; ++k) {
     R.data()[k] = batch.rotation[k][lane];
-    scaled_stress.data()[k] = batch.scaled_stress[k][lane];
   }
   rotations_[tet] = Eigen::Quaterniond(batch.quaternion[0][lane], batch.quaternion[1][lane],
                                        batch.quaternion[2][lane], batch.quaternion[3][lane]);
   const double beta = parameters_.rayleigh_stiffness;
-  if (beta > 0.0) {
-    // Stiffness-proportional damping with the element's current rotation.
-    const TetRestShape& shape = elements_[tet].shape;
-    scaled_stress += (beta * batch.stress_scale[lane]) *
-                     warped_stress_differential(R, lame(tet),
-                                                deformation_gradient(corners(tet, v), shape));
+  if (stress) {
+    Mat3& scaled_stress = scaled_stress_[t];
+    for (int k = 0; k < 9; ++k) {
+      scaled_stress.data()[k] = batch.scaled_stress[k][lane];
+    }
+    if (beta > 0.0) {
+      // Stiffness-proportional damping with the element's current rotation.
+      const TetRestShape& shape = elements_[tet].shape;
+      scaled_stress += (beta * batch.stress_scale[lane]) *
+                       warped_stress_differential(
+                           R, lame(tet), deformation_gradient(corners(tet, v), shape));
+    }
   }
   if (!linearize) {
     return;
@@ -454,10 +473,11 @@ std::span<const VertexId> CorotationalFemModel::neighbors(VertexId vertex) const
 void CorotationalFemModel::prepare_linearization(std::span<const Vec3> x, std::span<const Vec3>) {
   refresh();
   resize_linearization();
-  for_each_valid_element_in_order([&](TetId tet, const FemElement& element) {
-    const Mat3 F = deformation_gradient(corners(tet, x), element.shape);
-    store_linearization(tet, F, polar_rotation(F, rotations_[tet]));
-  });
+  for_each_element_batch(
+      x, [](std::size_t) {},
+      [&](const CorotatedBatch& batch, int lane, TetId tet) {
+        take_batch_result(batch, lane, tet, {}, false, true);
+      });
   assemble_linearization_matrix();
 }
 

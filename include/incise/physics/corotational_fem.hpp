@@ -142,10 +142,14 @@ class CorotationalFemModel final : public ForceModel,
   [[nodiscard]] Corners corners(TetId tet, std::span<const Vec3> x) const;
   void element_forces(std::span<const Vec3> x, std::span<const Vec3> v, std::span<Vec3> f,
                       bool linearize) const;
-  /// Takes lane `lane` of a force batch for element `tet`: its stress (with damping from the
-  /// velocities v), its rotation, and with `linearize` its tangent data.
+  /// Runs the element kernel over the valid elements with material, four at a time, and
+  /// take(batch, lane, tet) for each; skip(t) for the others.
+  template <typename Skip, typename Take>
+  void for_each_element_batch(std::span<const Vec3> x, const Skip& skip, const Take& take) const;
+  /// Takes lane `lane` of a batch for element `tet`: its rotation; with `stress` its scaled
+  /// stress (with damping from the velocities v); with `linearize` its tangent data.
   void take_batch_result(const CorotatedBatch& batch, int lane, TetId tet,
-                         std::span<const Vec3> v, bool linearize) const;
+                         std::span<const Vec3> v, bool stress, bool linearize) const;
   /// Sizes the tangent data for the mesh's elements.
   void resize_linearization();
   /// An element's tangent as the one-element functions take it.
