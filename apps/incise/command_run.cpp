@@ -29,6 +29,16 @@
 namespace incise::app {
 namespace {
 
+/// A frame's relaxation parts in ms, for the report.
+nlohmann::ordered_json rx_parts_ms(const FrameRecord::RelaxationParts& parts) {
+  return {{"refresh", 1e3 * parts.refresh},
+          {"forces", 1e3 * parts.forces},
+          {"preconditioner", 1e3 * parts.preconditioner},
+          {"start", 1e3 * parts.start},
+          {"products", 1e3 * parts.products},
+          {"vector_updates", 1e3 * parts.vector_updates}};
+}
+
 /// A progress bar on a terminal, a plain line per 10 % otherwise (logs, CI).
 class Progress {
  public:
@@ -311,6 +321,7 @@ Runner add_run_command(CLI::App& app) {
                              {"rx", 1e3 * record.rx},
                              {"rd", 1e3 * record.rd},
                              {"solver_iterations", record.solver_iterations},
+                             {"rx_parts", rx_parts_ms(record.rx_parts)},
                              {"vertices", record.vertices},
                              {"tets", record.tets},
                              {"kinetic_energy", record.kinetic_energy},

@@ -466,7 +466,14 @@ bool Engine::step() {
   auto start = Clock::now();
   for (int s = 0; s < p.steps_per_frame; ++s) {
     p.integrator->step(p.system, p.state.x.values(), p.state.v.values(), p.state.time, dt);
-    record.solver_iterations += p.integrator->stats().solver_iterations_last_step;
+    const IntegratorStats& stats = p.integrator->stats();
+    record.solver_iterations += stats.solver_iterations_last_step;
+    record.rx_parts.refresh += stats.seconds_refresh;
+    record.rx_parts.forces += stats.seconds_forces;
+    record.rx_parts.preconditioner += stats.seconds_preconditioner;
+    record.rx_parts.start += stats.seconds_solver_start;
+    record.rx_parts.products += stats.seconds_products;
+    record.rx_parts.vector_updates += stats.seconds_vector_updates;
     p.state.time = frame_dt * (record.frame - 1) + dt * (s + 1);
   }
   p.state.time = frame_dt * record.frame;

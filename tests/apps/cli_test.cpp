@@ -235,6 +235,7 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
   EXPECT_EQ(json["diverged"], false);
   EXPECT_EQ(json["per_frame_ms"].size(), 40u);
   EXPECT_EQ(json["per_frame_ms"][0]["solver_iterations"], 0);  // explicit: no linear solve
+  EXPECT_EQ(json["per_frame_ms"][0]["rx_parts"]["products"], 0.0);
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default.pvd"));
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "default_000040.vtu"));
 }

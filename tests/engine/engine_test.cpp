@@ -259,7 +259,18 @@ TEST(Engine, EachIntegratorKnowsWhetherItIsImplicitAndItsStabilityLimit) {
     }
     // The frame's record counts the solver's iterations: none for an explicit scheme.
     ASSERT_TRUE(engine.step());
-    EXPECT_EQ(engine.last_frame().solver_iterations > 0, implicit) << type;
+    const FrameRecord& record = engine.last_frame();
+    EXPECT_EQ(record.solver_iterations > 0, implicit) << type;
+    // And where backward Euler's relaxation went: parts of rx, each measured.
+    if (std::string(type) == "backward-euler") {
+      const FrameRecord::RelaxationParts& parts = record.rx_parts;
+      EXPECT_GT(parts.forces, 0.0);
+      EXPECT_GT(parts.products, 0.0);
+      EXPECT_GT(parts.vector_updates, 0.0);
+      EXPECT_LE(parts.refresh + parts.forces + parts.preconditioner + parts.start +
+                    parts.products + parts.vector_updates,
+                record.rx);
+    }
   }
 }
 

@@ -38,6 +38,17 @@ struct FrameRecord {
   double rx = 0.0;                    ///< relaxation (s)
   double rd = 0.0;                    ///< output: sinks and the published snapshot (s)
   std::size_t solver_iterations = 0;  ///< the solver's iterations in the frame (0: explicit)
+  /// Where rx went (s), summed over the frame's steps (IntegratorStats): the model following
+  /// the mesh's edits, forces with the linearisation, the system matrix and preconditioner,
+  /// the solver's starting guess, its products and its vector updates. Implicit schemes only.
+  struct RelaxationParts {
+    double refresh = 0.0;
+    double forces = 0.0;
+    double preconditioner = 0.0;
+    double start = 0.0;
+    double products = 0.0;
+    double vector_updates = 0.0;
+  } rx_parts;
   std::size_t vertices = 0;
   std::size_t tets = 0;
   double kinetic_energy = 0.0;    ///< J
