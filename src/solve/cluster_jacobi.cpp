@@ -286,32 +286,76 @@ bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char
          std::none_of(failed.begin(), failed.end(), [](char f) { return f != 0; });
 }
 
+namespace {
+
+/// One cluster of K vertices: z = inverse r on its members; returns their part of r.z. Fixed
+/// sizes, so Eigen unrolls and vectorises the product (a dynamic-size product of these small
+/// matrices spent most of its time setting itself up).
+template <int K>
+double apply_cluster(const double* inverse, const VertexId* members, std::span<const Vec3> r,
+                     std::span<Vec3> z) {
+  Eigen::Matrix<double, 3 * K, 1> gathered;
+  for (int a = 0; a < K; ++a) {
+    gathered.template segment<3>(3 * a) = r[static_cast<std::size_t>(members[a])];
+  }
+  const Eigen::Matrix<double, 3 * K, 1> solved =
+      Eigen::Map<const Eigen::Matrix<double, 3 * K, 3 * K>>(inverse) * gathered;
+  double sum = 0.0;
+  for (int a = 0; a < K; ++a) {
+    const auto v = static_cast<std::size_t>(members[a]);
+    z[v] = solved.template segment<3>(3 * a);
+    sum += r[v].dot(z[v]);
+  }
+  return sum;
+}
+
+/// The same for any size.
+double apply_cluster(const double* inverse, const VertexId* members, std::size_t k,
+                     std::span<const Vec3> r, std::span<Vec3> z) {
+  const auto size = static_cast<Eigen::Index>(3 * k);
+  Eigen::VectorXd gathered(size);
+  for (std::size_t a = 0; a < k; ++a) {
+    gathered.segment<3>(static_cast<Eigen::Index>(3 * a)) =
+        r[static_cast<std::size_t>(members[a])];
+  }
+  const Eigen::VectorXd solved = Eigen::Map<const Eigen::MatrixXd>(inverse, size, size) * gathered;
+  double sum = 0.0;
+  for (std::size_t a = 0; a < k; ++a) {
+    const auto v = static_cast<std::size_t>(members[a]);
+    z[v] = solved.segment<3>(static_cast<Eigen::Index>(3 * a));
+    sum += r[v].dot(z[v]);
+  }
+  return sum;
+}
+
+}  // namespace
+
 double ClusterJacobi::apply_clusters(std::span<const Vec3> r, std::span<Vec3> z) const {
   const std::size_t clusters = multi_.size();
   const std::size_t chunks = (clusters + kClusterChunk - 1) / kClusterChunk;
   std::vector<double> partial(chunks, 0.0);
   parallel_for(0, chunks, 1, [&](std::size_t first_chunk, std::size_t last_chunk) {
-    const auto largest = static_cast<Eigen::Index>(3 * largest_);
-    Eigen::VectorXd gathered(largest);
-    Eigen::VectorXd solved(largest);
     for (std::size_t chunk = first_chunk; chunk != last_chunk; ++chunk) {
       double sum = 0.0;
       const std::size_t end = std::min(clusters, (chunk + 1) * kClusterChunk);
       for (std::size_t m = chunk * kClusterChunk; m < end; ++m) {
         const std::size_t c = multi_[m];
         const std::size_t k = first_[c + 1] - first_[c];
-        const auto size = static_cast<Eigen::Index>(3 * k);
-        for (std::size_t a = 0; a < k; ++a) {
-          gathered.segment<3>(static_cast<Eigen::Index>(3 * a)) =
-              r[static_cast<std::size_t>(members_[first_[c] + a])];
-        }
-        solved.head(size).noalias() =
-            Eigen::Map<const Eigen::MatrixXd>(&inverse_[offset_[m]], size, size) *
-            gathered.head(size);
-        for (std::size_t a = 0; a < k; ++a) {
-          const auto v = static_cast<std::size_t>(members_[first_[c] + a]);
-          z[v] = solved.segment<3>(static_cast<Eigen::Index>(3 * a));
-          sum += r[v].dot(z[v]);
+        const double* inverse = &inverse_[offset_[m]];
+        const VertexId* members = &members_[first_[c]];
+        switch (k) {
+          case 2:
+            sum += apply_cluster<2>(inverse, members, r, z);
+            break;
+          case 3:
+            sum += apply_cluster<3>(inverse, members, r, z);
+            break;
+          case 4:
+            sum += apply_cluster<4>(inverse, members, r, z);
+            break;
+          default:
+            sum += apply_cluster(inverse, members, k, r, z);
+            break;
         }
       }
       partial[chunk] = sum;
