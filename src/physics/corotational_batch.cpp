@@ -7,9 +7,13 @@
 
 #include "incise/core/error.hpp"
 
-#if defined(__GNUC__) && !defined(__clang__)
-// The helpers below pass 32-byte vectors by value; GCC warns that their ABI differs with and
-// without AVX. They are internal to this file and always inlined, so no call crosses it.
+// The helpers below pass 32-byte vectors by value; the compilers warn that their ABI differs
+// with and without AVX. They are internal to this file and always inlined, so no call
+// crosses it.
+#if defined(__clang__)
+#pragma clang diagnostic ignored "-Wunknown-warning-option"
+#endif
+#if defined(__GNUC__)
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
 
@@ -50,8 +54,7 @@ static_assert(kElementLanes == 4, "the kernel is written for four lanes");
 }
 
 [[gnu::always_inline]] inline Lanes square_root(const Lanes& value) {
-  return Lanes{std::sqrt(value[0]), std::sqrt(value[1]), std::sqrt(value[2]),
-               std::sqrt(value[3])};
+  return Lanes{std::sqrt(value[0]), std::sqrt(value[1]), std::sqrt(value[2]), std::sqrt(value[3])};
 }
 
 /// A 3x3 matrix of each lane, column-major.
@@ -203,13 +206,11 @@ void finish_rotations_one_by_one(CorotatedBatch& batch, const LaneMask& unsettle
     const Lanes hx = 0.5 * turn[0];
     const Lanes hy = 0.5 * turn[1];
     const Lanes hz = 0.5 * turn[2];
-    Lanes next[4] = {q[0] - (q[1] * hx + q[2] * hy + q[3] * hz),
-                     q[0] * hx + q[1] + (q[2] * hz - q[3] * hy),
-                     q[0] * hy + q[2] + (q[3] * hx - q[1] * hz),
-                     q[0] * hz + q[3] + (q[1] * hy - q[2] * hx)};
-    const Lanes inverse_norm =
-        1.0 / square_root(next[0] * next[0] + next[1] * next[1] + next[2] * next[2] +
-                          next[3] * next[3]);
+    Lanes next[4] = {
+        q[0] - (q[1] * hx + q[2] * hy + q[3] * hz), q[0] * hx + q[1] + (q[2] * hz - q[3] * hy),
+        q[0] * hy + q[2] + (q[3] * hx - q[1] * hz), q[0] * hz + q[3] + (q[1] * hy - q[2] * hx)};
+    const Lanes inverse_norm = 1.0 / square_root(next[0] * next[0] + next[1] * next[1] +
+                                                 next[2] * next[2] + next[3] * next[3]);
     for (int k = 0; k < 4; ++k) {
       q[k] = blend(step, next[k] * inverse_norm, q[k]);
     }
@@ -287,8 +288,8 @@ void batch_portable(CorotatedBatch& batch, int count) {
   batch_kernel(batch, count);
 }
 
-void warped_row_portable(const std::array<Mat3*, 4>& blocks, const Vec3& lambda_a,
-                         const Vec3& mu_a, const std::array<Vec3, 4>& rotated,
+void warped_row_portable(const std::array<Mat3*, 4>& blocks, const Vec3& lambda_a, const Vec3& mu_a,
+                         const std::array<Vec3, 4>& rotated,
                          const std::array<double, 4>& diagonal) {
   warped_row_kernel(blocks, lambda_a, mu_a, rotated, diagonal);
 }

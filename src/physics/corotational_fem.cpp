@@ -362,9 +362,9 @@ void CorotationalFemModel::take_batch_result(const CorotatedBatch& batch, int la
     if (beta > 0.0) {
       // Stiffness-proportional damping with the element's current rotation.
       const TetRestShape& shape = elements_[tet].shape;
-      scaled_stress += (beta * batch.stress_scale[lane]) *
-                       warped_stress_differential(
-                           R, lame(tet), deformation_gradient(corners(tet, v), shape));
+      scaled_stress +=
+          (beta * batch.stress_scale[lane]) *
+          warped_stress_differential(R, lame(tet), deformation_gradient(corners(tet, v), shape));
     }
   }
   if (!linearize) {
@@ -521,10 +521,10 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
           continue;
         }
         const Mat3 dF = deformation_gradient(corners(tet, p), element.shape);
-        scaled_stress_[t] = (stiffness_scale * weight * element.shape.volume) *
-                            (warped ? warped_stress_differential(
-                                          warped_rotations_[t], lame(tet), dF)
-                                    : stress_differential(linearization_[t], lame(tet), dF));
+        scaled_stress_[t] =
+            (stiffness_scale * weight * element.shape.volume) *
+            (warped ? warped_stress_differential(warped_rotations_[t], lame(tet), dF)
+                    : stress_differential(linearization_[t], lame(tet), dF));
       }
     });
     parallel_for(0, mesh.vertex_count(), 256, [&](std::size_t first, std::size_t last) {

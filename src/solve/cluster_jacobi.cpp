@@ -315,8 +315,7 @@ double apply_cluster(const double* inverse, const VertexId* members, std::size_t
   const auto size = static_cast<Eigen::Index>(3 * k);
   Eigen::VectorXd gathered(size);
   for (std::size_t a = 0; a < k; ++a) {
-    gathered.segment<3>(static_cast<Eigen::Index>(3 * a)) =
-        r[static_cast<std::size_t>(members[a])];
+    gathered.segment<3>(static_cast<Eigen::Index>(3 * a)) = r[static_cast<std::size_t>(members[a])];
   }
   const Eigen::VectorXd solved = Eigen::Map<const Eigen::MatrixXd>(inverse, size, size) * gathered;
   double sum = 0.0;

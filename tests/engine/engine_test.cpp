@@ -267,8 +267,8 @@ TEST(Engine, EachIntegratorKnowsWhetherItIsImplicitAndItsStabilityLimit) {
       EXPECT_GT(parts.forces, 0.0);
       EXPECT_GT(parts.products, 0.0);
       EXPECT_GT(parts.vector_updates, 0.0);
-      EXPECT_LE(parts.refresh + parts.forces + parts.preconditioner + parts.start +
-                    parts.products + parts.vector_updates,
+      EXPECT_LE(parts.refresh + parts.forces + parts.preconditioner + parts.start + parts.products +
+                    parts.vector_updates,
                 record.rx);
     }
   }

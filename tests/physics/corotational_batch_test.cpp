@@ -105,8 +105,7 @@ void expect_lane_matches(const CorotatedBatch& batch, int lane, const Element& e
   const double f_scale = 1.0 + F.norm();
   EXPECT_LT((matrix_of(batch.deformation, lane) - F).norm(), 1e-12 * f_scale);
   EXPECT_LT((matrix_of(batch.rotation, lane) - R).norm(), 1e-9) << "lane " << lane;
-  EXPECT_LT((matrix_of(batch.scaled_stress, lane) - stress).norm(),
-            1e-8 * (1.0 + stress.norm()))
+  EXPECT_LT((matrix_of(batch.scaled_stress, lane) - stress).norm(), 1e-8 * (1.0 + stress.norm()))
       << "lane " << lane;
   const Eigen::Quaterniond found(batch.quaternion[0][lane], batch.quaternion[1][lane],
                                  batch.quaternion[2][lane], batch.quaternion[3][lane]);
@@ -186,7 +185,7 @@ TEST_P(CorotatedBatchKernels, ANonFiniteElementGetsTheIdentityAndLeavesTheOthers
 }
 
 using RowKernel = void (*)(const std::array<Mat3*, 4>&, const Vec3&, const Vec3&,
-                          const std::array<Vec3, 4>&, const std::array<double, 4>&);
+                           const std::array<Vec3, 4>&, const std::array<double, 4>&);
 
 class WarpedRowKernels : public testing::TestWithParam<RowKernel> {};
 
@@ -197,7 +196,9 @@ INSTANTIATE_TEST_SUITE_P(BothBuilds, WarpedRowKernels,
 TEST_P(WarpedRowKernels, AddTheSameBlocksAsOneBlockAtATime) {
   std::mt19937 random(17);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
-  const auto random_vector = [&] { return Vec3(uniform(random), uniform(random), uniform(random)); };
+  const auto random_vector = [&] {
+    return Vec3(uniform(random), uniform(random), uniform(random));
+  };
   for (int trial = 0; trial < 50; ++trial) {
     const Vec3 lambda_a = 1e3 * random_vector();
     const Vec3 mu_a = 1e2 * random_vector();
@@ -213,11 +214,12 @@ TEST_P(WarpedRowKernels, AddTheSameBlocksAsOneBlockAtATime) {
       expected[b] = blocks[b];
       add_warped_stiffness_block(expected[b], lambda_a, mu_a, rotated[b], diagonal[b]);
     }
-    GetParam()({&blocks[0], &blocks[1], &blocks[2], &blocks[3]}, lambda_a, mu_a, rotated,
-               diagonal);
+    GetParam()({&blocks[0], &blocks[1], &blocks[2], &blocks[3]}, lambda_a, mu_a, rotated, diagonal);
     for (std::size_t b = 0; b < 4; ++b) {
       EXPECT_LT((blocks[b] - expected[b]).cwiseAbs().maxCoeff(), 1e-9 * expected[b].norm())
-          << "block " << b << "\n" << blocks[b] << "\n" << expected[b];
+          << "block " << b << "\n"
+          << blocks[b] << "\n"
+          << expected[b];
     }
   }
 }

@@ -31,9 +31,9 @@ struct alignas(64) CorotatedBatch {
   /// The rotation's warm start as a unit quaternion w, x, y, z; the rotation found, out.
   double quaternion[4][kElementLanes];
   // ---- out
-  double deformation[9][kElementLanes];          ///< F
-  double rotation[9][kElementLanes];             ///< R of F = R S
-  double scaled_stress[9][kElementLanes];        ///< stress_scale * P (N m)
+  double deformation[9][kElementLanes];           ///< F
+  double rotation[9][kElementLanes];              ///< R of F = R S
+  double scaled_stress[9][kElementLanes];         ///< stress_scale * P (N m)
   double rotated_gradients[4][3][kElementLanes];  ///< R grad N_a (1/m)
 };
 

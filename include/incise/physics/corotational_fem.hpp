@@ -148,8 +148,8 @@ class CorotationalFemModel final : public ForceModel,
   void for_each_element_batch(std::span<const Vec3> x, const Skip& skip, const Take& take) const;
   /// Takes lane `lane` of a batch for element `tet`: its rotation; with `stress` its scaled
   /// stress (with damping from the velocities v); with `linearize` its tangent data.
-  void take_batch_result(const CorotatedBatch& batch, int lane, TetId tet,
-                         std::span<const Vec3> v, bool stress, bool linearize) const;
+  void take_batch_result(const CorotatedBatch& batch, int lane, TetId tet, std::span<const Vec3> v,
+                         bool stress, bool linearize) const;
   /// Sizes the tangent data for the mesh's elements.
   void resize_linearization();
   /// An element's tangent as the one-element functions take it.
