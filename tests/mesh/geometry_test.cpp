@@ -227,6 +227,33 @@ TEST(Boundary, OpenAndMisorientedSurfacesAreDetected) {
   std::vector<Triangle> flipped = closed;
   std::swap(flipped[0][1], flipped[0][2]);
   EXPECT_EQ(check_surface_edges(flipped).misoriented_edges, 3u);
+  // is_watertight says the same, as the faster check the renderer runs after every cut.
+  EXPECT_TRUE(is_watertight(closed));
+  EXPECT_FALSE(is_watertight(open));
+  EXPECT_FALSE(is_watertight(flipped));
+  // Every edge used twice each way (two copies) is closed; a third copy of one face is not,
+  // though every edge is then used: the counts each way differ.
+  std::vector<Triangle> doubled = closed;
+  doubled.insert(doubled.end(), closed.begin(), closed.end());
+  EXPECT_TRUE(is_watertight(doubled));
+  doubled.push_back(closed[1]);
+  EXPECT_FALSE(is_watertight(doubled));
+  // A degenerate triangle's edge from a vertex to itself balances itself.
+  std::vector<Triangle> with_degenerate = closed;
+  with_degenerate.push_back({2, 2, 2});
+  EXPECT_TRUE(is_watertight(with_degenerate));
+  // Two closed surfaces, one with large vertex ids, and the whole body's boundary.
+  std::vector<Triangle> two = closed;
+  for (const Triangle& t : closed) {
+    two.push_back({t[0] + 2000000000, t[1] + 2000000000, t[2] + 2000000000});
+  }
+  EXPECT_TRUE(is_watertight(two));
+  two.pop_back();
+  EXPECT_FALSE(is_watertight(two));
+  EXPECT_FALSE(is_watertight(std::vector<Triangle>{{0, 1, 2}, {0, 1, 2}}));
+  EXPECT_TRUE(is_watertight(std::vector<Triangle>{{0, 1, 2}, {0, 2, 1}}));
+  // As many edges used upwards as downwards, but not the same ones.
+  EXPECT_FALSE(is_watertight(std::vector<Triangle>{{0, 1, 2}, {3, 5, 4}}));
 }
 
 TEST(Components, SeparatedBoxes) {
