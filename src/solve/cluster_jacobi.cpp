@@ -309,15 +309,17 @@ double apply_cluster(const double* inverse, const VertexId* members, std::span<c
   return sum;
 }
 
-/// The same for any size.
+/// The same for any size, through buffers of the largest cluster's size (no allocation per
+/// cluster).
 double apply_cluster(const double* inverse, const VertexId* members, std::size_t k,
-                     std::span<const Vec3> r, std::span<Vec3> z) {
+                     std::span<const Vec3> r, std::span<Vec3> z, Eigen::VectorXd& gathered,
+                     Eigen::VectorXd& solved) {
   const auto size = static_cast<Eigen::Index>(3 * k);
-  Eigen::VectorXd gathered(size);
   for (std::size_t a = 0; a < k; ++a) {
     gathered.segment<3>(static_cast<Eigen::Index>(3 * a)) = r[static_cast<std::size_t>(members[a])];
   }
-  const Eigen::VectorXd solved = Eigen::Map<const Eigen::MatrixXd>(inverse, size, size) * gathered;
+  solved.head(size).noalias() =
+      Eigen::Map<const Eigen::MatrixXd>(inverse, size, size) * gathered.head(size);
   double sum = 0.0;
   for (std::size_t a = 0; a < k; ++a) {
     const auto v = static_cast<std::size_t>(members[a]);
@@ -334,6 +336,9 @@ double ClusterJacobi::apply_clusters(std::span<const Vec3> r, std::span<Vec3> z)
   const std::size_t chunks = (clusters + kClusterChunk - 1) / kClusterChunk;
   std::vector<double> partial(chunks, 0.0);
   parallel_for(0, chunks, 1, [&](std::size_t first_chunk, std::size_t last_chunk) {
+    const auto largest = static_cast<Eigen::Index>(3 * largest_);
+    Eigen::VectorXd gathered(largest);
+    Eigen::VectorXd solved(largest);
     for (std::size_t chunk = first_chunk; chunk != last_chunk; ++chunk) {
       double sum = 0.0;
       const std::size_t end = std::min(clusters, (chunk + 1) * kClusterChunk);
@@ -342,6 +347,8 @@ double ClusterJacobi::apply_clusters(std::span<const Vec3> r, std::span<Vec3> z)
         const std::size_t k = first_[c + 1] - first_[c];
         const double* inverse = &inverse_[offset_[m]];
         const VertexId* members = &members_[first_[c]];
+        // The sizes ClusterOptions allows by default (at most 8 vertices) have their own
+        // product; larger limits fall back to the dynamic one.
         switch (k) {
           case 2:
             sum += apply_cluster<2>(inverse, members, r, z);
@@ -352,8 +359,20 @@ double ClusterJacobi::apply_clusters(std::span<const Vec3> r, std::span<Vec3> z)
           case 4:
             sum += apply_cluster<4>(inverse, members, r, z);
             break;
+          case 5:
+            sum += apply_cluster<5>(inverse, members, r, z);
+            break;
+          case 6:
+            sum += apply_cluster<6>(inverse, members, r, z);
+            break;
+          case 7:
+            sum += apply_cluster<7>(inverse, members, r, z);
+            break;
+          case 8:
+            sum += apply_cluster<8>(inverse, members, r, z);
+            break;
           default:
-            sum += apply_cluster(inverse, members, k, r, z);
+            sum += apply_cluster(inverse, members, k, r, z, gathered, solved);
             break;
         }
       }

@@ -121,6 +121,41 @@ std::vector<Vec3> coarse_correction(AggregationCoarseSpace& coarse, const std::v
   return prolonged;
 }
 
+/// z = (A_cc)^-1 r on every cluster: A_cc z_c == r_c, and apply_clusters' r.z with it.
+void expect_each_cluster_solves_its_block(const BlockSparseMatrix& matrix,
+                                          const ClusterJacobi& clusters,
+                                          const std::vector<int>& cluster_of,
+                                          std::mt19937& random) {
+  const std::vector<Vec3> r = random_field(matrix.rows(), random);
+  std::vector<Vec3> z(matrix.rows(), Vec3::Zero());
+  for (std::size_t v = 0; v < matrix.rows(); ++v) {
+    z[v] = clusters.single_inverse()[v] * r[v];
+  }
+  double rz = clusters.apply_clusters(r, z);
+  for (std::size_t v = 0; v < matrix.rows(); ++v) {
+    if (clusters.single_inverse()[v].isZero(0.0)) {
+      continue;
+    }
+    rz += r[v].dot(clusters.single_inverse()[v] * r[v]);
+  }
+  double expected_rz = 0.0;
+  for (std::size_t v = 0; v < matrix.rows(); ++v) {
+    if (cluster_of[v] < 0) {
+      continue;
+    }
+    expected_rz += r[v].dot(z[v]);
+    Vec3 within = Vec3::Zero();  // (A_cc z_c) at v
+    for (const VertexId u : matrix.row_columns(static_cast<VertexId>(v))) {
+      if (cluster_of[static_cast<std::size_t>(u)] == cluster_of[v]) {
+        within += matrix.values()[matrix.find(static_cast<VertexId>(v), u)] *
+                  z[static_cast<std::size_t>(u)];
+      }
+    }
+    EXPECT_LT((within - r[v]).norm(), 1e-9 * r[v].norm() + 1e-12) << "vertex " << v;
+  }
+  EXPECT_NEAR(rz, expected_rz, 1e-9 * std::abs(expected_rz));
+}
+
 TEST(ClusterJacobi, InvertsEachClustersBlockAndJoinsStronglyCoupledVertices) {
   BoxGridOptions grid;
   grid.cells = {3, 3, 3};
@@ -154,36 +189,54 @@ TEST(ClusterJacobi, InvertsEachClustersBlockAndJoinsStronglyCoupledVertices) {
     EXPECT_EQ(cluster_of[static_cast<std::size_t>(a)], cluster_of[static_cast<std::size_t>(b)]);
   }
 
-  // z = (A_cc)^-1 r on every cluster: A_cc z_c == r_c.
-  const std::vector<Vec3> r = random_field(matrix.rows(), random);
-  std::vector<Vec3> z(matrix.rows(), Vec3::Zero());
-  for (std::size_t v = 0; v < matrix.rows(); ++v) {
-    z[v] = clusters.single_inverse()[v] * r[v];
-  }
-  double rz = clusters.apply_clusters(r, z);
-  for (std::size_t v = 0; v < matrix.rows(); ++v) {
-    if (clusters.single_inverse()[v].isZero(0.0)) {
-      continue;
-    }
-    rz += r[v].dot(clusters.single_inverse()[v] * r[v]);
-  }
-  double expected_rz = 0.0;
-  for (std::size_t v = 0; v < matrix.rows(); ++v) {
-    if (cluster_of[v] < 0) {
-      continue;
-    }
-    expected_rz += r[v].dot(z[v]);
-    Vec3 within = Vec3::Zero();  // (A_cc z_c) at v
-    for (const VertexId u : matrix.row_columns(static_cast<VertexId>(v))) {
-      if (cluster_of[static_cast<std::size_t>(u)] == cluster_of[v]) {
-        within += matrix.values()[matrix.find(static_cast<VertexId>(v), u)] *
-                  z[static_cast<std::size_t>(u)];
-      }
-    }
-    EXPECT_LT((within - r[v]).norm(), 1e-9 * r[v].norm() + 1e-12) << "vertex " << v;
-  }
-  EXPECT_NEAR(rz, expected_rz, 1e-9 * std::abs(expected_rz));
+  expect_each_cluster_solves_its_block(matrix, clusters, cluster_of, random);
   EXPECT_GE(clusters.clustered_vertices(), 4U);
+}
+
+TEST(ClusterJacobi, AppliesClustersOfEverySizeExactly) {
+  // Stiff chains of 2 to 10 vertices along the box's edges, clusters of up to 12: every size
+  // from 2 to 8 has its own product, and 9 and 10 go through the dynamic one.
+  BoxGridOptions grid;
+  grid.cells = {3, 3, 3};
+  const TetMesh mesh = make_box_grid(grid);
+  std::mt19937 random(23);
+  // Vertex (x, y, z) of the 4x4x4 grid is x + 4 y + 16 z: a row of x, then the next row back.
+  const auto chain = [](std::vector<VertexId> path) {
+    std::vector<std::pair<VertexId, VertexId>> pairs;
+    for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+      pairs.emplace_back(std::min(path[k], path[k + 1]), std::max(path[k], path[k + 1]));
+    }
+    return pairs;
+  };
+  std::vector<std::pair<VertexId, VertexId>> stiff;
+  const std::vector<std::vector<VertexId>> chains = {{0, 1, 2, 3, 7, 6, 5, 4, 8, 9},        // 10
+                                                     {16, 17, 18, 19, 23, 22, 21, 20, 24},  // 9
+                                                     {32, 33, 34, 35, 39, 38, 37, 36},      // 8
+                                                     {48, 49, 50, 51, 55, 54, 53},          // 7
+                                                     {12, 13, 14, 15, 11, 10},              // 6
+                                                     {28, 29, 30, 31, 27},                  // 5
+                                                     {44, 45, 46, 47},                      // 4
+                                                     {60, 61, 62},                          // 3
+                                                     {56, 57}};                             // 2
+  for (const auto& path : chains) {
+    const auto pairs = chain(path);
+    stiff.insert(stiff.end(), pairs.begin(), pairs.end());
+  }
+  const BlockSparseMatrix matrix = laplacian_matrix(mesh, random, stiff);
+  const std::vector<char> constrained(matrix.rows(), 0);
+  ClusterOptions options;
+  options.max_size = 12;
+  ClusterJacobi clusters(options);
+  ASSERT_TRUE(clusters.update(matrix, constrained));
+  const std::vector<int> cluster_of = cluster_of_each(clusters, matrix.rows());
+  std::vector<bool> size_seen(13, false);
+  for (std::size_t c = 0; c + 1 < clusters.first().size(); ++c) {
+    size_seen[clusters.first()[c + 1] - clusters.first()[c]] = true;
+  }
+  for (std::size_t size = 2; size <= 10; ++size) {
+    EXPECT_TRUE(size_seen[size]) << "no cluster of " << size;
+  }
+  expect_each_cluster_solves_its_block(matrix, clusters, cluster_of, random);
 }
 
 TEST(ClusterJacobi, RegroupsTheClustersAnEditTouchesAsAFreshGroupingWould) {
