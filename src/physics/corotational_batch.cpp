@@ -115,20 +115,10 @@ void finish_rotations_one_by_one(CorotatedBatch& batch, const LaneMask& unsettle
     if (unsettled[lane] == 0) {
       continue;
     }
-    Mat3 F;
-    for (int k = 0; k < 9; ++k) {
-      F.data()[k] = batch.deformation[k][lane];
-    }
-    Eigen::Quaterniond start(batch.quaternion[0][lane], batch.quaternion[1][lane],
-                             batch.quaternion[2][lane], batch.quaternion[3][lane]);
-    const Mat3 R = polar_rotation(F, start);
-    for (int k = 0; k < 9; ++k) {
-      batch.rotation[k][lane] = R.data()[k];
-    }
-    batch.quaternion[0][lane] = start.w();
-    batch.quaternion[1][lane] = start.x();
-    batch.quaternion[2][lane] = start.y();
-    batch.quaternion[3][lane] = start.z();
+    Eigen::Quaterniond start = lane_quaternion(batch, lane);
+    set_lane_matrix(batch.rotation, lane,
+                    polar_rotation(lane_matrix(batch.deformation, lane), start));
+    set_lane_quaternion(batch, lane, start);
   }
 }
 

@@ -316,22 +316,14 @@ void CorotationalFemModel::for_each_element_batch(std::span<const Vec3> x, const
       }
       const Tet& vertices = mesh_->tet(tet);
       for (int a = 0; a < 4; ++a) {
-        const Vec3& corner = x[static_cast<std::size_t>(vertices[a])];
-        const Vec3& gradient = element.shape.gradients[a];
-        for (int c = 0; c < 3; ++c) {
-          batch.corners[a][c][count] = corner[c];
-          batch.gradients[a][c][count] = gradient[c];
-        }
+        set_lane_vector(batch.corners[a], count, x[static_cast<std::size_t>(vertices[a])]);
+        set_lane_vector(batch.gradients[a], count, element.shape.gradients[a]);
       }
       const LameParameters& material = lame(tet);
       batch.mu[count] = material.mu;
       batch.lambda[count] = material.lambda;
       batch.stress_scale[count] = -weight * element.shape.volume;
-      const Eigen::Quaterniond& start = rotations_[tet];
-      batch.quaternion[0][count] = start.w();
-      batch.quaternion[1][count] = start.x();
-      batch.quaternion[2][count] = start.y();
-      batch.quaternion[3][count] = start.z();
+      set_lane_quaternion(batch, count, rotations_[tet]);
       lane_tets[static_cast<std::size_t>(count)] = tet;
       if (++count == kElementLanes) {
         finish();
@@ -347,18 +339,12 @@ void CorotationalFemModel::take_batch_result(const CorotatedBatch& batch, int la
                                              std::span<const Vec3> v, bool stress,
                                              bool linearize) const {
   const auto t = static_cast<std::size_t>(tet);
-  Mat3 R;
-  for (int k = 0; k < 9; ++k) {
-    R.data()[k] = batch.rotation[k][lane];
-  }
-  rotations_[tet] = Eigen::Quaterniond(batch.quaternion[0][lane], batch.quaternion[1][lane],
-                                       batch.quaternion[2][lane], batch.quaternion[3][lane]);
+  const Mat3 R = lane_matrix(batch.rotation, lane);
+  rotations_[tet] = lane_quaternion(batch, lane);
   const double beta = parameters_.rayleigh_stiffness;
   if (stress) {
     Mat3& scaled_stress = scaled_stress_[t];
-    for (int k = 0; k < 9; ++k) {
-      scaled_stress.data()[k] = batch.scaled_stress[k][lane];
-    }
+    scaled_stress = lane_matrix(batch.scaled_stress, lane);
     if (beta > 0.0) {
       // Stiffness-proportional damping with the element's current rotation.
       const TetRestShape& shape = elements_[tet].shape;
@@ -371,18 +357,14 @@ void CorotationalFemModel::take_batch_result(const CorotatedBatch& batch, int la
     return;
   }
   if (parameters_.tangent != TangentKind::kWarped) {
-    Mat3 F;
-    for (int k = 0; k < 9; ++k) {
-      F.data()[k] = batch.deformation[k][lane];
-    }
-    store_linearization(tet, F, R);
+    linearization_[t] = corotated_linearization(lane_matrix(batch.deformation, lane), R, lame(tet),
+                                                parameters_.tangent);
     return;
   }
   warped_rotations_[t] = R;
   auto& rotated = rotated_gradients_[t];
   for (int a = 0; a < 4; ++a) {
-    rotated[a] = Vec3(batch.rotated_gradients[a][0][lane], batch.rotated_gradients[a][1][lane],
-                      batch.rotated_gradients[a][2][lane]);
+    rotated[a] = lane_vector(batch.rotated_gradients[a], lane);
   }
 }
 
@@ -390,12 +372,13 @@ void CorotationalFemModel::resize_linearization() {
   const std::size_t count = mesh_->tet_count();
   if (parameters_.tangent == TangentKind::kWarped) {
     // The warped tangent is the rotation alone: 72 bytes per element where a full
-    // linearisation takes 320 (the force pass writes one per element each step).
+    // linearisation takes 320 (the force pass writes one per element each step); its assembly
+    // reads the rotated shape gradients too.
     resize_for_edits(warped_rotations_, count);
+    resize_for_edits(rotated_gradients_, count);
   } else {
     resize_for_edits(linearization_, count);
   }
-  resize_for_edits(rotated_gradients_, count);
 }
 
 CorotatedLinearization CorotationalFemModel::linearization_of(TetId tet) const {
@@ -408,19 +391,6 @@ CorotatedLinearization CorotationalFemModel::linearization_of(TetId tet) const {
   linearization.rotation = warped_rotations_[t];
   linearization.twist_weights.fill(-2.0 * lame(tet).mu);
   return linearization;
-}
-
-void CorotationalFemModel::store_linearization(TetId tet, const Mat3& F, const Mat3& R) const {
-  if (parameters_.tangent == TangentKind::kWarped) {
-    warped_rotations_[static_cast<std::size_t>(tet)] = R;
-  } else {
-    linearization_[static_cast<std::size_t>(tet)] =
-        corotated_linearization(F, R, lame(tet), parameters_.tangent);
-  }
-  auto& rotated = rotated_gradients_[static_cast<std::size_t>(tet)];
-  for (int a = 0; a < 4; ++a) {
-    rotated[a] = R * elements_[tet].shape.gradients[a];
-  }
 }
 
 Vec3 CorotationalFemModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,

@@ -74,26 +74,13 @@ Element random_element(std::mt19937& random, int kind) {
 
 void put(CorotatedBatch& batch, int lane, const Element& element) {
   for (int a = 0; a < 4; ++a) {
-    for (int c = 0; c < 3; ++c) {
-      batch.corners[a][c][lane] = element.x[a][c];
-      batch.gradients[a][c][lane] = element.shape.gradients[a][c];
-    }
+    set_lane_vector(batch.corners[a], lane, element.x[a]);
+    set_lane_vector(batch.gradients[a], lane, element.shape.gradients[a]);
   }
   batch.mu[lane] = element.lame.mu;
   batch.lambda[lane] = element.lame.lambda;
   batch.stress_scale[lane] = element.stress_scale;
-  batch.quaternion[0][lane] = element.start.w();
-  batch.quaternion[1][lane] = element.start.x();
-  batch.quaternion[2][lane] = element.start.y();
-  batch.quaternion[3][lane] = element.start.z();
-}
-
-Mat3 matrix_of(const double (&entries)[9][kElementLanes], int lane) {
-  Mat3 m;
-  for (int k = 0; k < 9; ++k) {
-    m.data()[k] = entries[k][lane];
-  }
-  return m;
+  set_lane_quaternion(batch, lane, element.start);
 }
 
 /// Checks lane `lane` against the one-element functions.
@@ -103,17 +90,15 @@ void expect_lane_matches(const CorotatedBatch& batch, int lane, const Element& e
   const Mat3 R = polar_rotation(F, start);
   const Mat3 stress = element.stress_scale * corotated_stress(F, R, element.lame);
   const double f_scale = 1.0 + F.norm();
-  EXPECT_LT((matrix_of(batch.deformation, lane) - F).norm(), 1e-12 * f_scale);
-  EXPECT_LT((matrix_of(batch.rotation, lane) - R).norm(), 1e-9) << "lane " << lane;
-  EXPECT_LT((matrix_of(batch.scaled_stress, lane) - stress).norm(), 1e-8 * (1.0 + stress.norm()))
+  EXPECT_LT((lane_matrix(batch.deformation, lane) - F).norm(), 1e-12 * f_scale);
+  EXPECT_LT((lane_matrix(batch.rotation, lane) - R).norm(), 1e-9) << "lane " << lane;
+  EXPECT_LT((lane_matrix(batch.scaled_stress, lane) - stress).norm(), 1e-8 * (1.0 + stress.norm()))
       << "lane " << lane;
-  const Eigen::Quaterniond found(batch.quaternion[0][lane], batch.quaternion[1][lane],
-                                 batch.quaternion[2][lane], batch.quaternion[3][lane]);
+  const Eigen::Quaterniond found = lane_quaternion(batch, lane);
   EXPECT_NEAR(found.norm(), 1.0, 1e-12);
-  EXPECT_LT((found.toRotationMatrix() - matrix_of(batch.rotation, lane)).norm(), 1e-12);
+  EXPECT_LT((found.toRotationMatrix() - lane_matrix(batch.rotation, lane)).norm(), 1e-12);
   for (int a = 0; a < 4; ++a) {
-    const Vec3 rotated(batch.rotated_gradients[a][0][lane], batch.rotated_gradients[a][1][lane],
-                       batch.rotated_gradients[a][2][lane]);
+    const Vec3 rotated = lane_vector(batch.rotated_gradients[a], lane);
     EXPECT_LT((rotated - R * element.shape.gradients[a]).norm(),
               1e-9 * element.shape.gradients[a].norm());
   }
@@ -177,7 +162,7 @@ TEST_P(CorotatedBatchKernels, ANonFiniteElementGetsTheIdentityAndLeavesTheOthers
   batch.corners[0][0][3] = std::numeric_limits<double>::infinity();
   GetParam()(batch, kElementLanes);
   for (int lane : {1, 3}) {
-    EXPECT_TRUE(matrix_of(batch.rotation, lane).isIdentity()) << lane;
+    EXPECT_TRUE(lane_matrix(batch.rotation, lane).isIdentity()) << lane;
   }
   for (int lane : {0, 2}) {
     expect_lane_matches(batch, lane, elements[static_cast<std::size_t>(lane)]);

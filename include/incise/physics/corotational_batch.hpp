@@ -37,6 +37,39 @@ struct alignas(64) CorotatedBatch {
   double rotated_gradients[4][3][kElementLanes];  ///< R grad N_a (1/m)
 };
 
+/// One lane of a batch's vectors, matrices and quaternions as Eigen values, and the same
+/// written: what callers gather elements into a batch and take results out with.
+[[nodiscard]] inline Vec3 lane_vector(const double (&entries)[3][kElementLanes], int lane) {
+  return {entries[0][lane], entries[1][lane], entries[2][lane]};
+}
+inline void set_lane_vector(double (&entries)[3][kElementLanes], int lane, const Vec3& value) {
+  for (int c = 0; c < 3; ++c) {
+    entries[c][lane] = value[c];
+  }
+}
+[[nodiscard]] inline Mat3 lane_matrix(const double (&entries)[9][kElementLanes], int lane) {
+  Mat3 matrix;
+  for (int k = 0; k < 9; ++k) {
+    matrix.data()[k] = entries[k][lane];
+  }
+  return matrix;
+}
+inline void set_lane_matrix(double (&entries)[9][kElementLanes], int lane, const Mat3& matrix) {
+  for (int k = 0; k < 9; ++k) {
+    entries[k][lane] = matrix.data()[k];
+  }
+}
+[[nodiscard]] inline Eigen::Quaterniond lane_quaternion(const CorotatedBatch& batch, int lane) {
+  return {batch.quaternion[0][lane], batch.quaternion[1][lane], batch.quaternion[2][lane],
+          batch.quaternion[3][lane]};
+}
+inline void set_lane_quaternion(CorotatedBatch& batch, int lane, const Eigen::Quaterniond& q) {
+  batch.quaternion[0][lane] = q.w();
+  batch.quaternion[1][lane] = q.x();
+  batch.quaternion[2][lane] = q.y();
+  batch.quaternion[3][lane] = q.z();
+}
+
 /// Fills the results of lanes 0..count-1 (1 <= count <= kElementLanes); the other lanes'
 /// inputs are not read for anything that is kept. Uses AVX2 and FMA where the CPU has them.
 void corotated_batch(CorotatedBatch& batch, int count);

@@ -154,8 +154,6 @@ class CorotationalFemModel final : public ForceModel,
   void resize_linearization();
   /// An element's tangent as the one-element functions take it.
   [[nodiscard]] CorotatedLinearization linearization_of(TetId tet) const;
-  /// Keeps an element's tangent and rotated shape gradients for products and assembly.
-  void store_linearization(TetId tet, const Mat3& F, const Mat3& R) const;
   void assemble_linearization_matrix();
   /// Assembles K into stiffness_ if the last linearisation has not been yet.
   void ensure_assembled() const;
@@ -196,7 +194,8 @@ class CorotationalFemModel final : public ForceModel,
   // Written by the element loops (each element only by its own thread).
   mutable std::vector<CorotatedLinearization> linearization_;  ///< exact or projected tangent
   mutable std::vector<Mat3> warped_rotations_;  ///< the warped tangent: R per element
-  mutable std::vector<std::array<Vec3, 4>> rotated_gradients_;  ///< R grad N_a per element
+  /// R grad N_a per element (warped tangent: what its assembly reads).
+  mutable std::vector<std::array<Vec3, 4>> rotated_gradients_;
   mutable std::vector<Mat3> scaled_stress_;  ///< -w V P per element (N m), gathered per vertex
   mutable BlockSparseMatrix stiffness_;
   /// Per vertex: its tetrahedra in the mesh's order and its corner in each (gathers read
