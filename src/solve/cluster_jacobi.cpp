@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -288,46 +289,56 @@ bool ClusterJacobi::update(const BlockSparseMatrix& matrix, std::span<const char
 
 namespace {
 
-/// One cluster of K vertices: z = inverse r on its members; returns their part of r.z. Fixed
-/// sizes, so Eigen unrolls and vectorises the product (a dynamic-size product of these small
-/// matrices spent most of its time setting itself up).
-template <int K>
-double apply_cluster(const double* inverse, const VertexId* members, std::span<const Vec3> r,
-                     std::span<Vec3> z) {
-  Eigen::Matrix<double, 3 * K, 1> gathered;
-  for (int a = 0; a < K; ++a) {
-    gathered.template segment<3>(3 * a) = r[static_cast<std::size_t>(members[a])];
+/// One cluster of k vertices: z = inverse r on its members; returns their part of r.z.
+/// `gathered` and `solved` hold 3k numbers: fixed-size vectors for the sizes the default limit
+/// allows, so that Eigen unrolls and vectorises the product (a dynamic-size product of these
+/// small matrices spent most of its time setting itself up), else per-task buffers of the
+/// largest cluster's size (no allocation per cluster).
+template <typename Vector>
+double apply_cluster(const double* inverse, const VertexId* members, std::size_t k,
+                     std::span<const Vec3> r, std::span<Vec3> z, Vector& gathered, Vector& solved) {
+  for (std::size_t a = 0; a < k; ++a) {
+    gathered.template segment<3>(static_cast<Eigen::Index>(3 * a)) =
+        r[static_cast<std::size_t>(members[a])];
   }
-  const Eigen::Matrix<double, 3 * K, 1> solved =
-      Eigen::Map<const Eigen::Matrix<double, 3 * K, 3 * K>>(inverse) * gathered;
+  constexpr int kRows = Vector::RowsAtCompileTime;
+  if constexpr (kRows == Eigen::Dynamic) {
+    const auto size = static_cast<Eigen::Index>(3 * k);
+    solved.head(size).noalias() =
+        Eigen::Map<const Eigen::MatrixXd>(inverse, size, size) * gathered.head(size);
+  } else {
+    solved.noalias() = Eigen::Map<const Eigen::Matrix<double, kRows, kRows>>(inverse) * gathered;
+  }
   double sum = 0.0;
-  for (int a = 0; a < K; ++a) {
+  for (std::size_t a = 0; a < k; ++a) {
     const auto v = static_cast<std::size_t>(members[a]);
-    z[v] = solved.template segment<3>(3 * a);
+    z[v] = solved.template segment<3>(static_cast<Eigen::Index>(3 * a));
     sum += r[v].dot(z[v]);
   }
   return sum;
 }
 
-/// The same for any size, through buffers of the largest cluster's size (no allocation per
-/// cluster).
-double apply_cluster(const double* inverse, const VertexId* members, std::size_t k,
-                     std::span<const Vec3> r, std::span<Vec3> z, Eigen::VectorXd& gathered,
-                     Eigen::VectorXd& solved) {
-  const auto size = static_cast<Eigen::Index>(3 * k);
-  for (std::size_t a = 0; a < k; ++a) {
-    gathered.segment<3>(static_cast<Eigen::Index>(3 * a)) = r[static_cast<std::size_t>(members[a])];
-  }
-  solved.head(size).noalias() =
-      Eigen::Map<const Eigen::MatrixXd>(inverse, size, size) * gathered.head(size);
-  double sum = 0.0;
-  for (std::size_t a = 0; a < k; ++a) {
-    const auto v = static_cast<std::size_t>(members[a]);
-    z[v] = solved.segment<3>(static_cast<Eigen::Index>(3 * a));
-    sum += r[v].dot(z[v]);
-  }
-  return sum;
+/// apply_cluster for a cluster of K vertices, with fixed-size vectors.
+template <int K>
+double apply_fixed_size_cluster(const double* inverse, const VertexId* members,
+                                std::span<const Vec3> r, std::span<Vec3> z) {
+  Eigen::Matrix<double, 3 * K, 1> gathered;
+  Eigen::Matrix<double, 3 * K, 1> solved;
+  return apply_cluster(inverse, members, K, r, z, gathered, solved);
 }
+
+using FixedSizeApply = double (*)(const double*, const VertexId*, std::span<const Vec3>,
+                                  std::span<Vec3>);
+/// By cluster size: the default limit's sizes, 2 to 8 vertices (0 and 1 never form a cluster).
+constexpr std::array<FixedSizeApply, 9> kFixedSizeApply = {nullptr,
+                                                           nullptr,
+                                                           &apply_fixed_size_cluster<2>,
+                                                           &apply_fixed_size_cluster<3>,
+                                                           &apply_fixed_size_cluster<4>,
+                                                           &apply_fixed_size_cluster<5>,
+                                                           &apply_fixed_size_cluster<6>,
+                                                           &apply_fixed_size_cluster<7>,
+                                                           &apply_fixed_size_cluster<8>};
 
 }  // namespace
 
@@ -347,33 +358,10 @@ double ClusterJacobi::apply_clusters(std::span<const Vec3> r, std::span<Vec3> z)
         const std::size_t k = first_[c + 1] - first_[c];
         const double* inverse = &inverse_[offset_[m]];
         const VertexId* members = &members_[first_[c]];
-        // The sizes ClusterOptions allows by default (at most 8 vertices) have their own
-        // product; larger limits fall back to the dynamic one.
-        switch (k) {
-          case 2:
-            sum += apply_cluster<2>(inverse, members, r, z);
-            break;
-          case 3:
-            sum += apply_cluster<3>(inverse, members, r, z);
-            break;
-          case 4:
-            sum += apply_cluster<4>(inverse, members, r, z);
-            break;
-          case 5:
-            sum += apply_cluster<5>(inverse, members, r, z);
-            break;
-          case 6:
-            sum += apply_cluster<6>(inverse, members, r, z);
-            break;
-          case 7:
-            sum += apply_cluster<7>(inverse, members, r, z);
-            break;
-          case 8:
-            sum += apply_cluster<8>(inverse, members, r, z);
-            break;
-          default:
-            sum += apply_cluster(inverse, members, k, r, z, gathered, solved);
-            break;
+        if (k < kFixedSizeApply.size()) {
+          sum += kFixedSizeApply[k](inverse, members, r, z);
+        } else {
+          sum += apply_cluster(inverse, members, k, r, z, gathered, solved);
         }
       }
       partial[chunk] = sum;
