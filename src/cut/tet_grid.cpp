@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "incise/core/clamped_floor.hpp"
 #include "incise/core/error.hpp"
 
 namespace incise {
@@ -66,12 +67,7 @@ void TetGrid::cell_range(const Vec3& low, const Vec3& high, std::array<long, 3>&
   // grid was built on; that costs speed, not correctness). Clamped before the conversion: a
   // point far off (a blade pose in a path, a diverging body) has no cell number a long holds.
   const auto cell = [&](double x, int axis) {
-    const double number = std::floor((x - origin_[axis]) / cell_);
-    if (!(number > 0.0)) {
-      return 0L;  // also NaN
-    }
-    const long border = dims_[axis] - 1;
-    return number < static_cast<double>(border) ? static_cast<long>(number) : border;
+    return clamped_floor((x - origin_[axis]) / cell_, 0, dims_[axis] - 1);
   };
   for (int k = 0; k < 3; ++k) {
     first[k] = cell(low[k], k);

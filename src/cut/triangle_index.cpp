@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "incise/core/clamped_floor.hpp"
 #include "incise/mesh/predicates.hpp"
 
 namespace incise::detail {
@@ -19,11 +20,8 @@ constexpr double kMaxBoxCells = 4096.0;
 
 /// floor(x / size), saturated at +-kFarthestCell (NaN: the far negative end).
 long cell_number(double x, double size) {
-  const double cell = std::floor(x / size);
-  if (!(cell > -kFarthestCell)) {
-    return -static_cast<long>(kFarthestCell);
-  }
-  return cell < kFarthestCell ? static_cast<long>(cell) : static_cast<long>(kFarthestCell);
+  constexpr auto kFarthest = static_cast<long>(kFarthestCell);
+  return clamped_floor(x / size, -kFarthest, kFarthest);
 }
 
 Eigen::Array<long, 3, 1> cell_of(const Vec3& point, double size) {

@@ -15,6 +15,7 @@
 #include <tuple>
 #include <unordered_map>
 
+#include "incise/core/clamped_floor.hpp"
 #include "incise/core/error.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/predicates.hpp"
@@ -198,10 +199,7 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
   point_cell_ = std::max(1e6 * nudge_, 1e-12);  // the mean edge length of the physics mesh
   for (std::size_t i = 0; i < original_points_.size(); ++i) {
     const Vec3& q = original_points_[i];
-    point_cells_[{static_cast<long>(std::floor(q.x() / point_cell_)),
-                  static_cast<long>(std::floor(q.y() / point_cell_)),
-                  static_cast<long>(std::floor(q.z() / point_cell_))}]
-        .push_back(i);
+    point_cells_[point_cell_of(q)].push_back(i);
   }
   rest_points_ = original_points_;
   triangles_ = original_triangles_;
@@ -711,13 +709,16 @@ void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& 
   }
 }
 
+std::array<long, 3> VisualSurface::point_cell_of(const Vec3& q) const {
+  // 2^40 cells each way: far beyond any body, and room for the rings searched around it.
+  constexpr long kFarthest = 1L << 40;
+  return {clamped_floor(q.x() / point_cell_, -kFarthest, kFarthest),
+          clamped_floor(q.y() / point_cell_, -kFarthest, kFarthest),
+          clamped_floor(q.z() / point_cell_, -kFarthest, kFarthest)};
+}
+
 double VisualSurface::nearest_visual_distance(const Vec3& p) const {
-  const auto cell_of = [&](const Vec3& q) {
-    return std::array<long, 3>{static_cast<long>(std::floor(q.x() / point_cell_)),
-                               static_cast<long>(std::floor(q.y() / point_cell_)),
-                               static_cast<long>(std::floor(q.z() / point_cell_))};
-  };
-  const auto centre = cell_of(p);
+  const auto centre = point_cell_of(p);
   double best = std::numeric_limits<double>::infinity();
   for (long ring = 0; ring < 1000; ++ring) {
     for (long i = -ring; i <= ring; ++i) {

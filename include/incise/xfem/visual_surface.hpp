@@ -106,6 +106,8 @@ class VisualSurface {
   std::set<std::array<VertexId, 3>> rest_boundary_;  ///< sorted vertex ids of boundary faces
   double point_cell_ = 1.0;  ///< m: cell of the grid over the original points
   std::map<std::array<long, 3>, std::vector<std::size_t>> point_cells_;
+  /// The cell of point_cells_ that holds q (saturated far out: see core/clamped_floor.hpp).
+  [[nodiscard]] std::array<long, 3> point_cell_of(const Vec3& q) const;
   std::vector<Vec3> original_points_;
   std::vector<Triangle> original_triangles_;
   std::vector<Vec3> rest_points_;
