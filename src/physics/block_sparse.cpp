@@ -239,6 +239,27 @@ void BlockSparseMatrix::multiply_rows_single(std::size_t begin, std::size_t end,
   multiply_rows_of(single_values_.data(), *pattern_, begin, end, p.data(), out);
 }
 
+void BlockSparseMatrix::multiply_several_single(std::span<const std::span<const Vec3>> p,
+                                                std::span<const std::span<Vec3>> y) const {
+  INCISE_ASSERT(p.size() == y.size(), "multiply_several_single: as many products as vectors");
+  INCISE_ASSERT(single_values_.size() == 9 * values_.size(),
+                "single-precision product before refresh_single_precision");
+  for (std::size_t m = 0; m < p.size(); ++m) {
+    INCISE_ASSERT(p[m].size() >= rows() && y[m].size() >= rows(), "product outside the matrix");
+  }
+  // Chunks of 256 rows (about 140 kB of float blocks): they stay in cache while every vector
+  // passes.
+  parallel_for(0, rows(), 256, [&](std::size_t first, std::size_t last) {
+    for (std::size_t begin = first; begin < last; begin += 256) {
+      const std::size_t end = std::min(last, begin + 256);
+      for (std::size_t m = 0; m < p.size(); ++m) {
+        multiply_rows_of(single_values_.data(), *pattern_, begin, end, p[m].data(),
+                         y[m].data() + begin);
+      }
+    }
+  });
+}
+
 template <typename Store>
 void BlockSparseMatrix::for_each_row_product(std::span<const Vec3> p, const Store& store) const {
   parallel_for(0, rows(), 512, [&](std::size_t first, std::size_t last) {

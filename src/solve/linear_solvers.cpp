@@ -24,6 +24,10 @@ namespace {
 constexpr std::size_t kChunk = 2048;
 /// Rows per chunk of the fused CG passes (reductions in the same fixed order).
 constexpr std::size_t kFusedChunk = 1024;
+/// The tightest tolerance at which the Galerkin start multiplies in single precision: its
+/// start is then within float's rounding, 1e-7 of the solution, a hundredth of the tolerance.
+/// Tighter, a float start would cost CG iterations to undo (0.3 ms a step on the 50k-tet body).
+constexpr double kSingleStartTolerance = 1e-5;
 
 template <typename Body>
 void parallel_vertices(std::size_t n, const Body& body) {
@@ -259,7 +263,8 @@ Mat3 LinearizedSystemSolver::preconditioner_block(const Mat3& diagonal_block) co
 
 void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x,
                                                        double rhs_norm, bool start_from_x,
-                                                       LinearSolveStats& stats) {
+                                                       LinearSolveStats& stats,
+                                                       std::span<const Vec3> start_product) {
   // Two passes over memory per iteration: the new direction p and q = J p with p.q; the x, r
   // and z updates with r.r and r.z. Held rows are identity with r = z = p = 0 there.
   const std::size_t n = rhs.size();
@@ -327,37 +332,51 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   }
   int iteration = 0;
   double last_true_residual = std::numeric_limits<double>::infinity();
+  // The first residual from the start's own product: with single-precision products it is
+  // within rounding of float of the true one, so a stop on it is confirmed in double first.
+  bool from_start_product = start_from_x && !start_product.empty();
   for (;;) {
     // Preconditioner and the initial residual (warm start from x).
-    auto [rr, rz] = chunked_products(
-        false, x, [&](std::size_t i, const Vec3& row_x, double& sum_rr, double& sum_rz) {
-          if (constrained_[i] != 0) {
-            diagonal_[i].setZero();
-            residual_[i].setZero();
-            preconditioned_[i].setZero();
-            direction_[i].setZero();
-            product_[i].setZero();  // never written again: held rows stay out of every update
-            return;
-          }
-          diagonal_[i] =
-              two_level
-                  ? clusters_->single_inverse()[i]
-                  : preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
-          residual_[i] = rhs[i] - row_x;  // x is zero on a cold start
-          preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
-          direction_[i] = preconditioned_[i];
-          sum_rr += residual_[i].squaredNorm();
-          sum_rz += residual_[i].dot(preconditioned_[i]);
-        });
+    const auto first_pass = [&](std::size_t i, const Vec3& row_x, double& sum_rr, double& sum_rz) {
+      if (constrained_[i] != 0) {
+        diagonal_[i].setZero();
+        residual_[i].setZero();
+        preconditioned_[i].setZero();
+        direction_[i].setZero();
+        product_[i].setZero();  // never written again: held rows stay out of every update
+        return;
+      }
+      diagonal_[i] =
+          two_level ? clusters_->single_inverse()[i]
+                    : preconditioner_block(values[assembled_.diagonal(static_cast<VertexId>(i))]);
+      residual_[i] = rhs[i] - row_x;  // x is zero on a cold start
+      preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
+      direction_[i] = preconditioned_[i];
+      sum_rr += residual_[i].squaredNorm();
+      sum_rz += residual_[i].dot(preconditioned_[i]);
+    };
+    const bool estimated = from_start_product && single;
+    auto [rr, rz] = from_start_product
+                        ? chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
+                            first_pass(i, start_product[i], sum_rr, sum_rz);
+                          })
+                        : chunked_products(false, x, first_pass);
+    from_start_product = false;
     if (two_level) {
       rz += precondition_two_level(true);
     }
     stats.relative_residual = std::sqrt(rr) / rhs_norm;  // the true residual (double products)
-    if (single && stats.relative_residual > options_.tolerance &&
-        !(stats.relative_residual < 0.5 * last_true_residual)) {
-      single = false;  // refinement stalled: the single-precision matrix is too far off
+    if (estimated) {
+      if (!(stats.relative_residual > options_.tolerance)) {
+        continue;  // converged on the estimate: confirmed on the true residual
+      }
+    } else {
+      if (single && stats.relative_residual > options_.tolerance &&
+          !(stats.relative_residual < 0.5 * last_true_residual)) {
+        single = false;  // refinement stalled: the single-precision matrix is too far off
+      }
+      last_true_residual = stats.relative_residual;
     }
-    last_true_residual = stats.relative_residual;
     // Done when converged, out of iterations, or not a number (a matrix or start holding NaN:
     // the caller's divergence check reports it; CG would only restart on it forever).
     if (!(stats.relative_residual > options_.tolerance) || iteration >= options_.max_iterations) {
@@ -466,7 +485,8 @@ bool LinearizedSystemSolver::starts_from_x(std::span<const Vec3> x, bool basis_g
 template <typename Product>
 void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3>> basis,
                                             std::span<const Vec3> rhs, std::span<Vec3> x,
-                                            const Product& product, LinearSolveStats& stats) {
+                                            const Product& product, LinearSolveStats& stats,
+                                            std::span<Vec3> start_product) {
   const auto began = Clock::now();
   // x = V y with (V^T A V) y = V^T rhs: the best start in span(V) in the energy norm, so never
   // worse than any one basis field or the linear extrapolation of two. The small system is
@@ -536,14 +556,23 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
       combination += (direction.dot(load) / values(m)) * direction;
     }
   }
+  const bool with_product = !start_product.empty();
   parallel_vertices(n, [&](std::size_t i) {
     Vec3 start = Vec3::Zero();
+    Vec3 start_times_matrix = Vec3::Zero();
     if (constrained_[i] == 0) {
       for (std::size_t j = 0; j < k; ++j) {
-        start += combination(static_cast<Eigen::Index>(j)) * basis[j][i];
+        const double c = combination(static_cast<Eigen::Index>(j));
+        start += c * basis[j][i];
+        if (with_product) {
+          start_times_matrix += c * basis_products_[j][i];
+        }
       }
     }
     x[i] = start;
+    if (with_product) {
+      start_product[i] = start_times_matrix;
+    }
   });
   stats.seconds_start += seconds_since(began);
 }
@@ -557,16 +586,28 @@ LinearSolveStats LinearizedSystemSolver::fused_solve(
     assembled_.refresh_single_precision();
     stats.seconds_products += seconds_since(refresh_start);
   }
+  std::span<const Vec3> start_product;
   if (!start_basis.empty()) {
-    // In double: a basis that spans the solution then starts CG at it.
+    // A basis that spans the solution starts CG at it. Its products in single precision
+    // where float's rounding (about 1e-7 of each product) is far below the tolerance, else
+    // in double. A x is their combination, so CG's first residual needs no product.
+    const bool single_start =
+        options_.single_precision_products && options_.tolerance >= kSingleStartTolerance;
+    resize_for_edits(start_product_, rhs.size());
     galerkin_start(
         start_basis, rhs, x,
         [&](std::span<const std::span<const Vec3>> p, std::span<const std::span<Vec3>> y) {
-          assembled_.multiply_several(p, y);
+          if (single_start) {
+            assembled_.multiply_several_single(p, y);
+          } else {
+            assembled_.multiply_several(p, y);
+          }
         },
-        stats);
+        stats, start_product_);
+    start_product = start_product_;
   }
-  fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats);
+  fused_conjugate_gradients(rhs, x, rhs_norm, starts_from_x(x, !start_basis.empty()), stats,
+                            start_product);
   stats.seconds_total = seconds_since(start);
   return stats;
 }

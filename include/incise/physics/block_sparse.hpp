@@ -100,6 +100,10 @@ class BlockSparseMatrix {
   /// twice the speed; each block differs from the double one by at most 2^-24 of each entry.
   void multiply_rows_single(std::size_t begin, std::size_t end, std::span<const Vec3> p,
                             Vec3* out) const;
+  /// As multiply_several, with the blocks read from the single-precision copy: each chunk of
+  /// rows is read from memory once and from cache for the other vectors.
+  void multiply_several_single(std::span<const std::span<const Vec3>> p,
+                               std::span<const std::span<Vec3>> y) const;
 
  private:
   /// store(row, (A p)_row) for every row, rows in parallel.

@@ -114,8 +114,11 @@ class LinearizedSystemSolver {
   /// from x when start_from_x, else from zero. With single-precision products, each run starts
   /// from the residual formed in double and CG restarts from it until that meets the tolerance
   /// (iterative refinement; double products if a restart fails to halve it).
+  /// `start_product`, when given, is A x for the starting x (from the Galerkin start), so the
+  /// first residual needs no product.
   void fused_conjugate_gradients(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
-                                 bool start_from_x, LinearSolveStats& stats);
+                                 bool start_from_x, LinearSolveStats& stats,
+                                 std::span<const Vec3> start_product = {});
   /// After the assembled matrix and its preconditioner are built: the start (the Galerkin one
   /// from start_basis when given), then the fused PCG; stats' total time counts from `start`.
   LinearSolveStats fused_solve(std::span<const Vec3> rhs, std::span<Vec3> x, double rhs_norm,
@@ -125,10 +128,12 @@ class LinearizedSystemSolver {
   /// x is nonzero on some free row.
   [[nodiscard]] bool starts_from_x(std::span<const Vec3> x, bool basis_given) const;
   /// x = the Galerkin combination of `basis` (see solve()); `product(p, y)` applies the
-  /// matrix to every vector of p at once. Its time goes to stats.seconds_start.
+  /// matrix to every vector of p at once. Its time goes to stats.seconds_start. When
+  /// `start_product` is not empty, it receives A x, combined from the basis' products.
   template <typename Product>
   void galerkin_start(std::span<const std::span<const Vec3>> basis, std::span<const Vec3> rhs,
-                      std::span<Vec3> x, const Product& product, LinearSolveStats& stats);
+                      std::span<Vec3> x, const Product& product, LinearSolveStats& stats,
+                      std::span<Vec3> start_product = {});
   void build_scalar_pattern();
   void fill_scalar_values();
 
@@ -137,6 +142,7 @@ class LinearizedSystemSolver {
   std::span<const char> constrained_;
   std::span<const Vec3> positions_;
   std::vector<Vec3> residual_, direction_, product_, preconditioned_;
+  std::vector<Vec3> start_product_;  ///< A x for the Galerkin start x
   std::vector<Mat3> diagonal_;
   std::vector<std::vector<Vec3>> basis_products_;
   std::vector<std::vector<Vec3>> masked_basis_;
