@@ -58,6 +58,11 @@ struct SoakCase {
   std::vector<BladePose> path;
 };
 
+/// What the case's description and log line add for its solver.
+const char* solver_note(const SoakCase& c) {
+  return c.real_time_solver ? " (real-time solver)" : "";
+}
+
 /// A body a cut may start from: a data mesh as read, or one tetrahedralised from a surface.
 struct Body {
   std::string name;
@@ -166,21 +171,18 @@ std::filesystem::path write_case(const SoakCase& c, const std::filesystem::path&
   write_vtu(dir / "mesh.vtu", c.mesh);
   write_blade_path(dir / "path.csv", c.path);
   const auto frames = static_cast<int>(c.path.size()) - 1;
+  nlohmann::json integrator = {{"type", "backward-euler"}, {"dt", 0.01}};
+  if (c.real_time_solver) {
+    integrator["solver"] = {{"type", "cg"}, {"preconditioner", "two-level"}, {"tolerance", 1e-3}};
+  }
   const nlohmann::json scene = {
       {"description",
        fmt::format("incise soak, seed {}: {}, {} with {}{}, {}", c.seed, c.body, c.cutter, c.model,
-                   c.real_time_solver ? " (real-time solver)" : "",
-                   c.full_sweep ? "full sweep" : "random walk")},
+                   solver_note(c), c.full_sweep ? "full sweep" : "random walk")},
       {"mesh", {{"file", "mesh.vtu"}}},
       {"material", "liver"},
       {"model", {{"type", c.model}}},
-      {"integrator", c.real_time_solver ? nlohmann::json{{"type", "backward-euler"},
-                                                         {"dt", 0.01},
-                                                         {"solver",
-                                                          {{"type", "cg"},
-                                                           {"preconditioner", "two-level"},
-                                                           {"tolerance", 1e-3}}}}
-                                        : nlohmann::json{{"type", "backward-euler"}, {"dt", 0.01}}},
+      {"integrator", integrator},
       {"gravity", {0, 0, -9.81}},
       {"fixed",
        {{{"box", {{-1e9, -1e9, -1e9}, {1e9, 1e9, bounding_box(c.mesh).first.z() + 1e-9}}}}}},
@@ -352,8 +354,7 @@ int soak(const SoakOptions& options) {
         << fmt::format(
                "[{}/{}] seed {}: {}, {} + {}{}, {} of {} poses, tets {} -> {}, pieces {} -> {}: "
                "{} ({:.1f} s)\n",
-               done, options.cuts, seed, c.body, c.cutter, c.model,
-               c.real_time_solver ? " (real-time solver)" : "",
+               done, options.cuts, seed, c.body, c.cutter, c.model, solver_note(c),
                c.full_sweep ? "full sweep" : "random walk", c.path.size(), result.tets_before,
                result.tets_after, result.pieces_before, result.pieces_after,
                result.violation.empty() ? "ok" : "FAILED " + result.violation, seconds)

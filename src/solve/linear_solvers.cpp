@@ -365,7 +365,8 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
     if (two_level) {
       rz += precondition_two_level(true);
     }
-    stats.relative_residual = std::sqrt(rr) / rhs_norm;  // the true residual (double products)
+    // The true residual (double products), or on the first pass its estimate.
+    stats.relative_residual = std::sqrt(rr) / rhs_norm;
     if (estimated) {
       if (!(stats.relative_residual > options_.tolerance)) {
         continue;  // converged on the estimate: confirmed on the true residual

@@ -98,28 +98,6 @@ std::vector<char> held_rows(const Body& body) {
   return constrained;
 }
 
-/// |rhs - (M + a K) x| / |rhs| over the free rows, from the model's own products in double:
-/// the residual a solve must report, found without the solver.
-double true_relative_residual(Body& body, double a, double b, std::span<const char> constrained,
-                              std::span<const Vec3> rhs, std::span<const Vec3> x) {
-  const std::size_t n = x.size();
-  const auto masses = body.system.masses();
-  std::vector<Vec3> product(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    product[i] = masses[i] * x[i];
-  }
-  body.system.add_linearized_product(a, b, x, product);
-  double residual = 0.0;
-  double rhs_norm = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (constrained[i] == 0) {
-      residual += (rhs[i] - product[i]).squaredNorm();
-      rhs_norm += rhs[i].squaredNorm();
-    }
-  }
-  return std::sqrt(residual / rhs_norm);
-}
-
 TEST(FemModel, MassIsDensityTimesVolumeAndRestIsForceFree) {
   Body body(box({3, 2, 2}, Vec3(0.03, 0.02, 0.02)), material(3e3, 0.45, 1000.0));
   EXPECT_NEAR(body.model.total_mass(), 1000.0 * 0.03 * 0.02 * 0.02, 1e-15);
@@ -568,42 +546,95 @@ TEST(FemAccuracy, PreconditionersAndDirectSolverAgreeOnOneStep) {
   }
 }
 
-TEST(FemSolver, GalerkinStartFromABasisThatSpansTheSolutionNeedsNoIterations) {
-  Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
-  body.conditions.fix(at_plane(body.mesh, 2, 0.0));
-  const std::size_t n = body.mesh.vertex_count();
-  linearize_sheared(body);
-  const std::vector<char> constrained = held_rows(body);
-  std::vector<Vec3> rhs = random_field(n, 1e-3, 7);
+/// The solver tests' system: a 4x4x4 box held at z = 0, linearised at a sheared state, with a
+/// random load (the same in every test that takes it).
+struct ShearedSystem {
+  ShearedSystem() : body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0)) {
+    body.conditions.fix(at_plane(body.mesh, 2, 0.0));
+    linearize_sheared(body);
+    n = body.mesh.vertex_count();
+    constrained = held_rows(body);
+    rhs = random_field(n, 1e-3, 7);
+  }
+  static constexpr double a = 1e-4;  ///< the stiffness' factor in M + a K + b D
+  static constexpr double b = 1e-2;
+  Body body;
+  std::size_t n = 0;
+  std::vector<char> constrained;
+  std::vector<Vec3> rhs;
+};
+
+/// The system's solution hidden in a combination with noise, for the Galerkin start: `exact`
+/// (CG from zero to 1e-12, its stats in `cold`), a noise field and exact + 0.3 noise.
+struct HiddenSolution {
+  LinearSolveStats cold;
+  std::vector<Vec3> exact;
+  std::vector<Vec3> noise;
+  std::vector<Vec3> mixed;
+};
+
+HiddenSolution hide_solution(ShearedSystem& system) {
   LinearSolverOptions options;
   options.tolerance = 1e-12;
   options.warm_start = false;
-  LinearizedSystemSolver solver(options);
-  std::vector<Vec3> exact(n, Vec3::Zero());
-  const LinearSolveStats cold = solver.solve(body.system, 1.0, 1e-4, 1e-2, constrained, rhs, exact);
-  ASSERT_LE(cold.relative_residual, 1e-12);
-  ASSERT_GT(cold.iterations, 10);
-  // The solution hidden in a combination with noise, plus a repeated (dependent) field.
-  const std::vector<Vec3> noise = random_field(n, 1.0, 8);
-  std::vector<Vec3> mixed(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    mixed[i] = exact[i] + 0.3 * noise[i];
+  HiddenSolution hidden;
+  hidden.exact.assign(system.n, Vec3::Zero());
+  hidden.cold = LinearizedSystemSolver(options).solve(system.body.system, 1.0, system.a, system.b,
+                                                      system.constrained, system.rhs, hidden.exact);
+  hidden.noise = random_field(system.n, 1.0, 8);
+  hidden.mixed.resize(system.n);
+  for (std::size_t i = 0; i < system.n; ++i) {
+    hidden.mixed[i] = hidden.exact[i] + 0.3 * hidden.noise[i];
   }
-  const std::vector<std::span<const Vec3>> basis = {noise, mixed, noise};
+  return hidden;
+}
+
+/// |rhs - (M + a K + b D) x| / |rhs| over the free rows, from the model's own products in
+/// double: the residual a solve must report, found without the solver.
+double true_relative_residual(ShearedSystem& system, std::span<const Vec3> x) {
+  const std::size_t n = x.size();
+  const auto masses = system.body.system.masses();
+  std::vector<Vec3> product(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    product[i] = masses[i] * x[i];
+  }
+  system.body.system.add_linearized_product(system.a, system.b, x, product);
+  double residual = 0.0;
+  double rhs_norm = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (system.constrained[i] == 0) {
+      residual += (system.rhs[i] - product[i]).squaredNorm();
+      rhs_norm += system.rhs[i].squaredNorm();
+    }
+  }
+  return std::sqrt(residual / rhs_norm);
+}
+
+TEST(FemSolver, GalerkinStartFromABasisThatSpansTheSolutionNeedsNoIterations) {
+  ShearedSystem system;
+  const std::size_t n = system.n;
+  const HiddenSolution hidden = hide_solution(system);
+  ASSERT_LE(hidden.cold.relative_residual, 1e-12);
+  ASSERT_GT(hidden.cold.iterations, 10);
+  const std::vector<Vec3>& exact = hidden.exact;
+  // The solution hidden in a combination with noise, plus a repeated (dependent) field.
+  const std::vector<std::span<const Vec3>> basis = {hidden.noise, hidden.mixed, hidden.noise};
+  LinearSolverOptions options;
+  options.warm_start = false;
   options.tolerance = 1e-8;
   LinearizedSystemSolver started(options);
   std::vector<Vec3> x_started(n, Vec3::Constant(1.0));  // ignored: the basis decides
-  const LinearSolveStats stats =
-      started.solve(body.system, 1.0, 1e-4, 1e-2, constrained, rhs, x_started, basis);
+  const LinearSolveStats stats = started.solve(system.body.system, 1.0, system.a, system.b,
+                                               system.constrained, system.rhs, x_started, basis);
   EXPECT_EQ(stats.iterations, 0);
   EXPECT_LE(stats.relative_residual, 1e-8);
   EXPECT_LT(max_difference(x_started, exact), 1e-7 * max_norm(exact));
   // A basis of noise alone starts no worse than zero in the energy norm, and CG still
   // reaches the tolerance.
-  const std::vector<std::span<const Vec3>> unrelated = {noise};
+  const std::vector<std::span<const Vec3>> unrelated = {hidden.noise};
   std::vector<Vec3> x_noise(n, Vec3::Zero());
-  const LinearSolveStats noisy =
-      started.solve(body.system, 1.0, 1e-4, 1e-2, constrained, rhs, x_noise, unrelated);
+  const LinearSolveStats noisy = started.solve(system.body.system, 1.0, system.a, system.b,
+                                               system.constrained, system.rhs, x_noise, unrelated);
   EXPECT_LE(noisy.relative_residual, 1e-8);
   EXPECT_LT(max_difference(x_noise, exact), 1e-5 * max_norm(exact));
 }
@@ -648,40 +679,26 @@ TEST(FemSolver, AFloatGalerkinStartStopsOnTheTrueResidual) {
   // residual is combined from them: within float rounding of the true one. A start that
   // meets the tolerance on that estimate is confirmed in double, so the solve reports the
   // true residual, never the estimate.
-  Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
-  body.conditions.fix(at_plane(body.mesh, 2, 0.0));
-  const std::size_t n = body.mesh.vertex_count();
-  linearize_sheared(body);
-  const double a = 1e-4;
-  const double b = 1e-2;
-  const std::vector<char> constrained = held_rows(body);
-  const std::vector<Vec3> rhs = random_field(n, 1e-3, 7);
+  ShearedSystem system;
+  const std::size_t n = system.n;
+  const HiddenSolution hidden = hide_solution(system);
+  ASSERT_LE(hidden.cold.relative_residual, 1e-12);
+  const std::vector<std::span<const Vec3>> basis = {hidden.noise, hidden.mixed};
   LinearSolverOptions options;
-  options.tolerance = 1e-12;
   options.warm_start = false;
-  std::vector<Vec3> exact(n, Vec3::Zero());
-  ASSERT_LE(LinearizedSystemSolver(options)
-                .solve(body.system, 1.0, a, b, constrained, rhs, exact)
-                .relative_residual,
-            1e-12);
-  const std::vector<Vec3> noise = random_field(n, 1.0, 8);
-  std::vector<Vec3> mixed(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    mixed[i] = exact[i] + 0.3 * noise[i];
-  }
-  const std::vector<std::span<const Vec3>> basis = {noise, mixed};
   for (const double tolerance : {1e-3, 1e-5}) {
     options.tolerance = tolerance;
     LinearizedSystemSolver solver(options);
     std::vector<Vec3> x(n, Vec3::Zero());
-    const LinearSolveStats stats = solver.solve(body.system, 1.0, a, b, constrained, rhs, x, basis);
-    const double truth = true_relative_residual(body, a, b, constrained, rhs, x);
+    const LinearSolveStats stats = solver.solve(system.body.system, 1.0, system.a, system.b,
+                                                system.constrained, system.rhs, x, basis);
+    const double truth = true_relative_residual(system, x);
     EXPECT_EQ(stats.iterations, 0) << tolerance;
     EXPECT_LE(stats.relative_residual, tolerance);
     EXPECT_GT(truth, 0.0);
     EXPECT_NEAR(stats.relative_residual, truth, 1e-6 * truth) << tolerance;
     // Float's rounding: the start is within about 1e-7 of the solution, not exact.
-    EXPECT_LT(max_difference(x, exact), 1e-5 * max_norm(exact));
+    EXPECT_LT(max_difference(x, hidden.exact), 1e-5 * max_norm(hidden.exact));
   }
 }
 
@@ -689,14 +706,10 @@ TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
   // CG multiplies by a float copy of the matrix; the copy's products agree with the double
   // ones to float rounding, and a tolerance far below what float alone can reach (1e-12) is
   // still met on the residual formed in double, by restarting from it.
-  Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
-  body.conditions.fix(at_plane(body.mesh, 2, 0.0));
-  const std::size_t n = body.mesh.vertex_count();
-  linearize_sheared(body);
-  const double a = 1e-4;
-  const double b = 1e-2;
+  ShearedSystem system;
+  const std::size_t n = system.n;
   BlockSparseMatrix matrix;
-  ASSERT_TRUE(body.system.assemble_linearization(a, b, matrix));
+  ASSERT_TRUE(system.body.system.assemble_linearization(system.a, system.b, matrix));
   matrix.refresh_single_precision();
   const std::vector<Vec3> p = random_field(n, 1.0, 3);
   std::vector<Vec3> in_double(n);
@@ -711,8 +724,6 @@ TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
   EXPECT_LE(max_difference(in_double, in_single), rows_bound);
   EXPECT_GT(max_difference(in_double, in_single), 0.0);  // the copy is float, not the same
 
-  const std::vector<char> constrained = held_rows(body);
-  const std::vector<Vec3> rhs = random_field(n, 1e-3, 7);
   auto solve = [&](bool single, std::vector<Vec3>& solution) {
     LinearSolverOptions options;
     options.tolerance = 1e-12;
@@ -720,7 +731,8 @@ TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
     options.single_precision_products = single;
     LinearizedSystemSolver solver(options);
     solution.assign(n, Vec3::Zero());
-    return solver.solve(body.system, 1.0, a, b, constrained, rhs, solution);
+    return solver.solve(system.body.system, 1.0, system.a, system.b, system.constrained, system.rhs,
+                        solution);
   };
   std::vector<Vec3> solution_double;
   std::vector<Vec3> solution_single;
@@ -730,7 +742,7 @@ TEST(FemSolver, SinglePrecisionProductsStopOnTheTrueResidual) {
   EXPECT_GE(single_stats.refinements, 1);
   // The residual of the single-precision run, formed here from the model's own products.
   EXPECT_LE(single_stats.relative_residual, 1e-12);
-  EXPECT_LE(true_relative_residual(body, a, b, constrained, rhs, solution_single), 2e-12);
+  EXPECT_LE(true_relative_residual(system, solution_single), 2e-12);
   EXPECT_LT(max_difference(solution_single, solution_double), 1e-9 * max_norm(solution_double));
 }
 
