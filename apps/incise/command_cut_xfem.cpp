@@ -19,6 +19,7 @@
 #include "incise/mesh/validate.hpp"
 #include "incise/xfem/visual_surface.hpp"
 #include "incise/xfem/xfem_cutter.hpp"
+#include "visual_report.hpp"
 
 namespace incise::app {
 
@@ -132,7 +133,7 @@ int cut_xfem(const XfemCutRequest& request) {
       json["visual_triangles"] = visual->triangles().size();
       json["visual_outside_points"] = visual->outside_points();
       json["visual_failures"] = visual->failures();
-      json["visual_front_failures"] = visual->front_failures();
+      json["visual_surface"] = visual_surface_report(*visual);
     }
     write_file_atomically(request.report_path, json.dump(2) + "\n");
   }

@@ -13,6 +13,7 @@
 #include "commands.hpp"
 #include "incise/core/error.hpp"
 #include "incise/haptics/haptic_loop.hpp"
+#include "incise/igtl/extended_header.hpp"
 #include "incise/igtl/tcp.hpp"
 #include "incise/igtl/wire.hpp"
 #include "incise/scene/scene.hpp"
@@ -30,6 +31,7 @@ struct DeviceOptions {
   std::vector<double> axis = {0.0, 0.0, 1.0};
   double hold = 0.5;
   double connect_timeout = 10.0;
+  int header_version = 1;
 };
 
 int run_device(const DeviceOptions& options) {
@@ -67,7 +69,12 @@ int run_device(const DeviceOptions& options) {
   std::uint64_t sent = 0;
   std::uint64_t forces = 0;
   std::uint64_t overruns = 0;
+  std::uint64_t replies_in_other_version = 0;
+  std::uint32_t message_id = 0;
   double largest_force = 0.0;
+  // What 3D Slicer's OpenIGTLinkIF puts in a version-2 TRANSFORM's metadata.
+  const std::vector<igtl::MetadataEntry> metadata = {{"MEMLNodeName", 3, "LinearTransform"}};
+  const auto version = static_cast<std::uint16_t>(options.header_version);
   std::string refused;
   // The device's clock: seconds since boot (steady), so time stamps are never 0.
   const auto clock_seconds = [] {
@@ -93,9 +100,11 @@ int run_device(const DeviceOptions& options) {
       break;
     }
     const BladePose pose = pose_at(path, path.front().time + t);
-    if (outbox.send(igtl::encode_transform(frame_of_blade(pose, blade), options.name,
-                                           igtl::timestamp_of(now)),
-                    false)) {
+    if (outbox.send(
+            igtl::in_header_version(igtl::encode_transform(frame_of_blade(pose, blade),
+                                                           options.name, igtl::timestamp_of(now)),
+                                    version, ++message_id, metadata),
+            false)) {
       ++sent;
     }
     outbox.flush();
@@ -108,6 +117,8 @@ int run_device(const DeviceOptions& options) {
       if (message == nullptr || igtl::check_message(*message)) {
         continue;  // the server's bytes are checked like anyone's
       }
+      // The server answers a device in the header version it speaks.
+      replies_in_other_version += message->header.version != version ? 1 : 0;
       if (message->header.type == "SENSOR") {
         const auto values = igtl::decode_sensor(*message);
         const auto* force = std::get_if<std::vector<double>>(&values);
@@ -143,11 +154,11 @@ int run_device(const DeviceOptions& options) {
   std::cout << fmt::format(
       "incise device: {} poses sent, {} forces received (largest {:.3f} N); loop period p50 "
       "{:.3f} / p99 {:.3f} / max {:.3f} ms, {} overruns; pose-to-force round trip p50 {:.3f} / "
-      "p99 {:.3f} / max {:.3f} ms{}\n",
+      "p99 {:.3f} / max {:.3f} ms{}; header version {}, {} replies in another\n",
       sent, forces, largest_force, 1e3 * periods.quantile(0.5), 1e3 * periods.quantile(0.99),
       1e3 * periods.max(), overruns, 1e3 * round_trips.quantile(0.5),
       1e3 * round_trips.quantile(0.99), 1e3 * round_trips.max(),
-      realtime ? " (real-time priority)" : "");
+      realtime ? " (real-time priority)" : "", version, replies_in_other_version);
   if (!refused.empty()) {
     std::cerr << "incise device: the server refused this device: " << refused << "\n";
     return kExitError;
@@ -175,6 +186,11 @@ Runner add_device_command(CLI::App& app) {
       ->expected(3);
   command->add_option("--hold", options->hold, "Keep sending the last pose this long (s)")
       ->check(CLI::NonNegativeNumber);
+  command
+      ->add_option("--header-version", options->header_version,
+                   "OpenIGTLink header version to send: 1, or 2 (protocol 3, with an extended "
+                   "header and metadata, as 3D Slicer and PLUS send)")
+      ->check(CLI::Range(1, 2));
   command
       ->add_option("--connect-timeout", options->connect_timeout,
                    "Keep trying to connect this long (s)")

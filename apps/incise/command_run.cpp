@@ -22,6 +22,7 @@
 #include "incise/solve/integrators.hpp"
 #include "incise/view/render_sink.hpp"
 #include "incise/view/session_recording.hpp"
+#include "visual_report.hpp"
 #ifdef INCISE_HAVE_GL
 #include "incise/render/offscreen.hpp"
 #endif
@@ -311,6 +312,7 @@ Runner add_run_command(CLI::App& app) {
       report["pvd"] = series.pvd().string();
       if (engine->visual() != nullptr) {
         report["visual_pvd"] = series.visual_pvd().string();
+        report["visual_surface"] = visual_surface_report(*engine->visual());
       }
       nlohmann::ordered_json per_frame = nlohmann::ordered_json::array();
       for (const FrameRecord& record : result.frames) {

@@ -2,7 +2,12 @@
 // [--port-file FILE]: the engine as an OpenIGTLink server. A device (incise device, a
 // bridged haptic device, 3D Slicer) sends the scalpel's pose as TRANSFORM; the physics runs
 // in real time on this thread, the 1 kHz haptic loop answers each pose with a force
-// (SENSOR), and the deformed surface goes out as POLYDATA every frame.
+// (SENSOR), and the deformed surface goes out as POLYDATA every frame. Devices may speak
+// OpenIGTLink header version 1 or 2 (protocol 3, as 3D Slicer and PLUS do).
+//
+// SIGINT and SIGTERM are answered within a second whatever the physics is doing: a frame
+// that has not ended 0.7 s after the signal is abandoned, and the final files are written
+// from the last frame that did end.
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -25,6 +30,7 @@
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
 #include "incise/xfem/visual_surface.hpp"
+#include "visual_report.hpp"
 
 namespace incise::app {
 namespace {
@@ -47,6 +53,111 @@ struct ServeOptions {
 
 nlohmann::json histogram_json(double p50, double p99, double max) {
   return {{"p50", p50}, {"p99", p99}, {"max", max}};
+}
+
+/// How long a frame may go on after SIGINT/SIGTERM before it is abandoned (s).
+constexpr double kStopGrace = 0.7;
+
+/// The last frame that ended, kept by the physics thread for the stop watchdog: what the
+/// final files are written from when a frame never ends. Guarded by its mutex.
+struct LastFrame {
+  std::mutex mutex;
+  int frames = 0;
+  double time = 0.0;             ///< s
+  double physics_seconds = 0.0;  ///< s
+  std::uint64_t mesh_revision = 0;
+  std::vector<Vec3> rest;  ///< m, refreshed when the mesh changes
+  std::vector<Tet> tets;
+  std::vector<Vec3> positions;    ///< m
+  nlohmann::ordered_json visual;  ///< the visual surface's report, if any
+};
+
+/// What the final report says beyond the mesh: how the session went.
+struct SessionSummary {
+  std::string scene;
+  std::string ended;
+  bool diverged = false;
+  int frames = 0;
+  double time = 0.0;
+  double physics_seconds = 0.0;
+  std::size_t tets_start = 0;
+  double rest_volume_start = 0.0;
+  int reaction_pushes = 0;
+  double largest_reaction = 0.0;
+  nlohmann::ordered_json visual;
+};
+
+/// final.vtu (unless diverged) and report.json in `out`, from `mesh` at `positions`.
+void write_final_files(const std::filesystem::path& out, const SessionSummary& session,
+                       const TetMesh& mesh, std::span<const Vec3> positions,
+                       const HapticSpec& settings, const HapticStatistics& haptic,
+                       const igtl::ServerCounters& counters) {
+  // Nothing but finite positions goes to disk: a diverged run keeps its report only.
+  std::filesystem::create_directories(out);
+  const ValidationReport validation = validate(mesh);
+  const SurfaceEdgeCheck boundary = check_boundary(mesh);
+  if (!session.diverged) {
+    // The deformed body, with its displacement from rest (ParaView: Warp By Vector, -1).
+    std::vector<double> displacement;
+    displacement.reserve(3 * positions.size());
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      const Vec3 d = positions[i] - mesh.rest_positions()[i];
+      displacement.insert(displacement.end(), {d.x(), d.y(), d.z()});
+    }
+    VtuFields fields;
+    fields.point_data.push_back({"displacement", 3, std::move(displacement)});
+    write_vtu(out / "final.vtu", mesh, positions, fields);
+  }
+  nlohmann::json dropped = nlohmann::json::object();
+  for (std::size_t i = 0; i < igtl::kDropReasons; ++i) {
+    dropped[std::string(igtl::name_of(static_cast<igtl::DropReason>(i)))] = counters.dropped[i];
+  }
+  nlohmann::json report = {
+      {"scene", session.scene},
+      {"ended", session.ended},
+      {"frames", session.frames},
+      {"simulated_time_s", session.time},
+      {"physics_ms_per_frame",
+       session.frames > 0 ? 1e3 * session.physics_seconds / session.frames : 0.0},
+      {"tets_start", session.tets_start},
+      {"tets", mesh.tet_count()},
+      {"rest_volume_start_m3", session.rest_volume_start},
+      {"rest_volume_m3", total_volume(mesh)},
+      {"valid", validation.ok()},
+      {"watertight", boundary.watertight()},
+      {"clients", counters.clients},
+      {"clients_refused", counters.refused},
+      {"clients_disconnected_for_garbage", counters.disconnected_for_garbage},
+      {"haptic",
+       {{"rate_hz", settings.rate},
+        {"realtime_priority", haptic.realtime},
+        {"ticks", haptic.ticks},
+        {"overruns", haptic.overruns},
+        {"period_s", histogram_json(haptic.period_p50, haptic.period_p99, haptic.period_max)},
+        {"pose_to_force_latency_s",
+         histogram_json(haptic.latency_p50, haptic.latency_p99, haptic.latency_max)},
+        {"largest_force_n", haptic.largest_force},
+        {"largest_force_step_n", haptic.largest_step},
+        {"reaction_pushes", session.reaction_pushes},
+        {"largest_reaction_n", session.largest_reaction}}},
+      {"messages",
+       {{"received", counters.received},
+        {"poses", counters.poses},
+        {"sent", counters.sent},
+        {"send_dropped", counters.send_dropped},
+        {"dropped", dropped},
+        {"dropped_total", counters.dropped_total()}}},
+      {"units", "SI (m, s, N); OpenIGTLink messages carry millimetres"}};
+  if (!session.visual.is_null()) {
+    report["visual_surface"] = session.visual;
+  }
+  write_file_atomically(out / "report.json", report.dump(2) + "\n");
+  std::cerr << fmt::format(
+      "incise serve: {} after {} frames; {} -> {} tets; haptic period p50 {:.3f} / p99 {:.3f} / "
+      "max {:.3f} ms; {} poses, {} dropped; wrote {}\n",
+      session.ended, session.frames, session.tets_start, mesh.tet_count(), 1e3 * haptic.period_p50,
+      1e3 * haptic.period_p99, 1e3 * haptic.period_max, counters.poses, counters.dropped_total(),
+      out.string());
 }
 
 int serve(const ServeOptions& options) {
@@ -111,6 +222,58 @@ int serve(const ServeOptions& options) {
   std::signal(SIGTERM, request_stop);
   haptics.start();
   server->start();
+
+  SessionSummary session;
+  session.scene = scene.file.empty() ? "(default)" : scene.file.string();
+  session.tets_start = tets_start;
+  session.rest_volume_start = rest_volume_start;
+  LastFrame last;
+  {
+    last.mesh_revision = start_mesh.revision();
+    last.rest.assign(start_mesh.rest_positions().begin(), start_mesh.rest_positions().end());
+    last.tets.assign(start_mesh.tets().begin(), start_mesh.tets().end());
+    last.positions.assign(engine.positions().begin(), engine.positions().end());
+  }
+  // The stop watchdog: a frame still running kStopGrace after the signal (a solve that takes
+  // long, geometry that never returns) is abandoned, the final files written from `last`.
+  std::atomic<bool> loop_over{false};
+  std::atomic<int> finisher{0};  // 1: this thread writes the final files; 2: the watchdog
+  std::thread watchdog([&] {
+    while (!stop_requested.load() && !loop_over.load()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    const auto give_up =
+        std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                               std::chrono::duration<double>(kStopGrace));
+    while (!loop_over.load() && std::chrono::steady_clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    int nobody = 0;
+    if (loop_over.load() || !finisher.compare_exchange_strong(nobody, 2)) {
+      return;
+    }
+    server->stop();
+    haptics.stop();
+    const std::lock_guard lock(last.mutex);
+    SessionSummary abandoned = session;
+    abandoned.ended = fmt::format(
+        "stopped (SIGINT/SIGTERM); frame {} did not end within {} s and was abandoned: final "
+        "files from frame {}",
+        last.frames + 1, kStopGrace, last.frames);
+    abandoned.frames = last.frames;
+    abandoned.time = last.time;
+    abandoned.physics_seconds = last.physics_seconds;
+    abandoned.visual = last.visual;
+    try {
+      const TetMesh mesh(last.rest, last.tets);
+      write_final_files(options.out, abandoned, mesh, last.positions, scene.tool.haptics,
+                        haptics.statistics(), server->counters());
+    } catch (const std::exception& error) {
+      std::cerr << "incise serve: could not write the final files: " << error.what() << "\n";
+      std::_Exit(kExitError);
+    }
+    std::_Exit(0);  // the abandoned frame's thread cannot be joined
+  });
 
   // Physics in real time: frame k ends at k frame_dt of wall time (or as soon as it can).
   const auto start = std::chrono::steady_clock::now();
@@ -216,75 +379,45 @@ int serve(const ServeOptions& options) {
     }
     physics_seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - frame_start).count();
+    {
+      const std::lock_guard lock(last.mutex);
+      const TetMesh& now = engine.mesh();
+      if (now.revision() != last.mesh_revision) {
+        last.mesh_revision = now.revision();
+        last.rest.assign(now.rest_positions().begin(), now.rest_positions().end());
+        last.tets.assign(now.tets().begin(), now.tets().end());
+        if (engine.visual() != nullptr) {
+          last.visual = visual_surface_report(*engine.visual());
+        }
+      }
+      last.positions.assign(engine.positions().begin(), engine.positions().end());
+      last.frames = frames;
+      last.time = engine.time();
+      last.physics_seconds = physics_seconds;
+    }
   }
+  loop_over = true;
+  int nobody = 0;
+  if (!finisher.compare_exchange_strong(nobody, 1)) {
+    // The watchdog gave up on this frame and is writing the final files; it ends the process.
+    watchdog.join();
+    return kExitError;
+  }
+  watchdog.join();
   server->stop();
   haptics.stop();
-
-  // Nothing but finite positions goes to disk: a diverged run keeps its report only.
-  std::filesystem::create_directories(options.out);
-  const TetMesh& mesh = engine.mesh();
-  const ValidationReport validation = validate(mesh);
-  const SurfaceEdgeCheck boundary = check_boundary(mesh);
-  if (!diverged) {
-    // The deformed body, with its displacement from rest (ParaView: Warp By Vector, -1).
-    const auto positions = engine.positions();
-    std::vector<double> displacement;
-    displacement.reserve(3 * positions.size());
-    for (std::size_t i = 0; i < positions.size(); ++i) {
-      const Vec3 d = positions[i] - mesh.rest_positions()[i];
-      displacement.insert(displacement.end(), {d.x(), d.y(), d.z()});
-    }
-    VtuFields fields;
-    fields.point_data.push_back({"displacement", 3, std::move(displacement)});
-    write_vtu(std::filesystem::path(options.out) / "final.vtu", mesh, positions, fields);
+  session.ended = ended;
+  session.diverged = diverged;
+  session.frames = frames;
+  session.time = engine.time();
+  session.physics_seconds = physics_seconds;
+  session.reaction_pushes = reaction_pushes;
+  session.largest_reaction = largest_reaction;
+  if (engine.visual() != nullptr) {
+    session.visual = visual_surface_report(*engine.visual());
   }
-  const HapticStatistics haptic = haptics.statistics();
-  const igtl::ServerCounters counters = server->counters();
-  nlohmann::json dropped = nlohmann::json::object();
-  for (std::size_t i = 0; i < igtl::kDropReasons; ++i) {
-    dropped[std::string(igtl::name_of(static_cast<igtl::DropReason>(i)))] = counters.dropped[i];
-  }
-  const nlohmann::json report = {
-      {"scene", scene.file.empty() ? "(default)" : scene.file.string()},
-      {"ended", ended},
-      {"frames", frames},
-      {"simulated_time_s", engine.time()},
-      {"physics_ms_per_frame", frames > 0 ? 1e3 * physics_seconds / frames : 0.0},
-      {"tets_start", tets_start},
-      {"tets", mesh.tet_count()},
-      {"rest_volume_start_m3", rest_volume_start},
-      {"rest_volume_m3", total_volume(mesh)},
-      {"valid", validation.ok()},
-      {"watertight", boundary.watertight()},
-      {"clients", counters.clients},
-      {"clients_refused", counters.refused},
-      {"clients_disconnected_for_garbage", counters.disconnected_for_garbage},
-      {"haptic",
-       {{"rate_hz", scene.tool.haptics.rate},
-        {"realtime_priority", haptic.realtime},
-        {"ticks", haptic.ticks},
-        {"overruns", haptic.overruns},
-        {"period_s", histogram_json(haptic.period_p50, haptic.period_p99, haptic.period_max)},
-        {"pose_to_force_latency_s",
-         histogram_json(haptic.latency_p50, haptic.latency_p99, haptic.latency_max)},
-        {"largest_force_n", haptic.largest_force},
-        {"largest_force_step_n", haptic.largest_step},
-        {"reaction_pushes", reaction_pushes},
-        {"largest_reaction_n", largest_reaction}}},
-      {"messages",
-       {{"received", counters.received},
-        {"poses", counters.poses},
-        {"sent", counters.sent},
-        {"send_dropped", counters.send_dropped},
-        {"dropped", dropped},
-        {"dropped_total", counters.dropped_total()}}},
-      {"units", "SI (m, s, N); OpenIGTLink messages carry millimetres"}};
-  write_file_atomically(std::filesystem::path(options.out) / "report.json", report.dump(2) + "\n");
-  std::cerr << fmt::format(
-      "incise serve: {} after {} frames; {} -> {} tets; haptic period p50 {:.3f} / p99 {:.3f} / "
-      "max {:.3f} ms; {} poses, {} dropped; wrote {}\n",
-      ended, frames, tets_start, mesh.tet_count(), 1e3 * haptic.period_p50, 1e3 * haptic.period_p99,
-      1e3 * haptic.period_max, counters.poses, counters.dropped_total(), options.out);
+  write_final_files(options.out, session, engine.mesh(), engine.positions(), scene.tool.haptics,
+                    haptics.statistics(), server->counters());
   return diverged ? kExitDiverged : 0;
 }
 

@@ -6,15 +6,20 @@
 // and curves, or a straight sweep through the whole body), then runs it through the engine
 // frame by frame and checks after every frame: the mesh valid, the boundary closed wherever
 // it was, material volume and mass conserved, no NaN, kinetic energy bounded; after a full
-// sweep, the body separated. A failure prints its seed and leaves scene, mesh and path in
-// OUT/failures/seed-S to reproduce it with incise run.
+// sweep, the body separated. XFEM cases embed a visual and a collision surface (the body's
+// boundary, finer or offset, as real visual surfaces are), which must stay closed 2-manifolds
+// with no flat triangle after every frame. A failure prints its seed and leaves scene, mesh
+// and path in OUT/failures/seed-S to reproduce it with incise run.
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
@@ -30,6 +35,7 @@
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/validate.hpp"
 #include "incise/meshing/tetrahedralize.hpp"
+#include "incise/xfem/visual_surface.hpp"
 
 namespace incise::app {
 namespace {
@@ -56,6 +62,10 @@ struct SoakCase {
   /// runs (single-precision start and products), instead of the default solver.
   bool real_time_solver = false;
   std::vector<BladePose> path;
+  /// XFEM only: the embedded surfaces, made from the body's boundary: 0 the boundary as it
+  /// is, 1 each triangle split in four (finer than the physics), 2 that scaled 2 % out about
+  /// the centre (sticking out of the body), 3 scaled 3 % in.
+  int visual_kind = -1;
 };
 
 /// What the case's description and log line add for its solver.
@@ -149,6 +159,9 @@ SoakCase draw_case(unsigned seed, const std::vector<Body>& bodies, int poses) {
   }
   // From the seed, not the generator: earlier seeds draw the same bodies and paths.
   c.real_time_solver = c.model == "corotational-fem" && c.seed % 2 == 1;
+  if (c.cutter == "xfem") {
+    c.visual_kind = static_cast<int>((c.seed / 2) % 4);
+  }
   const auto [low, high] = bounding_box(c.mesh);
   c.full_sweep = rng() % 3 == 0;
   if (c.full_sweep) {
@@ -165,10 +178,54 @@ SoakCase draw_case(unsigned seed, const std::vector<Body>& bodies, int poses) {
   return c;
 }
 
+/// The body's boundary as a visual surface of the given kind (SoakCase::visual_kind).
+void write_visual_surface(const TetMesh& mesh, int kind, const std::filesystem::path& path) {
+  std::vector<Vec3> points(mesh.rest_positions().begin(), mesh.rest_positions().end());
+  std::vector<Triangle> triangles;
+  for (const BoundaryFace& face : boundary_faces(mesh)) {
+    triangles.push_back(face.vertices);
+  }
+  if (kind >= 1) {
+    // Split in four through edge midpoints (shared between neighbours).
+    std::map<std::pair<VertexId, VertexId>, VertexId> midpoint;
+    const auto middle = [&](VertexId a, VertexId b) {
+      const auto key = std::minmax(a, b);
+      const auto [slot, added] = midpoint.try_emplace(key, static_cast<VertexId>(points.size()));
+      if (added) {
+        points.push_back(
+            0.5 * (points[static_cast<std::size_t>(a)] + points[static_cast<std::size_t>(b)]));
+      }
+      return slot->second;
+    };
+    std::vector<Triangle> finer;
+    for (const Triangle& t : triangles) {
+      const VertexId ab = middle(t[0], t[1]);
+      const VertexId bc = middle(t[1], t[2]);
+      const VertexId ca = middle(t[2], t[0]);
+      finer.insert(finer.end(), {Triangle{t[0], ab, ca}, Triangle{ab, t[1], bc},
+                                 Triangle{ca, bc, t[2]}, Triangle{ab, bc, ca}});
+    }
+    triangles = std::move(finer);
+  }
+  if (kind >= 2) {
+    const auto [low, high] = bounding_box(mesh);
+    const Vec3 centre = 0.5 * (low + high);
+    const double scale = kind == 2 ? 1.02 : 0.97;
+    for (Vec3& p : points) {
+      p = centre + scale * (p - centre);
+    }
+  }
+  write_obj(path, points, triangles);
+}
+
 /// Writes the case as files `incise run` takes; returns the scene's path.
 std::filesystem::path write_case(const SoakCase& c, const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
   write_vtu(dir / "mesh.vtu", c.mesh);
+  if (c.visual_kind >= 0) {
+    write_visual_surface(c.mesh, c.visual_kind, dir / "visual.obj");
+    write_visual_surface(c.mesh, 0, dir / "collision.obj");
+  }
   write_blade_path(dir / "path.csv", c.path);
   const auto frames = static_cast<int>(c.path.size()) - 1;
   nlohmann::json integrator = {{"type", "backward-euler"}, {"dt", 0.01}};
@@ -191,7 +248,17 @@ std::filesystem::path write_case(const SoakCase& c, const std::filesystem::path&
       {"frames", frames},
       {"frame_dt", 0.01},
       {"output", {{"dir", "out"}, {"vtu_every", 1}}}};
-  write_file_atomically(dir / "scene.json", scene.dump(2) + "\n");
+  nlohmann::json written = scene;
+  if (c.visual_kind >= 0) {
+    written["visual"] = {{"file", "visual.obj"}};
+    written["collision"] = {{"file", "collision.obj"}};
+    written["description"] =
+        written["description"].get<std::string>() +
+        fmt::format(", visual surface {}",
+                    std::array{"on the boundary", "finer", "sticking out", "inside"}.at(
+                        static_cast<std::size_t>(c.visual_kind)));
+  }
+  write_file_atomically(dir / "scene.json", written.dump(2) + "\n");
   return dir / "scene.json";
 }
 
@@ -212,6 +279,44 @@ struct CaseResult {
   int pieces_after = 0;
   std::string violation;  ///< empty: every check held
 };
+
+/// What keeps an embedded surface from being a closed 2-manifold: every edge used exactly
+/// twice, once each way, and no triangle without area. Counted here, independently of the
+/// surface's own check (mesh/boundary).
+std::string embedded_surface_problem(const VisualSurface& surface, std::span<const Vec3> nodes) {
+  std::map<std::pair<VertexId, VertexId>, std::array<int, 2>> uses;
+  for (const Triangle& t : surface.triangles()) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const VertexId a = t[k];
+      const VertexId b = t[(k + 1) % 3];
+      ++uses[std::minmax(a, b)][a < b ? 0 : 1];
+    }
+  }
+  std::size_t bad_edges = 0;
+  int largest = 0;
+  for (const auto& [edge, count] : uses) {
+    bad_edges += count[0] == 1 && count[1] == 1 ? 0 : 1;
+    largest = std::max(largest, count[0] + count[1]);
+  }
+  const std::vector<Vec3> rest(surface.rest_points().begin(), surface.rest_points().end());
+  std::size_t flat = 0;
+  for (const Triangle& t : surface.triangles()) {
+    const Vec3& a = rest[static_cast<std::size_t>(t[0])];
+    const Vec3& b = rest[static_cast<std::size_t>(t[1])];
+    const Vec3& c = rest[static_cast<std::size_t>(t[2])];
+    flat += (b - a).cross(c - a).norm() > 0.0 ? 0 : 1;
+  }
+  for (const Vec3& p : surface.positions(nodes)) {
+    if (!p.allFinite()) {
+      return "a point is NaN or infinite";
+    }
+  }
+  if (bad_edges == 0 && flat == 0) {
+    return "";
+  }
+  return fmt::format("{} edges not used once each way (largest use {}), {} flat triangles",
+                     bad_edges, largest, flat);
+}
 
 /// Runs the case frame by frame, stopping at the first violated check.
 CaseResult run_case(const std::filesystem::path& scene_path, bool full_sweep) {
@@ -257,6 +362,15 @@ CaseResult run_case(const std::filesystem::path& scene_path, bool full_sweep) {
     }
     if (std::abs(engine.total_mass() - mass) > 1e-9 * mass) {
       return fail(fmt::format("mass {} kg, was {}", engine.total_mass(), mass));
+    }
+    for (const VisualSurface* surface : {engine.visual(), engine.collision()}) {
+      if (surface != nullptr && surface->original_closed()) {
+        if (const std::string problem = embedded_surface_problem(*surface, engine.positions());
+            !problem.empty()) {
+          return fail(fmt::format("{} surface: {}",
+                                  surface == engine.visual() ? "visual" : "collision", problem));
+        }
+      }
     }
     if (subdivision) {
       const SurfaceEdgeCheck boundary = check_boundary(mesh);

@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "incise/core/error.hpp"
+#include "incise/igtl/extended_header.hpp"
 
 namespace incise::igtl {
 
@@ -19,6 +20,11 @@ struct Server::Client {
   MessageReader reader;
   int garbage_run = 0;           ///< bad messages in a row
   std::uint64_t last_stamp = 0;  ///< of the newest pose taken
+  /// The header version of the client's last good message: replies go out in it (0 until it
+  /// has sent one: then no surfaces go out, and other replies in version 1). Read by senders
+  /// on any thread.
+  std::atomic<std::uint16_t> version{0};
+  std::atomic<std::uint32_t> next_message_id{1};
   std::optional<SteadyTime> partial_since;
 };
 
@@ -69,7 +75,15 @@ void Server::send_to_client(std::span<const std::uint8_t> message, bool droppabl
   if (!client) {
     return;
   }
-  const bool sent = client->outbox.send(message, droppable);
+  const std::uint16_t version = client->version.load();
+  bool sent = false;
+  if (version != kHeaderVersion2) {
+    sent = client->outbox.send(message, droppable);
+  } else {
+    const std::vector<std::uint8_t> reheaded =
+        in_header_version({message.begin(), message.end()}, version, client->next_message_id++);
+    sent = client->outbox.send(reheaded, droppable);
+  }
   const std::lock_guard lock(counters_mutex_);
   ++(sent ? counters_.sent : counters_.send_dropped);
 }
@@ -81,7 +95,11 @@ void Server::send_force(const Vec3& force, std::uint64_t stamp) {
 }
 
 void Server::send_surface(std::vector<std::uint8_t> message) {
-  send_to_client(message, true);
+  // Not before the client has said which header version it reads.
+  const std::shared_ptr<Client> client = current_client();
+  if (client && client->version.load() != 0) {
+    send_to_client(message, true);
+  }
 }
 
 ServerCounters Server::counters() const {
@@ -217,6 +235,9 @@ void Server::handle(const MessageReader::Event& event) {
     return;
   }
   const Header& header = message.header;
+  if (const std::shared_ptr<Client> client = current_client()) {
+    client->version = header.version;  // answered in the version it speaks
+  }
   if (header.type == "GET_STATUS") {
     const auto ok = encode_status(kStatusOk, "", "incise serve", options_.device);
     send_to_client(ok, false);
@@ -226,7 +247,7 @@ void Server::handle(const MessageReader::Event& event) {
     drop(DropReason::kUnsupported, false);
     return;
   }
-  if (header.device != options_.device) {
+  if (message.device_name() != options_.device) {
     drop(DropReason::kOtherDevice, false);
     return;
   }

@@ -20,19 +20,22 @@
 #include <unordered_map>
 
 #include "incise/core/error.hpp"
+#include "incise/igtl/extended_header.hpp"
 
 namespace incise::igtl {
 namespace {
 
 constexpr std::array<std::string_view, kDropReasons> kDropNames = {
-    "truncated", "version",     "oversized",    "body_size",  "crc",       "unknown_type",
-    "bad_name",  "unsupported", "other_device", "not_finite", "not_rigid", "stale"};
+    "truncated",    "version",  "oversized",       "body_size",    "crc",
+    "unknown_type", "bad_name", "unsupported",     "other_device", "not_finite",
+    "not_rigid",    "stale",    "extended_header", "metadata"};
 
-// The message types of OpenIGTLink version 2 (openigtlink.org/protocols/v2_header.html).
-constexpr std::array<std::string_view, 18> kTypes = {
-    "TRANSFORM", "POSITION", "IMAGE",  "STATUS",  "CAPABILITY", "SENSOR",
-    "POLYDATA",  "STRING",   "POINT",  "TRAJ",    "TDATA",      "QTDATA",
-    "IMGMETA",   "LBMETA",   "COLORT", "NDARRAY", "BIND",       "QTRANS"};
+// The message types of OpenIGTLink version 2 (openigtlink.org/protocols/v2_header.html) and
+// those protocol 3 added (COMMAND; VIDEO and VIDEOMETA of the video extension).
+constexpr std::array<std::string_view, 21> kTypes = {
+    "TRANSFORM", "POSITION", "IMAGE", "STATUS", "CAPABILITY", "SENSOR",  "POLYDATA",
+    "STRING",    "POINT",    "TRAJ",  "TDATA",  "QTDATA",     "IMGMETA", "LBMETA",
+    "COLORT",    "NDARRAY",  "BIND",  "QTRANS", "COMMAND",    "VIDEO",   "VIDEOMETA"};
 
 std::vector<std::uint8_t> packed(::igtl::MessageBase& message) {
   message.Pack();
@@ -45,26 +48,46 @@ void stamp(::igtl::MessageBase& message, std::uint64_t timestamp) {
                        static_cast<unsigned int>(timestamp & 0xffffffffu));
 }
 
-/// The library's typed message for a checked Message, or null when its body does not unpack.
+/// The library's typed message for a checked Message's content, or null when it does not
+/// unpack. The library (1.11) reads version-1 messages only: it is handed the content under a
+/// version-1 header with that content's size and CRC.
 template <typename Typed>
 typename Typed::Pointer unpack(const Message& message) {
+  const std::span<const std::uint8_t> content = message.content();
+  igtl_header raw{};
+  std::memcpy(&raw, message.raw_header.data(), kHeaderSize);
+  igtl_header_convert_byte_order(&raw);
+  raw.version = kHeaderVersion1;
+  raw.body_size = content.size();
+  raw.crc = body_crc(content);
+  igtl_header_convert_byte_order(&raw);
   auto header = ::igtl::MessageHeader::New();
   header->InitPack();
-  std::memcpy(header->GetPackPointer(), message.raw_header.data(), kHeaderSize);
+  std::memcpy(header->GetPackPointer(), &raw, kHeaderSize);
   header->Unpack();
   auto typed = Typed::New();
   typed->SetMessageHeader(header);
   typed->AllocatePack();
-  if (static_cast<std::size_t>(typed->GetPackBodySize()) != message.body.size()) {
+  if (static_cast<std::size_t>(typed->GetPackBodySize()) != content.size()) {
     return nullptr;
   }
-  std::memcpy(typed->GetPackBodyPointer(), message.body.data(), message.body.size());
+  std::memcpy(typed->GetPackBodyPointer(), content.data(), content.size());
   const int status = typed->Unpack(1);
   if ((status & ::igtl::MessageHeader::UNPACK_BODY) == 0) {
     return nullptr;
   }
   return typed;
 }
+
+bool printable(std::string_view name) {
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f;
+  });
+}
+
+// The metadata key a version-2 sender may carry a longer device name in.
+constexpr std::string_view kDeviceNameKey = "DeviceName";
+constexpr std::size_t kLongestDeviceName = 256;
 
 std::string fixed_string(const char* bytes, std::size_t size) {
   return {bytes, strnlen(bytes, size)};
@@ -119,23 +142,43 @@ std::uint64_t body_crc(std::span<const std::uint8_t> body) {
   return crc64(const_cast<std::uint8_t*>(body.data()), body.size(), 0ULL);
 }
 
+std::string Message::device_name() const {
+  for (const MetadataEntry& entry : metadata) {
+    if (entry.key == kDeviceNameKey) {
+      return entry.value;
+    }
+  }
+  return header.device;
+}
+
 std::optional<DropReason> check_message(const Message& message) {
   const Header& header = message.header;
   if (!is_known_type(header.type)) {
     return DropReason::kUnknownType;
   }
-  const bool printable = std::all_of(header.device.begin(), header.device.end(), [](char c) {
-    return static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7f;
-  });
-  if (header.device.empty() || !printable) {
+  if (header.device.empty() || !printable(header.device)) {
     return DropReason::kBadName;
   }
   if (message.body.size() != header.body_size) {
     return DropReason::kBodySize;
   }
-  // The header's CRC-64 (ECMA-182) covers the body; the library computes it.
+  // The header's CRC-64 (ECMA-182) covers the whole body (for header version 2 the extended
+  // header and metadata too); the library computes it.
   if (body_crc(message.body) != header.crc) {
     return DropReason::kCrc;
+  }
+  // The reader split the body; a message put together elsewhere is checked to agree.
+  const auto parts = parse_body(header.version, message.body);
+  if (const auto* reason = std::get_if<DropReason>(&parts)) {
+    return *reason;
+  }
+  if (std::get<BodyParts>(parts).content_offset != message.content_offset ||
+      std::get<BodyParts>(parts).content_size != message.content_size) {
+    return DropReason::kExtendedHeader;
+  }
+  const std::string device = message.device_name();
+  if (device.empty() || device.size() > kLongestDeviceName || !printable(device)) {
+    return DropReason::kBadName;
   }
   return std::nullopt;
 }
@@ -144,7 +187,7 @@ std::variant<ToolFrame, DropReason> decode_transform(const Message& message) {
   if (message.header.type != "TRANSFORM") {
     return DropReason::kUnsupported;
   }
-  if (message.body.size() != IGTL_TRANSFORM_SIZE) {
+  if (message.content().size() != IGTL_TRANSFORM_SIZE) {
     return DropReason::kBodySize;
   }
   const auto typed = unpack<::igtl::TransformMessage>(message);
@@ -177,8 +220,9 @@ std::variant<std::vector<double>, DropReason> decode_sensor(const Message& messa
     return DropReason::kUnsupported;
   }
   // 10 bytes of sensor header (length, status, unit) and 8 per value.
-  if (message.body.size() < IGTL_SENSOR_HEADER_SIZE ||
-      message.body.size() != IGTL_SENSOR_HEADER_SIZE + 8u * message.body[0]) {
+  const auto content = message.content();
+  if (content.size() < IGTL_SENSOR_HEADER_SIZE ||
+      content.size() != IGTL_SENSOR_HEADER_SIZE + 8u * content[0]) {
     return DropReason::kBodySize;
   }
   const auto typed = unpack<::igtl::SensorMessage>(message);
@@ -200,7 +244,7 @@ std::variant<Status, DropReason> decode_status(const Message& message) {
     return DropReason::kUnsupported;
   }
   // code (2), subcode (8), error name (20), then a null-terminated text.
-  if (message.body.size() < 31 || message.body.back() != 0) {
+  if (message.content().size() < 31 || message.content().back() != 0) {
     return DropReason::kBodySize;
   }
   const auto typed = unpack<::igtl::StatusMessage>(message);
@@ -264,9 +308,11 @@ std::vector<std::uint8_t> encode_surface(std::span<const Triangle> triangles,
   auto polygons = ::igtl::PolyDataCellArray::New();
   std::unordered_map<VertexId, igtlUint32> compact;
   compact.reserve(triangles.size());
-  std::vector<float> cut_scalar;
-  cut_scalar.reserve(triangles.size());
+  // Per point: its triangles, and how many of them a cut opened.
+  std::vector<std::array<std::uint32_t, 2>> uses;
+  uses.reserve(triangles.size());
   for (std::size_t i = 0; i < triangles.size(); ++i) {
+    const bool cut = i < on_cut.size() && on_cut[i] != 0;
     igtlUint32 cell[3];
     for (int corner = 0; corner < 3; ++corner) {
       const VertexId vertex = triangles[i][static_cast<std::size_t>(corner)];
@@ -276,47 +322,37 @@ std::vector<std::uint8_t> encode_surface(std::span<const Triangle> triangles,
         const Vec3 p = positions[static_cast<std::size_t>(vertex)] * kWireUnitsPerMetre;
         points->AddPoint(static_cast<float>(p.x()), static_cast<float>(p.y()),
                          static_cast<float>(p.z()));
+        uses.push_back({0, 0});
       }
       cell[corner] = slot->second;
+      ++uses[slot->second][0];
+      uses[slot->second][1] += cut ? 1 : 0;
     }
     polygons->AddCell(3, cell);
-    cut_scalar.push_back(i < on_cut.size() && on_cut[i] != 0 ? 1.0f : 0.0f);
+  }
+  // The marks go out as a point scalar: the reference C reader (igtl_polydata.c) sizes point
+  // attributes right but reads a cell scalar as 9 components, past the message (Slicer's side
+  // included). Each point carries the share of its triangles that a cut opened: 1 inside the
+  // wound, 0 on the untouched skin, between on the wound's rim (the surface stays one closed
+  // mesh, so a point there belongs to both).
+  std::vector<float> cut_share(uses.size());
+  for (std::size_t p = 0; p < uses.size(); ++p) {
+    cut_share[p] = static_cast<float>(uses[p][1]) / static_cast<float>(uses[p][0]);
   }
   auto message = ::igtl::PolyDataMessage::New();
   message->SetDeviceName(device.c_str());
   message->SetPoints(points);
   message->SetPolygons(polygons);
   auto attribute = ::igtl::PolyDataAttribute::New();
-  // libopenigtlink 1.11 packs a cell attribute as if it were a tensor (9 values per cell,
-  // read past its buffer: valgrind shows it, large surfaces crash; openigtlink/OpenIGTLink
-  // issue 36, fixed after 1.11). It is packed as a point scalar of the same size and its type
-  // byte set to cell scalar afterwards: the protocol's layout (type 0x10, 1 component, one
-  // float per cell), as current OpenIGTLink (3D Slicer's) reads it.
   attribute->SetType(::igtl::PolyDataAttribute::POINT_SCALAR);
   attribute->SetName("CutFace");
-  attribute->SetSize(static_cast<igtlUint32>(cut_scalar.size()));
-  if (!cut_scalar.empty()) {
-    attribute->SetData(cut_scalar.data());
+  attribute->SetSize(static_cast<igtlUint32>(cut_share.size()));
+  if (!cut_share.empty()) {
+    attribute->SetData(cut_share.data());
   }
   message->AddAttribute(attribute);
   stamp(*message, timestamp);
-  std::vector<std::uint8_t> bytes = packed(*message);
-  // The attribute header follows the POLYDATA header, the points (3 float32 each) and the
-  // polygons ((1 + 3) uint32 each); no vertices, lines or strips are sent.
-  static_assert(sizeof(igtl_polydata_header) == 40 && sizeof(igtl_polydata_attribute_header) == 6);
-  const std::size_t type_at =
-      kHeaderSize + sizeof(igtl_polydata_header) + 12 * compact.size() + 16 * triangles.size();
-  INCISE_ASSERT(type_at + 1 < bytes.size() &&
-                    bytes[type_at] == ::igtl::PolyDataAttribute::POINT_SCALAR &&
-                    bytes[type_at + 1] == 1,
-                "POLYDATA attribute header where the layout puts it");
-  bytes[type_at] = ::igtl::PolyDataAttribute::CELL_SCALAR;
-  std::uint64_t crc = body_crc(std::span(bytes).subspan(kHeaderSize));
-  for (int i = 7; i >= 0; --i) {  // the header's CRC field: its last 8 bytes, big-endian
-    bytes[kHeaderSize - 8 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(crc & 0xffu);
-    crc >>= 8;
-  }
-  return bytes;
+  return packed(*message);
 }
 
 namespace {
@@ -347,12 +383,13 @@ class BodyCursor {
 
 // Written against the protocol's POLYDATA layout rather than through the library: its 1.11
 // unpacker reads cell attributes as tensors, past its buffer (valgrind), and trusts every
-// count it reads. Here each count is checked against the bytes present before use.
+// count it reads. Attribute sizes follow the protocol (scalar: its components, normal and
+// vector: 3, tensor: 9, per item). Here each count is checked against the bytes present before use.
 std::variant<Surface, DropReason> decode_surface(const Message& message) {
   if (message.header.type != "POLYDATA") {
     return DropReason::kUnsupported;
   }
-  BodyCursor cursor(message.body);
+  BodyCursor cursor(message.content());
   if (!cursor.has(40)) {
     return DropReason::kBodySize;
   }
@@ -437,12 +474,12 @@ std::variant<Surface, DropReason> decode_surface(const Message& message) {
     if (!cursor.has(4 * values)) {
       return DropReason::kBodySize;
     }
-    const bool cut_scalar = names[i] == "CutFace" && header.type == 0x10 &&
-                            header.components == 1 && header.size == surface.triangles.size();
+    const bool cut_scalar = names[i] == "CutFace" && header.type == 0x00 &&
+                            header.components == 1 && header.size == surface.points.size();
     for (std::uint64_t v = 0; v < values; ++v) {
       const float value = cursor.f32();
       if (cut_scalar) {
-        surface.on_cut.push_back(value > 0.5f ? 1 : 0);
+        surface.cut_share.push_back(value);
       }
     }
   }
@@ -480,7 +517,7 @@ std::optional<MessageReader::Event> MessageReader::next() {
   }
   const std::size_t available = buffer_.size() - start_ - kHeaderSize;
   const auto body_size = static_cast<std::size_t>(header.body_size);
-  const bool bad_version = header.version != IGTL_HEADER_VERSION;
+  const bool bad_version = header.version != kHeaderVersion1 && header.version != kHeaderVersion2;
   const bool unknown = !is_known_type(header.type);
   if (bad_version || unknown) {
     // Skip the body as it arrives: the stream stays aligned if the size was honest.
@@ -498,6 +535,10 @@ std::optional<MessageReader::Event> MessageReader::next() {
   if (start_ == buffer_.size()) {
     buffer_.clear();
     start_ = 0;
+  }
+  if (const auto reason = split_body(message)) {
+    // A body whose parts do not add up: damaged on the way (the CRC says so) or sent so.
+    return Drop{body_crc(message.body) != header.crc ? DropReason::kCrc : *reason, header};
   }
   return message;
 }

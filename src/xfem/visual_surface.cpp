@@ -4,14 +4,16 @@
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
+#include <fmt/format.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <tuple>
 #include <unordered_map>
 
@@ -71,62 +73,6 @@ double squared_distance_to_tet(const Vec3& p, const std::array<Vec3, 4>& x) {
   return best;
 }
 
-/// The part of the segment p0 -> p1 inside a tetrahedron (corners x, vertex ids `ids`): its
-/// parameters along the segment and the face each end lies on (the local index of the corner
-/// opposite it; -1 where the segment ends inside). A face's plane is taken through its corners
-/// in increasing vertex id, so the two tetrahedra that share a face find the same point, bit
-/// for bit, and the pieces of cut surface they make meet there.
-struct SegmentClip {
-  double enter = 0.0;
-  double exit = 1.0;
-  int enter_face = -1;
-  int exit_face = -1;
-};
-
-std::optional<SegmentClip> clip_segment(const std::array<Vec3, 4>& x, const Tet& ids,
-                                        const Vec3& p0, const Vec3& p1) {
-  SegmentClip clip;
-  for (int k = 0; k < 4; ++k) {
-    std::array<int, 3> face{};
-    for (int i = 0, m = 0; i < 4; ++i) {
-      if (i != k) {
-        face[static_cast<std::size_t>(m++)] = i;
-      }
-    }
-    std::sort(face.begin(), face.end(), [&](int a, int b) {
-      return ids[static_cast<std::size_t>(a)] < ids[static_cast<std::size_t>(b)];
-    });
-    const Vec3& a = x[static_cast<std::size_t>(face[0])];
-    Vec3 normal =
-        (x[static_cast<std::size_t>(face[1])] - a).cross(x[static_cast<std::size_t>(face[2])] - a);
-    if (normal.dot(x[static_cast<std::size_t>(k)] - a) < 0.0) {
-      normal = -normal;  // inside is positive
-    }
-    const double f0 = normal.dot(p0 - a);
-    const double f1 = normal.dot(p1 - a);
-    if (f0 < 0.0 && f1 < 0.0) {
-      return std::nullopt;
-    }
-    if (f0 < 0.0 && f1 >= 0.0) {
-      const double s = f0 / (f0 - f1);
-      if (s > clip.enter) {
-        clip.enter = s;
-        clip.enter_face = k;
-      }
-    } else if (f1 < 0.0 && f0 >= 0.0) {
-      const double s = f0 / (f0 - f1);
-      if (s < clip.exit) {
-        clip.exit = s;
-        clip.exit_face = k;
-      }
-    }
-  }
-  if (!(clip.enter < clip.exit)) {
-    return std::nullopt;
-  }
-  return clip;
-}
-
 /// Whether q lies on side b of a split tetrahedron's cut, read from the cut polygon's planes
 /// (extended, so a point nudged just outside the tetrahedron still reads its side): one plane,
 /// or two for a quad bent along its diagonal, where side b is the wedge between them when the
@@ -144,17 +90,176 @@ bool on_side_b(const std::array<Vec3, 4>& corners, const ElementCut& cut, const 
   return bends_to_b ? (above1 && above2) : (above1 || above2);
 }
 
+/// Whether a triangle has (next to) no area: its height over its longest edge below 1e-9 of
+/// that edge (collinear corners, or two corners at one place).
+bool is_flat(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double longest =
+      std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+  return !((b - a).cross(c - a).norm() > 1e-9 * longest) || !(longest > 0.0);
+}
+
+}  // namespace
+
+std::size_t remove_coincident_pairs(std::vector<Triangle>& triangles,
+                                    std::vector<std::uint8_t>& on_cut) {
+  // The same three points facing both ways enclose nothing: a piece of cut drawn where both
+  // sides are still carried by the same nodes (the blade's front). Both go.
+  std::map<std::array<VertexId, 3>, std::vector<std::size_t>> by_corners;
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    std::array<VertexId, 3> key = triangles[t];
+    std::sort(key.begin(), key.end());
+    by_corners[key].push_back(t);
+  }
+  std::vector<bool> remove(triangles.size(), false);
+  const auto same_direction = [](const Triangle& a, const Triangle& b) {
+    for (int shift = 0; shift < 3; ++shift) {
+      if (a[0] == b[static_cast<std::size_t>(shift)] &&
+          a[1] == b[static_cast<std::size_t>((shift + 1) % 3)]) {
+        return true;
+      }
+    }
+    return false;
+  };
+  std::size_t removed = 0;
+  for (const auto& [key, list] : by_corners) {
+    std::vector<std::size_t> forward;
+    std::vector<std::size_t> backward;
+    for (std::size_t t : list) {
+      (same_direction(triangles[t], triangles[list[0]]) ? forward : backward).push_back(t);
+    }
+    const std::size_t pairs = std::min(forward.size(), backward.size());
+    for (std::size_t k = 0; k < pairs; ++k) {
+      remove[forward[k]] = true;
+      remove[backward[k]] = true;
+    }
+    removed += pairs;
+  }
+  if (removed == 0) {
+    return 0;
+  }
+  std::size_t kept = 0;
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    if (!remove[t]) {
+      triangles[kept] = triangles[t];
+      on_cut[kept] = on_cut[t];
+      ++kept;
+    }
+  }
+  triangles.resize(kept);
+  on_cut.resize(kept);
+  return removed;
+}
+
+std::size_t flip_flat_triangles(std::span<const Vec3> points, std::vector<Triangle>& triangles,
+                                std::vector<std::uint8_t>& on_cut) {
+  // A triangle with collinear corners (corefinement leaves some where a cut runs along a
+  // visual edge) is flipped with its neighbour across its longest edge: the two become the
+  // neighbour split at the flat triangle's middle corner, the same surface with no flat piece.
+  std::size_t flips = 0;
+  for (int pass = 0; pass < 8; ++pass) {
+    std::map<std::pair<VertexId, VertexId>, std::size_t> directed;
+    for (std::size_t t = 0; t < triangles.size(); ++t) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        directed[{triangles[t][k], triangles[t][(k + 1) % 3]}] = t;
+      }
+    }
+    const auto at = [&](VertexId v) -> const Vec3& { return points[static_cast<std::size_t>(v)]; };
+    std::vector<bool> touched(triangles.size(), false);
+    std::size_t flipped_now = 0;
+    for (std::size_t t = 0; t < triangles.size(); ++t) {
+      const Triangle tri = triangles[t];
+      if (touched[t] || !is_flat(at(tri[0]), at(tri[1]), at(tri[2]))) {
+        continue;
+      }
+      // u -> v the longest edge, m the corner opposite it.
+      std::size_t longest = 0;
+      double length = -1.0;
+      for (std::size_t k = 0; k < 3; ++k) {
+        const double l = (at(tri[(k + 1) % 3]) - at(tri[k])).squaredNorm();
+        if (l > length) {
+          length = l;
+          longest = k;
+        }
+      }
+      const VertexId u = tri[longest];
+      const VertexId v = tri[(longest + 1) % 3];
+      const VertexId m = tri[(longest + 2) % 3];
+      const auto across = directed.find({v, u});
+      if (across == directed.end() || touched[across->second] || across->second == t) {
+        continue;
+      }
+      const std::size_t n = across->second;
+      VertexId w = kInvalidId;
+      for (VertexId corner : triangles[n]) {
+        if (corner != u && corner != v) {
+          w = corner;
+        }
+      }
+      if (w == kInvalidId || w == m || directed.contains({m, w}) || directed.contains({w, m})) {
+        continue;  // the new edge exists already: flipping would make it non-manifold
+      }
+      triangles[t] = {m, u, w};
+      triangles[n] = {w, v, m};
+      on_cut[t] = on_cut[n];  // both now lie in the neighbour's plane
+      touched[t] = touched[n] = true;
+      ++flipped_now;
+    }
+    flips += flipped_now;
+    if (flipped_now == 0) {
+      break;
+    }
+  }
+  return flips;
+}
+
+std::size_t count_flat_triangles(std::span<const Vec3> points,
+                                 std::span<const Triangle> triangles) {
+  std::size_t flat = 0;
+  for (const Triangle& t : triangles) {
+    flat += is_flat(points[static_cast<std::size_t>(t[0])], points[static_cast<std::size_t>(t[1])],
+                    points[static_cast<std::size_t>(t[2])])
+                ? 1
+                : 0;
+  }
+  return flat;
+}
+
+std::string closed_manifold_problem(std::span<const Vec3> points,
+                                    std::span<const Triangle> triangles,
+                                    const SurfaceEdgeCheck& allowed, std::size_t allowed_flat) {
+  const SurfaceEdgeCheck edges = check_surface_edges(triangles);
+  if (!cut_kept_boundary(allowed, edges)) {
+    return fmt::format("{} open, {} non-manifold and {} misoriented edges", edges.open_edges,
+                       edges.nonmanifold_edges, edges.misoriented_edges);
+  }
+  const std::size_t flat = count_flat_triangles(points, triangles);
+  return flat <= allowed_flat ? std::string() : fmt::format("{} triangles with no area", flat);
+}
+
+namespace {
+
 /// Where an output point is and what carries it: points that would move together merge.
 struct PointKey {
   double x, y, z;
   Tet nodes;
+  /// In a split tetrahedron, the side's element (1: the second): where its nodes are tied
+  /// (not yet copied), both sides' points have the same carriers, yet belong to two lips.
+  int side;
   auto operator<=>(const PointKey&) const = default;
 };
 
 }  // namespace
 
+struct VisualSurface::Corefined {
+  CgalMesh visual;
+  CgalMesh cut;
+};
+
 struct VisualSurface::CgalCache {
   CgalMesh original;
+  /// Boxes of the original's faces that intersect others of its faces (a surface from the
+  /// wild may): corefinement's inputs must not intersect themselves where they meet.
+  std::vector<CGAL::Bbox_3> self_crossings;
   std::unique_ptr<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>> inside;  ///< closed ones only
 };
 
@@ -185,8 +290,25 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
     length += (rest_mesh_.rest_position(a) - rest_mesh_.rest_position(b)).norm();
   }
   nudge_ = 1e-6 * length / static_cast<double>(std::max<std::size_t>(1, rest_mesh_.edge_count()));
+  {
+    // A surface from the wild may come with flat triangles: flipped away once, here, so that
+    // every picture can be held to having none.
+    std::vector<std::uint8_t> marks(original_triangles_.size(), 0);
+    flip_flat_triangles(original_points_, original_triangles_, marks);
+  }
   closed_ = is_watertight(original_triangles_);
   cgal_->original = to_cgal(original_points_, original_triangles_);
+  original_edges_ = check_surface_edges(original_triangles_);
+  original_flat_ = count_flat_triangles(original_points_, original_triangles_);
+  {
+    std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> crossing;
+    PMP::self_intersections(cgal_->original, std::back_inserter(crossing));
+    for (const auto& [f, g] : crossing) {
+      for (const auto face : {f, g}) {
+        cgal_->self_crossings.push_back(PMP::face_bbox(face, cgal_->original));
+      }
+    }
+  }
   if (closed_) {
     cgal_->inside =
         std::make_unique<CGAL::Side_of_triangle_mesh<CgalMesh, Kernel>>(cgal_->original);
@@ -274,7 +396,7 @@ TetId VisualSurface::locate_uncached(const Vec3& p, bool& is_outside) const {
 }
 
 Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p,
-                               const Vec3& towards) const {
+                               const Vec3& towards, bool* side_b) const {
   bool outside = false;
   TetId rest = locate(p, &outside);
   if (outside && cutter != nullptr) {
@@ -298,6 +420,22 @@ Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, co
       }
     }
   }
+  if (!outside && cutter != nullptr && !cutter->cut_of(rest)) {
+    // On a face or edge shared with a split tetrahedron (to within rounding: points made on
+    // the cut are rounded), a point is carried by that one: there its side of the cut is
+    // known, where a whole neighbour would carry both sides alike and join the lips.
+    std::vector<TetId> near;
+    const Vec3 tiny = Vec3::Constant(nudge_);
+    grid_->query(p - tiny, p + tiny, near);
+    std::sort(near.begin(), near.end());
+    for (TetId t : near) {
+      if (t != rest && cutter->cut_of(t) &&
+          squared_distance_to_tet(p, rest_corners(rest_mesh_, t)) <= nudge_ * nudge_) {
+        rest = t;
+        break;
+      }
+    }
+  }
   const auto x = rest_corners(rest_mesh_, rest);
   TetId element = rest;
   if (cutter != nullptr && cutter->cut_of(rest)) {
@@ -307,6 +445,9 @@ Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, co
       element = on_side_b(x, *cutter->cut_of(rest), q) ? second : rest;
     }
   }
+  if (side_b != nullptr) {
+    *side_b = element != rest;
+  }
   Embedding embedding;
   embedding.nodes = mesh.tet(element);
   embedding.weights = barycentric_coordinates(p, x[0], x[1], x[2], x[3]);
@@ -314,110 +455,134 @@ Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, co
 }
 
 void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
-  // Split tetrahedra change the picture, and so does the blade moving on inside tetrahedra it
-  // has only partly crossed (the progressive part).
-  const std::vector<TetId> front = cutter.front();
-  if (cutter.stats().elements_split == split_seen_ &&
-      (front.empty() || cutter.stats().moves == moves_seen_)) {
+  // Only split tetrahedra change the picture: the lips can part only there. (Pieces of cut in
+  // tetrahedra the blade has entered but not crossed would be two sheets on the same points,
+  // back to back between lips carried by the same nodes: they enclose nothing, cannot be seen
+  // and would make the surface non-manifold; the picture opens where the physics does.)
+  if (cutter.stats().elements_split == split_seen_) {
     return;
   }
   split_seen_ = cutter.stats().elements_split;
-  moves_seen_ = cutter.stats().moves;
 
   // The cut surface the physics sees: each split tetrahedron's polygon through its edge
   // crossings, a crossing shared by every tetrahedron around its edge, oriented from side a
-  // to side b; then the pieces the blade has cut in front of it. When CGAL cannot corefine
-  // with the pieces in front (a walk that doubles back can leave pieces that meet others), the
-  // picture is cut without them; when it cannot at all, the picture keeps its last cut.
-  CgalMesh visual;
-  CgalMesh cut_surface;
-  bool corefined = false;
-  for (const bool with_front : {true, false}) {
-    if (!with_front && front.empty()) {
-      break;
+  // to side b.
+  std::vector<Vec3> cut_points;
+  std::vector<Triangle> cut_triangles;
+  std::unordered_map<std::uint64_t, VertexId> crossing_point;
+  std::vector<std::uint64_t> edge_of_point;  // the mesh edge each cut point lies on
+  for (std::size_t t = 0; t < rest_mesh_.tet_count(); ++t) {
+    const auto& cut = cutter.cut_of(static_cast<TetId>(t));
+    if (!cut) {
+      continue;
     }
-    std::vector<Vec3> cut_points;
-    std::vector<Triangle> cut_triangles;
-    std::unordered_map<std::uint64_t, VertexId> crossing_point;
-    std::vector<std::uint64_t> edge_of_point;  // the mesh edge each cut point lies on
-    for (std::size_t t = 0; t < rest_mesh_.tet_count(); ++t) {
-      const auto& cut = cutter.cut_of(static_cast<TetId>(t));
-      if (!cut) {
-        continue;
+    const Tet& tet = rest_mesh_.tet(static_cast<TetId>(t));
+    const auto x = rest_corners(rest_mesh_, static_cast<TetId>(t));
+    std::vector<VertexId> polygon;
+    for (int k : cut_polygon_edges(x, *cut)) {
+      const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
+      const auto i = static_cast<std::size_t>(edge[0]);
+      const auto j = static_cast<std::size_t>(edge[1]);
+      const auto [slot, added] = crossing_point.try_emplace(
+          edge_key(tet[i], tet[j]), static_cast<VertexId>(cut_points.size()));
+      if (added) {
+        const double along = cut->crossing[static_cast<std::size_t>(k)];
+        cut_points.push_back((1.0 - along) * x[i] + along * x[j]);
+        edge_of_point.push_back(edge_key(tet[i], tet[j]));
       }
-      const Tet& tet = rest_mesh_.tet(static_cast<TetId>(t));
-      const auto x = rest_corners(rest_mesh_, static_cast<TetId>(t));
-      std::vector<VertexId> polygon;
-      for (int k : cut_polygon_edges(x, *cut)) {
-        const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
-        const auto i = static_cast<std::size_t>(edge[0]);
-        const auto j = static_cast<std::size_t>(edge[1]);
-        const auto [slot, added] = crossing_point.try_emplace(
-            edge_key(tet[i], tet[j]), static_cast<VertexId>(cut_points.size()));
-        if (added) {
-          const double along = cut->crossing[static_cast<std::size_t>(k)];
-          cut_points.push_back((1.0 - along) * x[i] + along * x[j]);
-          edge_of_point.push_back(edge_key(tet[i], tet[j]));
-        }
-        polygon.push_back(slot->second);
-      }
-      for (std::size_t m = 1; m + 1 < polygon.size(); ++m) {
-        cut_triangles.push_back({polygon[0], polygon[m], polygon[m + 1]});
-      }
+      polygon.push_back(slot->second);
     }
-    if (with_front) {
-      add_front_pieces(cutter, front, crossing_point, cut_points, cut_triangles, edge_of_point);
-      // The blade moving outside the body, or along a piece already drawn, changes nothing.
-      std::vector<double> signature;
-      signature.reserve(3 * cut_points.size() + 3 * cut_triangles.size());
-      for (const Vec3& p : cut_points) {
-        signature.insert(signature.end(), {p.x(), p.y(), p.z()});
-      }
-      for (const Triangle& t : cut_triangles) {
-        signature.insert(signature.end(), {static_cast<double>(t[0]), static_cast<double>(t[1]),
-                                           static_cast<double>(t[2])});
-      }
-      if (signature == cut_signature_) {
-        return;
-      }
-      cut_signature_ = std::move(signature);
-    }
-    // The band past the boundary also keeps the cut's rim off a visual surface that lies on
-    // the body's boundary (the body's own surface): corefinement then meets a crossing, not
-    // two nearly coplanar triangles.
-    if (closed_) {
-      add_skirt(cut_points, cut_triangles, edge_of_point);
-    }
-    visual = cgal_->original;
-    cut_surface = to_cgal(cut_points, cut_triangles);
-    if (cut_triangles.empty()) {
-      corefined = true;
-      break;
-    }
-    // Corefinement asks for surfaces that do not intersect themselves; real visual surfaces
-    // sometimes do (SOFA's liver-smooth.obj), and a skirt round a sharp rim may.
-    try {
-      PMP::corefine(visual, cut_surface);
-      corefined = true;
-      break;
-    } catch (const CGAL::Failure_exception&) {
-      front_failures_ += with_front ? 1 : 0;
+    for (std::size_t m = 1; m + 1 < polygon.size(); ++m) {
+      cut_triangles.push_back({polygon[0], polygon[m], polygon[m + 1]});
     }
   }
-  if (!corefined) {
+  // The band past the boundary also keeps the cut's rim off a visual surface that lies on
+  // the body's boundary (the body's own surface): corefinement then meets a crossing, not
+  // two nearly coplanar triangles.
+  if (closed_) {
+    add_skirt(cut_points, cut_triangles, edge_of_point);
+  }
+  Corefined pair;
+  pair.visual = cgal_->original;
+  pair.cut = to_cgal(cut_points, cut_triangles);
+  // Corefinement asks for surfaces that do not intersect themselves (else it may throw,
+  // crash or never return): real visual surfaces sometimes do (SOFA's liver-smooth.obj), and
+  // a skirt round a sharp rim may. Both are checked where they would meet; a cut that fails
+  // is not corefined, and the picture keeps its last cut.
+  if (!cut_triangles.empty()) {
+    if (!corefinable(pair)) {
+      ++failures_;
+      last_failure_ =
+          "the cut surface intersects itself, or the visual surface where the cut "
+          "meets it: not corefined";
+      return;
+    }
+    try {
+      PMP::corefine(pair.visual, pair.cut);
+    } catch (const std::exception& error) {  // CGAL's failures, its constraint intersections
+      ++failures_;
+      last_failure_ = std::string("corefinement failed: ") + error.what();
+      return;
+    }
+  }
+  // Built aside: a picture that does not come out closed and 2-manifold (as the original
+  // was), with no flat triangle, is not taken; the last good one stays.
+  std::vector<Vec3> last_points = std::move(rest_points_);
+  std::vector<Triangle> last_triangles = std::move(triangles_);
+  std::vector<std::uint8_t> last_on_cut = std::move(on_cut_);
+  std::vector<Embedding> last_embedding = std::move(embedding_);
+  std::string problem;
+  try {
+    rebuild(mesh, cutter, pair);
+    problem = closed_manifold_problem(rest_points_, triangles_, original_edges_, original_flat_);
+  } catch (const std::exception& error) {
+    problem = error.what();
+  }
+  if (!problem.empty()) {
+    rest_points_ = std::move(last_points);
+    triangles_ = std::move(last_triangles);
+    on_cut_ = std::move(last_on_cut);
+    embedding_ = std::move(last_embedding);
     ++failures_;
+    last_failure_ = problem;
     return;
   }
-  const auto* inside = cgal_->inside.get();
+  ++revision_;
+}
 
+bool VisualSurface::corefinable(const Corefined& pair) const {
+  const CgalMesh& cut_surface = pair.cut;
+  if (PMP::does_self_intersect(cut_surface)) {
+    return false;
+  }
+  if (cgal_->self_crossings.empty()) {
+    return true;
+  }
+  for (const auto face : cut_surface.faces()) {
+    const CGAL::Bbox_3 box = PMP::face_bbox(face, cut_surface);
+    for (const CGAL::Bbox_3& crossing : cgal_->self_crossings) {
+      if (CGAL::do_overlap(box, crossing)) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+void VisualSurface::rebuild(const TetMesh& mesh, const XfemCutter& cutter, const Corefined& pair) {
+  const CgalMesh& visual = pair.visual;
+  const CgalMesh& cut_surface = pair.cut;
+  const auto* inside = cgal_->inside.get();
   std::map<PointKey, VertexId> index;
   rest_points_.clear();
   triangles_.clear();
   on_cut_.clear();
   embedding_.clear();
   const auto add_point = [&](const Vec3& p, const Vec3& towards) {
-    const Embedding embedding = embed(mesh, &cutter, p, towards);
-    PointKey key{p.x(), p.y(), p.z(), {kInvalidId, kInvalidId, kInvalidId, kInvalidId}};
+    bool side_b = false;
+    const Embedding embedding = embed(mesh, &cutter, p, towards, &side_b);
+    PointKey key{
+        p.x(), p.y(), p.z(), {kInvalidId, kInvalidId, kInvalidId, kInvalidId}, side_b ? 1 : 0};
     for (std::size_t k = 0; k < 4; ++k) {
       if (std::abs(embedding.weights[k]) > 1e-12) {
         key.nodes[k] = embedding.nodes[k];
@@ -472,112 +637,9 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
     }
   }
   tidy();
-  ++revision_;
-}
-
-void VisualSurface::add_front_pieces(const XfemCutter& cutter, std::span<const TetId> front,
-                                     std::unordered_map<std::uint64_t, VertexId>& crossing_point,
-                                     std::vector<Vec3>& cut_points,
-                                     std::vector<Triangle>& cut_triangles,
-                                     std::vector<std::uint64_t>& edge_of_point) const {
-  // Beyond the seed (its future work): the picture opens under the blade before the physics
-  // splits. In each tetrahedron the cut has reached but not crossed, the cut so far runs
-  // through the crossings of its crossed edges and the blade's line inside it now; both sides'
-  // points there lie in the one whole element, so the picture is cut (and shows the cut faces)
-  // but stays closed until the physics splits the element and the lips part.
-  // The blade's ends in the tetrahedra: on a face (shared by its two tetrahedra) or inside.
-  std::map<std::array<VertexId, 3>, VertexId> blade_point;
-  constexpr std::uint64_t kNoEdge = ~std::uint64_t{0};
-  const BladePose& blade = cutter.last_pose();
-  for (TetId t : front) {
-    const Tet& tet = rest_mesh_.tet(t);
-    const auto x = rest_corners(rest_mesh_, t);
-    std::vector<VertexId> points;
-    for (const auto& edge : tet_local::kEdges) {
-      const auto i = static_cast<std::size_t>(edge[0]);
-      const auto j = static_cast<std::size_t>(edge[1]);
-      const std::optional<double> along = cutter.crossing(tet[i], tet[j]);
-      if (!along) {
-        continue;
-      }
-      const auto [slot, added] = crossing_point.try_emplace(
-          edge_key(tet[i], tet[j]), static_cast<VertexId>(cut_points.size()));
-      if (added) {
-        cut_points.push_back((1.0 - *along) * x[i] + *along * x[j]);
-        edge_of_point.push_back(edge_key(tet[i], tet[j]));
-      }
-      points.push_back(slot->second);
-    }
-    if (points.size() < 2) {
-      continue;  // the cut has not made a piece here yet
-    }
-    if (const auto clip = clip_segment(x, tet, blade.tip, blade.base)) {
-      for (int end = 0; end < 2; ++end) {
-        const double s = end == 0 ? clip->enter : clip->exit;
-        const int face = end == 0 ? clip->enter_face : clip->exit_face;
-        // Keyed by the face it lies on (its vertices, sorted), or, inside, by the tetrahedron
-        // and which end it is.
-        std::array<VertexId, 3> key{kInvalidId, t, -1 - end};
-        if (face >= 0) {
-          for (int i = 0, m = 0; i < 4; ++i) {
-            if (i != face) {
-              key[static_cast<std::size_t>(m++)] = tet[static_cast<std::size_t>(i)];
-            }
-          }
-          std::sort(key.begin(), key.end());
-        }
-        const auto [slot, added] =
-            blade_point.try_emplace(key, static_cast<VertexId>(cut_points.size()));
-        if (added) {
-          cut_points.push_back(blade.tip + s * (blade.base - blade.tip));
-          edge_of_point.push_back(kNoEdge);
-        }
-        points.push_back(slot->second);
-      }
-    }
-    std::sort(points.begin(), points.end());
-    points.erase(std::unique(points.begin(), points.end()), points.end());
-    if (points.size() < 3) {
-      continue;
-    }
-    // A convex polygon in the tetrahedron: its corners in order around their centre, in the
-    // plane they lie closest to.
-    Vec3 centre = Vec3::Zero();
-    for (VertexId id : points) {
-      centre += cut_points[static_cast<std::size_t>(id)];
-    }
-    centre /= static_cast<double>(points.size());
-    Mat3 spread = Mat3::Zero();
-    for (VertexId id : points) {
-      const Vec3 d = cut_points[static_cast<std::size_t>(id)] - centre;
-      spread += d * d.transpose();
-    }
-    const Eigen::SelfAdjointEigenSolver<Mat3> axes(spread);
-    const Vec3 u = axes.eigenvectors().col(2);
-    const Vec3 v = axes.eigenvectors().col(1);
-    const double size = (x[1] - x[0]).norm() + (x[2] - x[0]).norm() + (x[3] - x[0]).norm();
-    if (!(axes.eigenvalues()[1] > 1e-12 * size * size)) {
-      continue;  // the points lie on a line: no area yet
-    }
-    // Far from flat: the blade turned, or came back, inside the tetrahedron; no one polygon
-    // stands for that cut, and the picture waits for the physics here.
-    const Vec3 normal = axes.eigenvectors().col(0);
-    const bool flat = std::all_of(points.begin(), points.end(), [&](VertexId id) {
-      return std::abs((cut_points[static_cast<std::size_t>(id)] - centre).dot(normal)) <=
-             0.02 * size;
-    });
-    if (!flat) {
-      continue;
-    }
-    std::sort(points.begin(), points.end(), [&](VertexId a, VertexId b) {
-      const Vec3 da = cut_points[static_cast<std::size_t>(a)] - centre;
-      const Vec3 db = cut_points[static_cast<std::size_t>(b)] - centre;
-      return std::atan2(da.dot(v), da.dot(u)) < std::atan2(db.dot(v), db.dot(u));
-    });
-    for (std::size_t m = 1; m + 1 < points.size(); ++m) {
-      cut_triangles.push_back({points[0], points[m], points[m + 1]});
-    }
-  }
+  weld_near_points();
+  remove_coincident_pairs(triangles_, on_cut_);
+  flip_flat_triangles(rest_points_, triangles_, on_cut_);
 }
 
 void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles,
@@ -807,6 +869,65 @@ void VisualSurface::tidy() {
   }
   triangles_ = std::move(kept);
   on_cut_ = std::move(kept_on_cut);
+}
+
+void VisualSurface::weld_near_points() {
+  // Corefinement's constructed points can land a rounding error (1e-18 m) from a point made
+  // elsewhere: two points that are one in all but rounding, carried by the same nodes, are
+  // welded (the triangles between them, needles with no area, go).
+  const double near = 1e-9 * point_cell_;  // m
+  std::vector<VertexId> into(rest_points_.size());
+  std::iota(into.begin(), into.end(), VertexId{0});
+  const auto find = [&](VertexId v) {
+    while (into[static_cast<std::size_t>(v)] != v) {
+      v = into[static_cast<std::size_t>(v)] =
+          into[static_cast<std::size_t>(into[static_cast<std::size_t>(v)])];
+    }
+    return v;
+  };
+  const auto carriers_of = [&](VertexId v) {
+    const Embedding& e = embedding_[static_cast<std::size_t>(v)];
+    std::array<VertexId, 4> nodes{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
+    for (std::size_t k = 0; k < 4; ++k) {
+      if (std::abs(e.weights[k]) > 1e-12) {
+        nodes[k] = e.nodes[k];
+      }
+    }
+    std::sort(nodes.begin(), nodes.end());
+    return nodes;
+  };
+  bool welded = false;
+  for (const Triangle& t : triangles_) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const VertexId a = find(t[k]);
+      const VertexId b = find(t[(k + 1) % 3]);
+      if (a == b ||
+          (rest_points_[static_cast<std::size_t>(a)] - rest_points_[static_cast<std::size_t>(b)])
+                  .norm() > near ||
+          carriers_of(a) != carriers_of(b)) {
+        continue;
+      }
+      into[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
+      welded = true;
+    }
+  }
+  if (!welded) {
+    return;
+  }
+  std::size_t kept = 0;
+  for (std::size_t t = 0; t < triangles_.size(); ++t) {
+    Triangle tri = triangles_[t];
+    for (VertexId& v : tri) {
+      v = find(v);
+    }
+    if (tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2]) {
+      triangles_[kept] = tri;
+      on_cut_[kept] = on_cut_[t];
+      ++kept;
+    }
+  }
+  triangles_.resize(kept);
+  on_cut_.resize(kept);
 }
 
 std::vector<Vec3> VisualSurface::positions(std::span<const Vec3> nodes) const {

@@ -823,6 +823,60 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "final.vtu"));
 }
 
+TEST(Cli, ServeAnswersSigtermWithinASecondEvenInTheMiddleOfALongFrame) {
+  if (incise("serve --help").code != 0) {
+    GTEST_SKIP() << "built without OpenIGTLink";
+  }
+  const auto dir = test::scratch_dir("serve-long-frame");
+  // The default block stepped explicitly at dt = 10 ns: a frame (10 ms of tissue) takes about
+  // a minute, so a signal always arrives inside one.
+  {
+    std::ofstream scene(dir / "slow.json");
+    scene << R"({"mesh": {"box": {"cells": [4, 6, 4], "size": [0.04, 0.06, 0.04]}},
+                "model": {"type": "mass-spring"},
+                "integrator": {"type": "explicit-euler", "dt": 1e-8},
+                "fixed": [{"box": [[-1, -1, -1], [0.0001, 1, 1]]}],
+                "tool": {"poses": [[0, 0.02, -0.01, 0.01, 0.02, -0.01, 0.06]]},
+                "cutter": {"type": "subdivision"}, "frames": 100, "frame_dt": 0.01})";
+  }
+  const std::string port = start_server(
+      dir, (dir / "slow.json").string() + " --max-seconds 600 --out " + (dir / "out").string());
+  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // inside the first frame
+  const std::string pid = slurp(dir / "pid").substr(0, slurp(dir / "pid").find('\n'));
+  const auto signalled = std::chrono::steady_clock::now();
+  ASSERT_EQ(std::system(("kill -TERM " + pid).c_str()), 0);
+  // Its files written, and gone, long before the frame could have ended (the grace is 0.7 s;
+  // the bound leaves a margin for a loaded machine).
+  const auto report_path = dir / "out" / "report.json";
+  while (!std::filesystem::exists(report_path) &&
+         std::chrono::steady_clock::now() - signalled < std::chrono::seconds(10)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const double waited =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count();
+  bool gone = false;
+  for (int i = 0; i < 500 && !gone; ++i) {
+    gone = kill(std::stoi(pid), 0) != 0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  if (!gone) {
+    (void)std::system(("kill -KILL " + pid).c_str());
+  }
+  ASSERT_TRUE(std::filesystem::exists(report_path)) << slurp(dir / "serve.log");
+  std::printf("incise serve wrote its report %.2f s after SIGTERM\n", waited);
+  EXPECT_LT(waited, 5.0);
+  EXPECT_TRUE(gone) << slurp(dir / "serve.log");
+  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  EXPECT_NE(report["ended"].get<std::string>().find("abandoned"), std::string::npos)
+      << report["ended"];
+  EXPECT_EQ(report["frames"].get<int>(), 0);
+  EXPECT_TRUE(report["valid"].get<bool>());
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "final.vtu"));
+  const CommandResult info = incise("info --json " + (dir / "out" / "final.vtu").string());
+  EXPECT_EQ(info.code, 0) << info.err;
+}
+
 TEST(Cli, CutWithXfemSeparatesTheLiverWithFewerDofs) {
   if (!have_data()) {
     GTEST_SKIP();

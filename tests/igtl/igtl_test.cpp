@@ -103,7 +103,19 @@ TEST(Wire, SurfaceRoundTripWithCutFacesMarked) {
   ASSERT_TRUE(std::holds_alternative<Surface>(decoded));
   const Surface& surface = std::get<Surface>(decoded);
   ASSERT_EQ(surface.triangles.size(), triangles.size());
-  EXPECT_EQ(surface.on_cut, on_cut);
+  // The marks come as a point scalar, one value per point sent: the share of the point's
+  // triangles that are cut faces.
+  ASSERT_EQ(surface.cut_share.size(), surface.points.size());
+  std::vector<std::array<int, 2>> uses(surface.points.size(), {0, 0});
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    for (VertexId corner : surface.triangles[i]) {
+      ++uses[static_cast<std::size_t>(corner)][0];
+      uses[static_cast<std::size_t>(corner)][1] += on_cut[i];
+    }
+  }
+  for (std::size_t p = 0; p < uses.size(); ++p) {
+    EXPECT_FLOAT_EQ(surface.cut_share[p], static_cast<float>(uses[p][1]) / uses[p][0]);
+  }
   for (std::size_t i = 0; i < triangles.size(); ++i) {
     for (std::size_t corner = 0; corner < 3; ++corner) {
       const Vec3 sent = mesh.rest_positions()[static_cast<std::size_t>(triangles[i][corner])];

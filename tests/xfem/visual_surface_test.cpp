@@ -8,6 +8,8 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <map>
+#include <random>
 
 #include "blade_walks.hpp"
 #include "incise/io/mesh_io.hpp"
@@ -55,9 +57,40 @@ int surface_pieces(const VisualSurface& visual) {
   return pieces;
 }
 
+/// Closed 2-manifold, counted here (not with incise's checks): every edge used by exactly two
+/// triangles, once each way, and no triangle without area. Empty when it holds.
+std::string closed_manifold_count(std::span<const Vec3> points,
+                                  std::span<const Triangle> triangles) {
+  std::map<std::pair<VertexId, VertexId>, std::array<int, 2>> uses;
+  std::size_t flat = 0;
+  for (const Triangle& t : triangles) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const VertexId a = t[k];
+      const VertexId b = t[(k + 1) % 3];
+      ++uses[{std::min(a, b), std::max(a, b)}][a < b ? 0 : 1];
+    }
+    const Vec3& p = points[static_cast<std::size_t>(t[0])];
+    const Vec3& q = points[static_cast<std::size_t>(t[1])];
+    const Vec3& r = points[static_cast<std::size_t>(t[2])];
+    flat += (q - p).cross(r - p).norm() > 0.0 ? 0 : 1;
+  }
+  std::size_t bad = 0;
+  int largest = 0;
+  for (const auto& [edge, count] : uses) {
+    bad += count[0] == 1 && count[1] == 1 ? 0 : 1;
+    largest = std::max(largest, count[0] + count[1]);
+  }
+  if (bad == 0 && flat == 0) {
+    return "";
+  }
+  return std::to_string(bad) + " edges not used once each way (largest use " +
+         std::to_string(largest) + "), " + std::to_string(flat) + " flat triangles";
+}
+
 void expect_closed(const TetMesh& mesh, const VisualSurface& visual, double volume,
                    double tolerance, const std::string& where) {
   EXPECT_TRUE(is_watertight(visual.triangles())) << where;
+  EXPECT_EQ(closed_manifold_count(visual.rest_points(), visual.triangles()), "") << where;
   EXPECT_NEAR(enclosed_volume(visual.rest_points(), visual.triangles()), volume, tolerance * volume)
       << where;
   // Evaluated at the rest positions of the physics nodes, the embeddings give the rest points.
@@ -68,11 +101,12 @@ void expect_closed(const TetMesh& mesh, const VisualSurface& visual, double volu
   }
 }
 
-TEST(VisualSurface, ThePictureIsCutUpToTheBladeWhileThePhysicsWaits) {
+TEST(VisualSurface, ThePictureOpensWhereThePhysicsSplitsAndStaysClosedWhereItWaits) {
   // A blade swept along y across the bar, 1 mm per pose through 1 cm cells: the physics splits
-  // a tetrahedron once the blade has crossed it completely, a cell behind the blade; the
-  // picture is cut up to the blade itself (its cut faces reach the blade's line), and stays
-  // closed, with its volume, where the physics is still whole.
+  // a tetrahedron once the blade has crossed it completely, a cell behind the blade. The
+  // picture shows cut faces exactly where elements split (nowhere further: in front of them
+  // both lips are carried by the same nodes and cannot part) and stays a closed 2-manifold,
+  // with its volume, after every pose.
   TetMesh mesh = bar();
   const SurfaceMesh surface = inner_box();
   const double volume = enclosed_volume(surface.points, surface.triangles);
@@ -80,26 +114,13 @@ TEST(VisualSurface, ThePictureIsCutUpToTheBladeWhileThePhysicsWaits) {
   XfemCutter cutter(mesh);
   const double x = 0.0437;
   cutter.start({0.0, Vec3(x, -0.005, -0.01), Vec3(x, -0.005, 0.03)});
-  double picture_lag = 0.0;  // m: the blade's y beyond the picture's cut, largest
   double physics_lag = 0.0;  // m: the blade's y beyond the split elements, largest
-  int poses_inside = 0;
+  int poses_with_cut_faces = 0;
   for (int i = 1; i <= 20; ++i) {
     const double y = -0.005 + 0.001 * i;
     cutter.move_to({0.1 * i, Vec3(x, y, -0.01), Vec3(x, y, 0.03)});
     visual.follow(mesh, cutter);
     expect_closed(mesh, visual, volume, 1e-6, "pose " + std::to_string(i));
-    if (y < 0.004) {
-      continue;  // the blade has not reached the visual surface (2 mm in) far enough
-    }
-    ++poses_inside;
-    double picture = -1.0;
-    for (std::size_t t = 0; t < visual.triangles().size(); ++t) {
-      if (visual.on_cut()[t] != 0) {
-        for (VertexId v : visual.triangles()[t]) {
-          picture = std::max(picture, visual.rest_points()[static_cast<std::size_t>(v)].y());
-        }
-      }
-    }
     double physics = -1.0;
     for (std::size_t t = 0; t < cutter.rest_tet_count(); ++t) {
       if (cutter.cut_of(static_cast<TetId>(t))) {
@@ -108,14 +129,23 @@ TEST(VisualSurface, ThePictureIsCutUpToTheBladeWhileThePhysicsWaits) {
         }
       }
     }
-    picture_lag = std::max(picture_lag, y - picture);
-    physics_lag = std::max(physics_lag, y - std::min(physics, y));
+    double picture = -1.0;
+    for (std::size_t t = 0; t < visual.triangles().size(); ++t) {
+      if (visual.on_cut()[t] != 0) {
+        for (VertexId v : visual.triangles()[t]) {
+          picture = std::max(picture, visual.rest_points()[static_cast<std::size_t>(v)].y());
+        }
+      }
+    }
+    poses_with_cut_faces += picture > 0.0 ? 1 : 0;
+    EXPECT_LE(picture, physics + 1e-12) << "cut faces only where the physics split, pose " << i;
+    if (y > 0.004) {
+      physics_lag = std::max(physics_lag, y - std::min(physics, y));
+    }
   }
-  EXPECT_GT(poses_inside, 10);
-  EXPECT_LT(picture_lag, 1e-9) << "the picture's cut reaches the blade";
+  EXPECT_GE(poses_with_cut_faces, 5);
   EXPECT_GT(physics_lag, 0.002) << "the physics waits for full crossings (1 cm cells)";
-  EXPECT_EQ(visual.failures(), 0U);
-  EXPECT_EQ(visual.front_failures(), 0U);
+  EXPECT_EQ(visual.failures(), 0U) << visual.last_failure();
 }
 
 TEST(VisualSurface, StaysClosedAndEnclosesItsVolumeAfterEveryPose) {
@@ -167,6 +197,112 @@ TEST(VisualSurface, StaysClosedAndEnclosesItsVolumeAfterEveryPose) {
   }
   EXPECT_GT(up, 0u);
   EXPECT_LT(up, moved.size());
+}
+
+TEST(VisualSurface, StaysAClosedManifoldAlongRandomWalksAtDeviceRate) {
+  // The live path: random walks (reversals, tremor, stops, re-entry), each pose cut as a
+  // device sends them and the picture following after every few, as frames do.
+  for (unsigned seed : {11u, 12u, 13u, 14u}) {
+    TetMesh mesh = bar();
+    const SurfaceMesh surface = inner_box();
+    const double volume = enclosed_volume(surface.points, surface.triangles);
+    VisualSurface visual(mesh, surface.points, surface.triangles);
+    XfemCutter cutter(mesh);
+    std::mt19937 rng(seed);
+    const auto [low, high] = std::pair(Vec3(0.0, 0.0, 0.0), Vec3(0.08, 0.02, 0.02));
+    const std::vector<BladePose> path = random_blade_walk(low, high, rng, 120);
+    cutter.start(path.front());
+    for (std::size_t i = 1; i < path.size(); ++i) {
+      cutter.move_to(path[i]);
+      if (i % 3 == 0 || i + 1 == path.size()) {
+        visual.follow(mesh, cutter);
+        const std::string where = "seed " + std::to_string(seed) + " pose " + std::to_string(i);
+        expect_closed(mesh, visual, volume, 1e-6, where);
+        if (::testing::Test::HasFailure()) {
+          return;
+        }
+      }
+    }
+    std::printf("seed %u: %zu triangles, %zu updates kept the last picture (%s)\n", seed,
+                visual.triangles().size(), visual.failures(), visual.last_failure().c_str());
+  }
+}
+
+TEST(VisualSurface, RepairsLeaveAClosedManifoldWithoutFlatTriangles) {
+  // A tetrahedron's outward surface in which face (0, 2, 1) was split at m = 4, the middle of
+  // edge 0-1, with the flat triangle (0, m, 1) closing the seam against face (0, 1, 3):
+  // closed along its edges, one triangle flat.
+  std::vector<Vec3> points = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1),
+                              Vec3(0.5, 0, 0)};
+  std::vector<Triangle> triangles = {{0, 2, 4}, {4, 2, 1}, {0, 4, 1},
+                                     {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  std::vector<std::uint8_t> on_cut(triangles.size(), 0);
+  const SurfaceEdgeCheck closed{};
+  EXPECT_EQ(count_flat_triangles(points, triangles), 1u);
+  EXPECT_NE(closed_manifold_problem(points, triangles, closed), "");
+  EXPECT_NE(closed_manifold_count(points, triangles), "");
+  EXPECT_EQ(flip_flat_triangles(points, triangles, on_cut), 1u);
+  EXPECT_EQ(closed_manifold_problem(points, triangles, closed), "");
+  EXPECT_EQ(closed_manifold_count(points, triangles), "");
+  EXPECT_NEAR(enclosed_volume(points, triangles), 1.0 / 6.0, 1e-15);
+
+  // Two triangles on the same points, facing both ways: edges used four times; both go.
+  triangles.push_back({0, 2, 3});
+  triangles.push_back({0, 3, 2});
+  on_cut.resize(triangles.size(), 1);
+  EXPECT_NE(closed_manifold_problem(points, triangles, closed), "");
+  EXPECT_EQ(remove_coincident_pairs(triangles, on_cut), 1u);
+  EXPECT_EQ(closed_manifold_count(points, triangles), "");
+  EXPECT_EQ(triangles.size(), on_cut.size());
+}
+
+TEST(VisualSurface, ASelfIntersectingSurfaceWhereTheCutPassesKeepsItsLastGoodPicture) {
+  // Two boxes that overlap: a visual surface that intersects itself (as some from the wild
+  // do), which CGAL's corefinement must not be given where the cut meets it (it may throw,
+  // crash or never return). The update keeps the last good picture and says why.
+  TetMesh mesh = bar();
+  SurfaceMesh surface = inner_box();
+  const SurfaceMesh second = [] {
+    const TetMesh fine =
+        make_box_grid({{4, 4, 4}, Vec3(0.012, 0.012, 0.012), Vec3(0.038, 0.010, 0.005), 6});
+    SurfaceMesh box;
+    box.points.assign(fine.rest_positions().begin(), fine.rest_positions().end());
+    for (const BoundaryFace& face : boundary_faces(fine)) {
+      box.triangles.push_back(face.vertices);
+    }
+    return box;
+  }();
+  const auto offset = static_cast<VertexId>(surface.points.size());
+  surface.points.insert(surface.points.end(), second.points.begin(), second.points.end());
+  for (Triangle t : second.triangles) {
+    for (VertexId& v : t) {
+      v += offset;
+    }
+    surface.triangles.push_back(t);
+  }
+  VisualSurface visual(mesh, surface.points, surface.triangles);
+  XfemCutter cutter(mesh);
+  const double x = 0.0437;  // through both boxes
+  cutter.start({0.0, Vec3(x, -0.01, -0.01), Vec3(x, -0.01, 0.03)});
+  std::size_t kept = 0;
+  for (int i = 1; i <= 13; ++i) {
+    const double y = -0.01 + 0.04 * i / 13;
+    cutter.move_to({0.1 * i, Vec3(x, y, -0.01), Vec3(x, y, 0.03)});
+    const std::vector<Triangle> before(visual.triangles().begin(), visual.triangles().end());
+    const std::uint64_t revision = visual.revision();
+    const std::size_t failures = visual.failures();
+    EXPECT_NO_THROW(visual.follow(mesh, cutter));
+    if (visual.failures() > failures) {
+      ++kept;
+      EXPECT_EQ(visual.revision(), revision);
+      EXPECT_EQ(std::vector<Triangle>(visual.triangles().begin(), visual.triangles().end()),
+                before);
+    }
+    EXPECT_EQ(closed_manifold_count(visual.rest_points(), visual.triangles()), "") << "pose " << i;
+  }
+  EXPECT_GT(kept, 0u);
+  EXPECT_NE(visual.last_failure().find("intersects itself"), std::string::npos)
+      << visual.last_failure();
 }
 
 TEST(VisualSurface, ASurfaceStickingOutOfTheBodyIsCarriedByItsNearestElements) {

@@ -4,6 +4,9 @@
 // (POLYDATA) sent back. Whatever a client sends, the server keeps serving: bad messages are
 // dropped and counted, a client that sends only garbage is disconnected, a second client is
 // told it is busy (STATUS) and closed, a client that leaves never ends the session.
+// Clients may speak OpenIGTLink header version 1 or 2 (protocol 3, as 3D Slicer and PLUS do);
+// each is answered in the version of its last good message, and surfaces go to it once it has
+// sent one.
 //
 // Thread rule: the server's own network thread reads, accepts and calls the callbacks;
 // send_force() and send_surface() may be called from any thread (the haptic loop, the
@@ -64,7 +67,8 @@ class Server {
   /// The haptic force (N) for the pose stamped `stamp` (echoed so the device can time the
   /// round trip); dropped when no client is connected.
   void send_force(const Vec3& force, std::uint64_t stamp);
-  /// A surface message (encode_surface) for the connected client, if any.
+  /// A surface message (encode_surface, header version 1) for the connected client, if any,
+  /// re-headed to the version it speaks.
   void send_surface(std::vector<std::uint8_t> message);
   [[nodiscard]] bool has_client() const { return has_client_.load(); }
   [[nodiscard]] ServerCounters counters() const;

@@ -4,6 +4,11 @@
 // version-1 headers), and checked before anything is trusted: header version, size limits,
 // CRC, the body size for the type, finite numbers, a pose that is a rigid transform.
 //
+// Header version 2 (protocol 3, 2017: what 3D Slicer's OpenIGTLinkIF and PLUS send) is read
+// and written by incise's own code (extended_header.hpp), since Debian's library (1.11)
+// predates it: its body is an extended header, the content (a version-1 body), a metadata
+// header and the metadata, with the CRC over all of them.
+//
 // Units on the wire are millimetres, as 3D Slicer and the PLUS toolkit use; incise's own
 // types stay in metres and the conversion happens here only.
 
@@ -21,6 +26,8 @@
 namespace incise::igtl {
 
 inline constexpr std::size_t kHeaderSize = 58;
+inline constexpr std::uint16_t kHeaderVersion1 = 1;   ///< protocols 1 and 2
+inline constexpr std::uint16_t kHeaderVersion2 = 2;   ///< protocol 3: extended header, metadata
 inline constexpr double kWireUnitsPerMetre = 1000.0;  ///< mm per m
 /// Largest body a peer may send us: a TRANSFORM is 48 bytes; anything larger than this is a
 /// broken or hostile stream (the connection cannot be resynchronised and is closed).
@@ -28,18 +35,20 @@ inline constexpr std::uint64_t kMaxBodySize = 16u << 20;
 
 /// Why a message was dropped (the report counts each).
 enum class DropReason : std::uint8_t {
-  kTruncated,    ///< the stream ended inside a message
-  kVersion,      ///< header version other than 1
-  kOversized,    ///< body larger than kMaxBodySize (the connection is closed)
-  kBodySize,     ///< wrong body size for its type
-  kCrc,          ///< the body's CRC-64 does not match the header's
-  kUnknownType,  ///< not an OpenIGTLink message type
-  kBadName,      ///< empty device name, or a name with control characters
-  kUnsupported,  ///< a valid type incise does not take (skipped)
-  kOtherDevice,  ///< a TRANSFORM for another device
-  kNotFinite,    ///< NaN or infinity in the numbers
-  kNotRigid,     ///< a pose whose rotation is not orthonormal with determinant +1
-  kStale,        ///< older than the newest pose already taken
+  kTruncated,       ///< the stream ended inside a message
+  kVersion,         ///< header version other than 1 or 2
+  kOversized,       ///< body larger than kMaxBodySize (the connection is closed)
+  kBodySize,        ///< wrong body size for its type
+  kCrc,             ///< the body's CRC-64 does not match the header's
+  kUnknownType,     ///< not an OpenIGTLink message type
+  kBadName,         ///< empty device name, or a name with control characters
+  kUnsupported,     ///< a valid type incise does not take (skipped)
+  kOtherDevice,     ///< a TRANSFORM for another device
+  kNotFinite,       ///< NaN or infinity in the numbers
+  kNotRigid,        ///< a pose whose rotation is not orthonormal with determinant +1
+  kStale,           ///< older than the newest pose already taken
+  kExtendedHeader,  ///< header version 2: extended header sizes that do not fit the body
+  kMetadata,        ///< header version 2: metadata entries that do not fit, or too many
   kCount
 };
 inline constexpr std::size_t kDropReasons = static_cast<std::size_t>(DropReason::kCount);
@@ -56,10 +65,32 @@ struct Header {
   [[nodiscard]] double seconds() const;
 };
 
+/// One metadata entry of a header-version-2 message (its value in the encoding named, an
+/// IANA MIBenum: 3 is US-ASCII, 106 UTF-8).
+struct MetadataEntry {
+  std::string key;
+  std::uint16_t encoding = 3;
+  std::string value;
+  bool operator==(const MetadataEntry&) const = default;
+};
+
 struct Message {
   Header header;
   std::array<std::uint8_t, kHeaderSize> raw_header{};
+  /// The body as on the wire (header version 2: extended header, content, metadata).
   std::vector<std::uint8_t> body;
+  /// Where the content (the message type's own bytes) lies in `body`: all of it for header
+  /// version 1.
+  std::size_t content_offset = 0;
+  std::size_t content_size = 0;
+  std::uint32_t message_id = 0;  ///< header version 2's message id (0 otherwise)
+  std::vector<MetadataEntry> metadata;
+  [[nodiscard]] std::span<const std::uint8_t> content() const {
+    return std::span(body).subspan(content_offset, content_size);
+  }
+  /// The device's name: the metadata's "DeviceName" where a version-2 sender put one there
+  /// (names longer than the header's 20 characters), else the header's.
+  [[nodiscard]] std::string device_name() const;
 };
 
 /// Parses the 58 header bytes (big-endian on the wire). Never fails: checks come after.
@@ -73,7 +104,8 @@ struct Message {
 /// The CRC-64 (ECMA-182) OpenIGTLink puts in a header for `body`.
 [[nodiscard]] std::uint64_t body_crc(std::span<const std::uint8_t> body);
 
-/// A complete message's header-level checks: name, known type, CRC.
+/// A complete message's header-level checks: name, known type, CRC, and for header version 2
+/// the extended header and metadata (see split_body).
 [[nodiscard]] std::optional<DropReason> check_message(const Message& message);
 
 /// A TRANSFORM's tool frame (m): a complete, checked message of that type.
@@ -103,17 +135,20 @@ inline constexpr int kStatusShutDown = 19;
                                                       const std::string& text,
                                                       const std::string& device);
 /// A triangle surface (vertex ids into `positions`, m) as POLYDATA: only the vertices the
-/// triangles use, in mm, with the cell scalar "CutFace" (1 on faces a cut opened).
+/// triangles use, in mm, with the point scalar "CutFace": the share of a point's triangles
+/// that a cut opened (1 in the wound, 0 on untouched skin, between on the wound's rim). A
+/// point scalar because the reference C reader misreads cell scalars.
 [[nodiscard]] std::vector<std::uint8_t> encode_surface(std::span<const Triangle> triangles,
                                                        std::span<const std::uint8_t> on_cut,
                                                        std::span<const Vec3> positions,
                                                        const std::string& device,
                                                        std::uint64_t timestamp);
-/// A decoded POLYDATA (for tests and clients): points (m), triangles, the CutFace scalar.
+/// A decoded POLYDATA (for tests and clients): points (m), triangles, the CutFace point
+/// scalar (empty when the message has none).
 struct Surface {
   std::vector<Vec3> points;
   std::vector<Triangle> triangles;
-  std::vector<std::uint8_t> on_cut;
+  std::vector<float> cut_share;
 };
 [[nodiscard]] std::variant<Surface, DropReason> decode_surface(const Message& message);
 

@@ -11,6 +11,12 @@
 //
 // A point outside the physics mesh (a visual surface that sticks out of it, as SOFA's
 // liver-smooth.obj around liver.msh) is carried by its nearest tetrahedron, extrapolated.
+//
+// The picture never breaks: corefinement runs only on inputs that meet its preconditions
+// (no self-intersection where the two surfaces meet), any exception it throws is caught, and
+// the rebuilt surface is taken only when it is closed and 2-manifold along its edges (as the
+// original was) with no flat triangle; otherwise the last good picture stays and failures()
+// and last_failure() say so.
 
 #include <array>
 #include <cstdint>
@@ -18,11 +24,13 @@
 #include <memory>
 #include <set>
 #include <span>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
 #include "incise/core/types.hpp"
 #include "incise/cut/tet_grid.hpp"
+#include "incise/mesh/boundary.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
 namespace incise {
@@ -45,8 +53,8 @@ class VisualSurface {
   VisualSurface& operator=(const VisualSurface&) = delete;
 
   /// Follows the cut `cutter` has made in `mesh` so far (does nothing when no tetrahedron
-  /// split since the last call). The surface is rebuilt from the original one, so it never
-  /// accumulates error.
+  /// split since the last call: the picture opens where the physics splits). The surface is rebuilt
+  /// from the original one, so it never accumulates error.
   void follow(const TetMesh& mesh, const XfemCutter& cutter);
 
   /// Current positions (m) of the surface's points, from the physics nodes' positions.
@@ -60,21 +68,22 @@ class VisualSurface {
   [[nodiscard]] std::size_t outside_points() const { return outside_; }
   /// Whether the original surface is closed (else no cut face is added: it has no inside).
   [[nodiscard]] bool original_closed() const { return closed_; }
-  /// Updates CGAL's corefinement gave up on (a surface that intersects itself); the surface
-  /// then kept its previous cut.
+  /// Updates that could not cut the picture (corefinement's preconditions not met or it gave
+  /// up, or a result that was not a closed 2-manifold); the surface then kept its last good
+  /// cut.
   [[nodiscard]] std::size_t failures() const { return failures_; }
-  /// Updates whose pieces in front of the blade CGAL could not corefine: those were drawn
-  /// without them (the cut the physics sees only).
-  [[nodiscard]] std::size_t front_failures() const { return front_failures_; }
+  /// Why the last of those failed (empty when none has).
+  [[nodiscard]] const std::string& last_failure() const { return last_failure_; }
   /// Grows each time the surface's triangles change (a renderer uploads them again then).
   [[nodiscard]] std::uint64_t revision() const { return revision_; }
 
  private:
   /// The rest tetrahedron holding p, or the nearest one (`outside` set) for a point outside.
   TetId locate(const Vec3& p, bool* outside = nullptr) const;
-  /// p's embedding in the element on the side of the cut that p + a little of `towards` lies.
-  Embedding embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p,
-                  const Vec3& towards) const;
+  /// p's embedding in the element on the side of the cut that p + a little of `towards` lies
+  /// (`side_b`, if given: whether that is a split tetrahedron's second element).
+  Embedding embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p, const Vec3& towards,
+                  bool* side_b = nullptr) const;
 
   TetId locate_uncached(const Vec3& p, bool& is_outside) const;
   /// Extends the cut surface past the body's boundary far enough to cut a visual surface that
@@ -82,17 +91,21 @@ class VisualSurface {
   /// rim on the boundary.
   void add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles,
                  std::span<const std::uint64_t> edge_of_point) const;
-  /// The cut so far inside the tetrahedra the blade has reached but not crossed (`front`):
-  /// polygons through their edges' crossings and the blade's line in them now.
-  void add_front_pieces(const XfemCutter& cutter, std::span<const TetId> front,
-                        std::unordered_map<std::uint64_t, VertexId>& crossing_point,
-                        std::vector<Vec3>& points, std::vector<Triangle>& triangles,
-                        std::vector<std::uint64_t>& edge_of_point) const;
   /// m: from p to the nearest point of the original surface.
   [[nodiscard]] double nearest_visual_distance(const Vec3& p) const;
   /// Drops triangles rounding made flat and welds the seam where the picture's cut runs past
   /// the physics' front.
   void tidy();
+  /// Welds points a rounding error apart that the same nodes carry.
+  void weld_near_points();
+
+  /// The visual surface and the cut surface, corefined.
+  struct Corefined;
+  /// Whether corefinement's preconditions hold for the pair: the cut surface does not
+  /// intersect itself, nor meets the visual one where that intersects itself.
+  [[nodiscard]] bool corefinable(const Corefined& pair) const;
+  /// The picture from a corefined pair: points embedded on their sides, cut faces inside.
+  void rebuild(const TetMesh& mesh, const XfemCutter& cutter, const Corefined& pair);
 
   /// The original surface as CGAL's mesh and its inside test, made once (every update starts
   /// from them).
@@ -116,13 +129,32 @@ class VisualSurface {
   std::vector<Embedding> embedding_;
   std::size_t outside_ = 0;
   std::size_t split_seen_ = 0;
-  std::size_t moves_seen_ = 0;
-  std::vector<double> cut_signature_;  ///< the cut surface last drawn, to skip redrawing it
   std::size_t failures_ = 0;
-  std::size_t front_failures_ = 0;
+  std::string last_failure_;
+  SurfaceEdgeCheck original_edges_;  ///< a rebuilt picture may be no less closed than this
+  std::size_t original_flat_ = 0;    ///< flat triangles the original kept (unflippable ones)
   std::uint64_t revision_ = 1;
   bool closed_ = true;
 };
+
+/// Removes pairs of triangles on the same three points facing opposite ways (they enclose
+/// nothing), keeping `on_cut` in step; returns the pairs removed.
+std::size_t remove_coincident_pairs(std::vector<Triangle>& triangles,
+                                    std::vector<std::uint8_t>& on_cut);
+/// Flips each flat triangle (collinear corners) with its neighbour across its longest edge,
+/// which leaves the same surface without it, where the new edge does not exist yet; returns
+/// the flips made.
+std::size_t flip_flat_triangles(std::span<const Vec3> points, std::vector<Triangle>& triangles,
+                                std::vector<std::uint8_t>& on_cut);
+/// Triangles with (next to) no area: height over the longest edge below 1e-9 of that edge.
+[[nodiscard]] std::size_t count_flat_triangles(std::span<const Vec3> points,
+                                               std::span<const Triangle> triangles);
+/// What keeps a triangle surface from being closed and 2-manifold along its edges (no worse
+/// than `allowed`), with no more than `allowed_flat` flat triangles; empty when nothing does.
+[[nodiscard]] std::string closed_manifold_problem(std::span<const Vec3> points,
+                                                  std::span<const Triangle> triangles,
+                                                  const SurfaceEdgeCheck& allowed,
+                                                  std::size_t allowed_flat = 0);
 
 /// The physics nodes that carry a point of a triangle of `surface` (barycentric coordinates
 /// in the triangle, summing to 1), with their weights (summing to 1): a force F there is
