@@ -178,6 +178,11 @@ SoakCase draw_case(unsigned seed, const std::vector<Body>& bodies, int poses) {
   return c;
 }
 
+const char* visual_kind_name(int kind) {
+  return std::array{"on the boundary", "finer", "sticking out", "inside"}.at(
+      static_cast<std::size_t>(kind));
+}
+
 /// The body's boundary as a visual surface of the given kind (SoakCase::visual_kind).
 void write_visual_surface(const TetMesh& mesh, int kind, const std::filesystem::path& path) {
   std::vector<Vec3> points(mesh.rest_positions().begin(), mesh.rest_positions().end());
@@ -252,11 +257,8 @@ std::filesystem::path write_case(const SoakCase& c, const std::filesystem::path&
   if (c.visual_kind >= 0) {
     written["visual"] = {{"file", "visual.obj"}};
     written["collision"] = {{"file", "collision.obj"}};
-    written["description"] =
-        written["description"].get<std::string>() +
-        fmt::format(", visual surface {}",
-                    std::array{"on the boundary", "finer", "sticking out", "inside"}.at(
-                        static_cast<std::size_t>(c.visual_kind)));
+    written["description"] = written["description"].get<std::string>() +
+                             fmt::format(", visual surface {}", visual_kind_name(c.visual_kind));
   }
   write_file_atomically(dir / "scene.json", written.dump(2) + "\n");
   return dir / "scene.json";
@@ -277,6 +279,10 @@ struct CaseResult {
   std::size_t tets_after = 0;
   int pieces_before = 0;
   int pieces_after = 0;
+  /// XFEM with embedded surfaces: the picture's updates, and those that kept the last good
+  /// picture (corefinement refused, or a result that was not a closed 2-manifold).
+  std::size_t picture_updates = 0;
+  std::size_t pictures_kept = 0;
   std::string violation;  ///< empty: every check held
 };
 
@@ -334,6 +340,10 @@ CaseResult run_case(const std::filesystem::path& scene_path, bool full_sweep) {
   const auto finish = [&] {
     result.tets_after = mesh.tet_count();
     result.pieces_after = pieces_by_vertices(mesh);
+    if (const VisualSurface* visual = engine.visual()) {
+      result.picture_updates = visual->revision() - 1 + visual->failures();
+      result.pictures_kept = visual->failures();
+    }
   };
   const double gravity = 9.81;  // m/s^2
   for (int f = 1; f <= scene.frames; ++f) {
@@ -443,6 +453,8 @@ int soak(const SoakOptions& options) {
       bodies.size(), options.data);
   int done = 0;
   long long frames = 0;
+  std::size_t picture_updates = 0;
+  std::size_t pictures_kept = 0;
   nlohmann::json failures = nlohmann::json::array();
   for (int i = 0; i < options.cuts; ++i) {
     if (options.minutes > 0 && minutes() >= options.minutes) {
@@ -462,15 +474,22 @@ int soak(const SoakOptions& options) {
     }
     ++done;
     frames += result.frames;
+    picture_updates += result.picture_updates;
+    pictures_kept += result.pictures_kept;
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - case_started).count();
     std::cout
         << fmt::format(
-               "[{}/{}] seed {}: {}, {} + {}{}, {} of {} poses, tets {} -> {}, pieces {} -> {}: "
+               "[{}/{}] seed {}: {}, {} + {}{}, {} of {} poses, tets {} -> {}, pieces {} -> {}{}: "
                "{} ({:.1f} s)\n",
                done, options.cuts, seed, c.body, c.cutter, c.model, solver_note(c),
                c.full_sweep ? "full sweep" : "random walk", c.path.size(), result.tets_before,
                result.tets_after, result.pieces_before, result.pieces_after,
+               c.visual_kind >= 0
+                   ? fmt::format(", visual surface {}: {} of {} updates kept the last picture",
+                                 visual_kind_name(c.visual_kind), result.pictures_kept,
+                                 result.picture_updates)
+                   : std::string(),
                result.violation.empty() ? "ok" : "FAILED " + result.violation, seconds)
         << std::flush;  // a long soak is watched through a pipe
     if (!result.violation.empty()) {
@@ -484,9 +503,14 @@ int soak(const SoakOptions& options) {
     }
   }
   std::filesystem::remove_all(out / "work");
-  const nlohmann::json report = {{"first_seed", options.seed}, {"cuts", done},
-                                 {"frames", frames},           {"violations", failures.size()},
-                                 {"failures", failures},       {"minutes", minutes()}};
+  const nlohmann::json report = {{"first_seed", options.seed},
+                                 {"cuts", done},
+                                 {"frames", frames},
+                                 {"violations", failures.size()},
+                                 {"failures", failures},
+                                 {"xfem_picture_updates", picture_updates},
+                                 {"xfem_pictures_kept", pictures_kept},
+                                 {"minutes", minutes()}};
   write_file_atomically(out / "soak.json", report.dump(2) + "\n");
   std::cout << fmt::format("{} cuts, {} frames checked, {} violations ({:.1f} min); report {}\n",
                            done, frames, failures.size(), minutes(), (out / "soak.json").string());

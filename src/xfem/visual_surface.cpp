@@ -13,6 +13,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <numeric>
 #include <tuple>
 #include <unordered_map>
@@ -335,7 +336,7 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
       reach_ = std::max(reach_, std::sqrt(squared_distance_to_tet(rest_points_[i],
                                                                   rest_corners(rest_mesh_, tet))));
     }
-    embedding_[i] = embed(mesh, nullptr, rest_points_[i], Vec3::Zero());
+    embedding_[i] = embed(mesh, nullptr, rest_points_[i], Vec3::Zero(), Vec3::Zero());
   }
 }
 
@@ -396,9 +397,13 @@ TetId VisualSurface::locate_uncached(const Vec3& p, bool& is_outside) const {
 }
 
 Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p,
-                               const Vec3& towards, bool* side_b) const {
+                               const Vec3& inward, const Vec3& side, bool* side_b) const {
+  // The tetrahedron is the one just inside the triangle p is a corner of (p itself may lie on
+  // a face or edge several tetrahedra share, split and whole: the triangle's own one is the
+  // one whose cut bounds it), and the side is read a little further, towards `side`.
+  const Vec3 within = p + nudge_ * inward;
   bool outside = false;
-  TetId rest = locate(p, &outside);
+  TetId rest = locate(cutter != nullptr ? within : p, &outside);
   if (outside && cutter != nullptr) {
     // Outside the body near the cut, the nearest tetrahedron may lie across the cut: a point
     // follows the nearest split tetrahedron within the surface's reach instead, on its side of
@@ -420,29 +425,12 @@ Embedding VisualSurface::embed(const TetMesh& mesh, const XfemCutter* cutter, co
       }
     }
   }
-  if (!outside && cutter != nullptr && !cutter->cut_of(rest)) {
-    // On a face or edge shared with a split tetrahedron (to within rounding: points made on
-    // the cut are rounded), a point is carried by that one: there its side of the cut is
-    // known, where a whole neighbour would carry both sides alike and join the lips.
-    std::vector<TetId> near;
-    const Vec3 tiny = Vec3::Constant(nudge_);
-    grid_->query(p - tiny, p + tiny, near);
-    std::sort(near.begin(), near.end());
-    for (TetId t : near) {
-      if (t != rest && cutter->cut_of(t) &&
-          squared_distance_to_tet(p, rest_corners(rest_mesh_, t)) <= nudge_ * nudge_) {
-        rest = t;
-        break;
-      }
-    }
-  }
   const auto x = rest_corners(rest_mesh_, rest);
   TetId element = rest;
   if (cutter != nullptr && cutter->cut_of(rest)) {
     const TetId second = cutter->second_element(rest);
     if (second != kInvalidId) {
-      const Vec3 q = p + nudge_ * towards;
-      element = on_side_b(x, *cutter->cut_of(rest), q) ? second : rest;
+      element = on_side_b(x, *cutter->cut_of(rest), within + nudge_ * side) ? second : rest;
     }
   }
   if (side_b != nullptr) {
@@ -578,9 +566,9 @@ void VisualSurface::rebuild(const TetMesh& mesh, const XfemCutter& cutter, const
   triangles_.clear();
   on_cut_.clear();
   embedding_.clear();
-  const auto add_point = [&](const Vec3& p, const Vec3& towards) {
+  const auto add_point = [&](const Vec3& p, const Vec3& inward, const Vec3& side) {
     bool side_b = false;
-    const Embedding embedding = embed(mesh, &cutter, p, towards, &side_b);
+    const Embedding embedding = embed(mesh, &cutter, p, inward, side, &side_b);
     PointKey key{
         p.x(), p.y(), p.z(), {kInvalidId, kInvalidId, kInvalidId, kInvalidId}, side_b ? 1 : 0};
     for (std::size_t k = 0; k < 4; ++k) {
@@ -609,7 +597,7 @@ void VisualSurface::rebuild(const TetMesh& mesh, const XfemCutter& cutter, const
     const Vec3 centre = (p[0] + p[1] + p[2]) / 3.0;
     Triangle triangle{};
     for (std::size_t k = 0; k < 3; ++k) {
-      triangle[k] = add_point(p[k], (centre - p[k]).normalized());
+      triangle[k] = add_point(p[k], (centre - p[k]).normalized(), Vec3::Zero());
     }
     triangles_.push_back(triangle);
     on_cut_.push_back(0);
@@ -627,8 +615,9 @@ void VisualSurface::rebuild(const TetMesh& mesh, const XfemCutter& cutter, const
       Triangle side_a{};
       Triangle side_b{};
       for (std::size_t k = 0; k < 3; ++k) {
-        side_a[k] = add_point(p[k], -normal);
-        side_b[k] = add_point(p[k], normal);
+        const Vec3 inward = (centre - p[k]).normalized();
+        side_a[k] = add_point(p[k], inward, -normal);
+        side_b[k] = add_point(p[k], inward, normal);
       }
       triangles_.push_back(side_a);
       triangles_.push_back({side_b[0], side_b[2], side_b[1]});
@@ -639,7 +628,113 @@ void VisualSurface::rebuild(const TetMesh& mesh, const XfemCutter& cutter, const
   tidy();
   weld_near_points();
   remove_coincident_pairs(triangles_, on_cut_);
+  split_non_manifold();
   flip_flat_triangles(rest_points_, triangles_, on_cut_);
+}
+
+void VisualSurface::split_non_manifold() {
+  // Where lips touch (tied nodes carry both sides' points alike) or pieces meet along an
+  // edge, an edge can be used by 2k triangles, k each way. Each triangle using it one way is
+  // paired with the one it meets first turning about the edge into the solid it bounds (the
+  // radial order); then every point is copied once per fan of triangles around it, so each
+  // edge is used by exactly its pair: the same surface, a 2-manifold.
+  using Edge = std::pair<VertexId, VertexId>;
+  std::map<Edge, std::vector<std::size_t>> uses;  // half-edge ids 3 t + k
+  for (std::size_t t = 0; t < triangles_.size(); ++t) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const VertexId a = triangles_[t][k];
+      const VertexId b = triangles_[t][(k + 1) % 3];
+      uses[{std::min(a, b), std::max(a, b)}].push_back(3 * t + k);
+    }
+  }
+  const auto from = [&](std::size_t h) { return triangles_[h / 3][h % 3]; };
+  const auto third = [&](std::size_t h) { return triangles_[h / 3][(h % 3 + 2) % 3]; };
+  std::vector<std::size_t> twin(3 * triangles_.size(), ~std::size_t{0});
+  bool any = false;
+  for (const auto& [edge, half_edges] : uses) {
+    std::vector<std::size_t> forward;
+    std::vector<std::size_t> backward;
+    for (std::size_t h : half_edges) {
+      (from(h) == edge.first ? forward : backward).push_back(h);
+    }
+    if (forward.size() != backward.size() || forward.empty()) {
+      return;  // open or misoriented: nothing to pair (the check says so)
+    }
+    if (half_edges.size() == 2) {
+      twin[forward[0]] = backward[0];
+      twin[backward[0]] = forward[0];
+      continue;
+    }
+    any = true;
+    // Angles of the triangles' half-planes about the edge, looking along it (u -> v); a
+    // triangle using the edge u -> v bounds the solid at smaller angles, one using v -> u the
+    // solid at larger ones. At equal angles the one using v -> u comes first.
+    const Vec3& u = rest_points_[static_cast<std::size_t>(edge.first)];
+    const Vec3 d = (rest_points_[static_cast<std::size_t>(edge.second)] - u).normalized();
+    const auto across = [&](std::size_t h) {
+      const Vec3 w = rest_points_[static_cast<std::size_t>(third(h))] - u;
+      return Vec3(w - w.dot(d) * d);
+    };
+    const Vec3 e0 = across(half_edges[0]).normalized();
+    const Vec3 e1 = d.cross(e0);
+    std::vector<std::pair<std::pair<double, int>, std::size_t>> order;
+    for (std::size_t h : half_edges) {
+      const Vec3 e = across(h);
+      double angle = std::atan2(e.dot(e1), e.dot(e0));
+      angle += angle < 0.0 ? 2.0 * std::numbers::pi : 0.0;
+      order.push_back({{angle, from(h) == edge.first ? 1 : 0}, h});
+    }
+    std::sort(order.begin(), order.end());
+    // Each u -> v triangle's twin: the nearest v -> u one before it (cyclically).
+    std::vector<bool> taken(order.size(), false);
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      if (order[i].first.second != 1) {
+        continue;
+      }
+      for (std::size_t back = 1; back < order.size(); ++back) {
+        const std::size_t j = (i + order.size() - back) % order.size();
+        if (order[j].first.second == 0 && !taken[j]) {
+          taken[j] = true;
+          twin[order[i].second] = order[j].second;
+          twin[order[j].second] = order[i].second;
+          break;
+        }
+      }
+    }
+  }
+  if (!any) {
+    return;
+  }
+  // Fans: around the point a half-edge leaves, the next half-edge leaving it is the twin of
+  // the one before it in its triangle.
+  std::vector<VertexId> corner_point(3 * triangles_.size());
+  std::vector<bool> seen(3 * triangles_.size(), false);
+  std::vector<bool> point_used(rest_points_.size(), false);
+  for (std::size_t start = 0; start < corner_point.size(); ++start) {
+    if (seen[start]) {
+      continue;
+    }
+    const VertexId original = from(start);
+    VertexId point = original;
+    if (point_used[static_cast<std::size_t>(original)]) {
+      point = static_cast<VertexId>(rest_points_.size());  // another fan: a copy of the point
+      rest_points_.push_back(rest_points_[static_cast<std::size_t>(original)]);
+      embedding_.push_back(embedding_[static_cast<std::size_t>(original)]);
+    }
+    point_used[static_cast<std::size_t>(original)] = true;
+    std::size_t h = start;
+    do {
+      seen[h] = true;
+      corner_point[h] = point;
+      const std::size_t before = 3 * (h / 3) + (h % 3 + 2) % 3;
+      h = twin[before];
+    } while (h != ~std::size_t{0} && h != start && !seen[h]);
+  }
+  for (std::size_t t = 0; t < triangles_.size(); ++t) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      triangles_[t][k] = corner_point[3 * t + k];
+    }
+  }
 }
 
 void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& triangles,

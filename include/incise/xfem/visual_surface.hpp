@@ -80,10 +80,12 @@ class VisualSurface {
  private:
   /// The rest tetrahedron holding p, or the nearest one (`outside` set) for a point outside.
   TetId locate(const Vec3& p, bool* outside = nullptr) const;
-  /// p's embedding in the element on the side of the cut that p + a little of `towards` lies
-  /// (`side_b`, if given: whether that is a split tetrahedron's second element).
-  Embedding embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p, const Vec3& towards,
-                  bool* side_b = nullptr) const;
+  /// p's embedding, for a corner of a triangle: in the tetrahedron just inside the triangle
+  /// (p plus a little of `inward`), in its element on the side of the cut that lies a little
+  /// further towards `side` (`side_b`, if given: whether that is a split tetrahedron's second
+  /// element).
+  Embedding embed(const TetMesh& mesh, const XfemCutter* cutter, const Vec3& p, const Vec3& inward,
+                  const Vec3& side, bool* side_b = nullptr) const;
 
   TetId locate_uncached(const Vec3& p, bool& is_outside) const;
   /// Extends the cut surface past the body's boundary far enough to cut a visual surface that
@@ -98,6 +100,9 @@ class VisualSurface {
   void tidy();
   /// Welds points a rounding error apart that the same nodes carry.
   void weld_near_points();
+  /// Pairs the triangles of edges used more than twice by their order about the edge and
+  /// copies each point once per fan around it: the same surface, a 2-manifold.
+  void split_non_manifold();
 
   /// The visual surface and the cut surface, corefined.
   struct Corefined;
