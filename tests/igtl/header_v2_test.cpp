@@ -10,12 +10,17 @@
 #include <cstring>
 #include <thread>
 
+#include "igtl/igtl_test_support.hpp"
 #include "incise/igtl/extended_header.hpp"
 #include "incise/igtl/server.hpp"
 #include "incise/igtl/wire.hpp"
 
 namespace incise::igtl {
 namespace {
+
+using test::eventually;
+using test::read_all;
+using test::send_bytes;
 
 /// CRC-64 of ECMA-182 as OpenIGTLink uses it: polynomial 0x42F0E1EBA9EA3693, most significant
 /// bit first, starting from 0, nothing XORed at the end.
@@ -113,16 +118,6 @@ std::vector<std::uint8_t> spec_v2_message(std::string_view type, std::string_vie
   put(message, spec_crc64(body), 8);
   message.insert(message.end(), body.begin(), body.end());
   return message;
-}
-
-std::vector<MessageReader::Event> read_all(std::span<const std::uint8_t> bytes) {
-  MessageReader reader;
-  reader.feed(bytes);
-  std::vector<MessageReader::Event> events;
-  while (auto event = reader.next()) {
-    events.push_back(std::move(*event));
-  }
-  return events;
 }
 
 /// Why `bytes` (one message) is refused, by the reader or by check_message; nothing if not.
@@ -247,47 +242,15 @@ TEST(HeaderVersion2, BodiesWhosePartsDoNotAddUpAreRefusedWhateverTheySay) {
 
 // ---- the server speaks each client's version ----
 
-struct RunningServer {
-  std::mutex mutex;
-  std::vector<DevicePose> poses;
-  Server server;
+/// A server taking TRANSFORMs from `device`.
+struct RunningServer : test::RunningServer {
   explicit RunningServer(std::string device)
-      : server(
-            [&] {
-              ServerOptions options;
-              options.port = 0;
-              options.device = std::move(device);
-              return options;
-            }(),
-            [this](const DevicePose& pose) {
-              const std::lock_guard lock(mutex);
-              poses.push_back(pose);
-            },
-            {}) {
-    server.start();
-  }
-  std::size_t pose_count() {
-    const std::lock_guard lock(mutex);
-    return poses.size();
-  }
+      : test::RunningServer([&] {
+          ServerOptions options;
+          options.device = std::move(device);
+          return options;
+        }()) {}
 };
-
-template <typename Condition>
-bool eventually(Condition condition) {
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(3);
-  while (std::chrono::steady_clock::now() < give_up) {
-    if (condition()) {
-      return true;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return condition();
-}
-
-void send_bytes(const Socket& socket, std::span<const std::uint8_t> bytes) {
-  ASSERT_EQ(::send(socket.fd(), bytes.data(), bytes.size(), MSG_NOSIGNAL),
-            static_cast<ssize_t>(bytes.size()));
-}
 
 /// Reads whole messages from `socket` until `count` have come (up to 3 s), checking each
 /// against the specification: its version's layout and the CRC over its whole body.

@@ -8,6 +8,7 @@
 #include <random>
 #include <thread>
 
+#include "igtl/igtl_test_support.hpp"
 #include "incise/igtl/server.hpp"
 #include "incise/igtl/wire.hpp"
 #include "incise/mesh/boundary.hpp"
@@ -16,16 +17,9 @@
 namespace incise::igtl {
 namespace {
 
-/// Every complete message and drop in `bytes`.
-std::vector<MessageReader::Event> read_all(std::span<const std::uint8_t> bytes) {
-  MessageReader reader;
-  reader.feed(bytes);
-  std::vector<MessageReader::Event> events;
-  while (auto event = reader.next()) {
-    events.push_back(std::move(*event));
-  }
-  return events;
-}
+using test::eventually;
+using test::read_all;
+using test::send_bytes;
 
 Message only_message(std::span<const std::uint8_t> bytes) {
   auto events = read_all(bytes);
@@ -216,48 +210,15 @@ void refresh_crc(std::vector<std::uint8_t>& bytes) {
   put_big_endian(bytes, 50, body_crc(std::span(bytes).subspan(kHeaderSize)));
 }
 
-struct RunningServer {
-  std::mutex mutex;
-  std::vector<DevicePose> poses;
-  Server server;
+/// A server whose incomplete messages stall for 0.3 s at most.
+struct RunningServer : test::RunningServer {
   RunningServer()
-      : server(
-            [] {
-              ServerOptions options;
-              options.port = 0;
-              options.stall_timeout = 0.3;
-              return options;
-            }(),
-            [this](const DevicePose& pose) {
-              const std::lock_guard lock(mutex);
-              poses.push_back(pose);
-            },
-            {}) {
-    server.start();
-  }
-  std::size_t pose_count() {
-    const std::lock_guard lock(mutex);
-    return poses.size();
-  }
+      : test::RunningServer([] {
+          ServerOptions options;
+          options.stall_timeout = 0.3;
+          return options;
+        }()) {}
 };
-
-/// Waits (up to 3 s) for `condition`.
-template <typename Condition>
-bool eventually(Condition condition) {
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(3);
-  while (std::chrono::steady_clock::now() < give_up) {
-    if (condition()) {
-      return true;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return condition();
-}
-
-void send_bytes(const Socket& socket, std::span<const std::uint8_t> bytes) {
-  ASSERT_EQ(::send(socket.fd(), bytes.data(), bytes.size(), MSG_NOSIGNAL),
-            static_cast<ssize_t>(bytes.size()));
-}
 
 /// Sends `bytes` from a fresh client, which then leaves; expects `reason` to be counted.
 void expect_dropped(RunningServer& running, std::span<const std::uint8_t> bytes,

@@ -27,16 +27,20 @@ TetMesh bar() {
   return make_box_grid({{8, 2, 2}, Vec3(0.08, 0.02, 0.02), Vec3::Zero(), 6});
 }
 
-/// The boundary of a finer box inside the bar, 2 mm in from its faces: a visual surface.
-SurfaceMesh inner_box() {
-  const TetMesh fine =
-      make_box_grid({{19, 4, 4}, Vec3(0.076, 0.016, 0.016), Vec3(0.002, 0.002, 0.002), 6});
+/// The boundary of a box grid of `cells` (m `size`, corner at `origin`) as a surface.
+SurfaceMesh box_surface(const std::array<int, 3>& cells, const Vec3& size, const Vec3& origin) {
+  const TetMesh fine = make_box_grid({cells, size, origin, 6});
   SurfaceMesh surface;
   surface.points.assign(fine.rest_positions().begin(), fine.rest_positions().end());
   for (const BoundaryFace& face : boundary_faces(fine)) {
     surface.triangles.push_back(face.vertices);
   }
   return surface;
+}
+
+/// The boundary of a finer box inside the bar, 2 mm in from its faces: a visual surface.
+SurfaceMesh inner_box() {
+  return box_surface({19, 4, 4}, Vec3(0.076, 0.016, 0.016), Vec3(0.002, 0.002, 0.002));
 }
 
 int surface_pieces(const VisualSurface& visual) {
@@ -262,16 +266,8 @@ TEST(VisualSurface, ASelfIntersectingSurfaceWhereTheCutPassesKeepsItsLastGoodPic
   // crash or never return). The update keeps the last good picture and says why.
   TetMesh mesh = bar();
   SurfaceMesh surface = inner_box();
-  const SurfaceMesh second = [] {
-    const TetMesh fine =
-        make_box_grid({{4, 4, 4}, Vec3(0.012, 0.012, 0.012), Vec3(0.038, 0.010, 0.005), 6});
-    SurfaceMesh box;
-    box.points.assign(fine.rest_positions().begin(), fine.rest_positions().end());
-    for (const BoundaryFace& face : boundary_faces(fine)) {
-      box.triangles.push_back(face.vertices);
-    }
-    return box;
-  }();
+  const SurfaceMesh second =
+      box_surface({4, 4, 4}, Vec3(0.012, 0.012, 0.012), Vec3(0.038, 0.010, 0.005));
   const auto offset = static_cast<VertexId>(surface.points.size());
   surface.points.insert(surface.points.end(), second.points.begin(), second.points.end());
   for (Triangle t : second.triangles) {
