@@ -58,33 +58,30 @@ nlohmann::json histogram_json(double p50, double p99, double max) {
 /// How long a frame may go on after SIGINT/SIGTERM before it is abandoned (s).
 constexpr double kStopGrace = 0.7;
 
-/// The last frame that ended, kept by the physics thread for the stop watchdog: what the
-/// final files are written from when a frame never ends. Guarded by its mutex.
-struct LastFrame {
-  std::mutex mutex;
-  int frames = 0;
-  double time = 0.0;             ///< s
-  double physics_seconds = 0.0;  ///< s
-  std::uint64_t mesh_revision = 0;
-  std::vector<Vec3> rest;  ///< m, refreshed when the mesh changes
-  std::vector<Tet> tets;
-  std::vector<Vec3> positions;    ///< m
-  nlohmann::ordered_json visual;  ///< the visual surface's report, if any
-};
-
 /// What the final report says beyond the mesh: how the session went.
 struct SessionSummary {
   std::string scene;
   std::string ended;
   bool diverged = false;
   int frames = 0;
-  double time = 0.0;
-  double physics_seconds = 0.0;
+  double time = 0.0;             ///< s
+  double physics_seconds = 0.0;  ///< s
   std::size_t tets_start = 0;
   double rest_volume_start = 0.0;
   int reaction_pushes = 0;
-  double largest_reaction = 0.0;
-  nlohmann::ordered_json visual;
+  double largest_reaction = 0.0;  ///< N
+  nlohmann::ordered_json visual;  ///< the visual surface's report, if any
+};
+
+/// The last frame that ended, kept by the physics thread for the stop watchdog: what the
+/// final files are written from when a frame never ends. Guarded by its mutex.
+struct LastFrame {
+  std::mutex mutex;
+  SessionSummary summary;  ///< the session as of that frame
+  std::uint64_t mesh_revision = 0;
+  std::vector<Vec3> rest;  ///< m, refreshed when the mesh changes
+  std::vector<Tet> tets;
+  std::vector<Vec3> positions;  ///< m
 };
 
 /// final.vtu (unless diverged) and report.json in `out`, from `mesh` at `positions`.
@@ -223,12 +220,11 @@ int serve(const ServeOptions& options) {
   haptics.start();
   server->start();
 
-  SessionSummary session;
-  session.scene = scene.file.empty() ? "(default)" : scene.file.string();
-  session.tets_start = tets_start;
-  session.rest_volume_start = rest_volume_start;
   LastFrame last;
   {
+    last.summary.scene = scene.file.empty() ? "(default)" : scene.file.string();
+    last.summary.tets_start = tets_start;
+    last.summary.rest_volume_start = rest_volume_start;
     last.mesh_revision = start_mesh.revision();
     last.rest.assign(start_mesh.rest_positions().begin(), start_mesh.rest_positions().end());
     last.tets.assign(start_mesh.tets().begin(), start_mesh.tets().end());
@@ -255,15 +251,11 @@ int serve(const ServeOptions& options) {
     server->stop();
     haptics.stop();
     const std::lock_guard lock(last.mutex);
-    SessionSummary abandoned = session;
+    SessionSummary abandoned = last.summary;
     abandoned.ended = fmt::format(
         "stopped (SIGINT/SIGTERM); frame {} did not end within {} s and was abandoned: final "
         "files from frame {}",
-        last.frames + 1, kStopGrace, last.frames);
-    abandoned.frames = last.frames;
-    abandoned.time = last.time;
-    abandoned.physics_seconds = last.physics_seconds;
-    abandoned.visual = last.visual;
+        abandoned.frames + 1, kStopGrace, abandoned.frames);
     try {
       const TetMesh mesh(last.rest, last.tets);
       write_final_files(options.out, abandoned, mesh, last.positions, scene.tool.haptics,
@@ -387,13 +379,15 @@ int serve(const ServeOptions& options) {
         last.rest.assign(now.rest_positions().begin(), now.rest_positions().end());
         last.tets.assign(now.tets().begin(), now.tets().end());
         if (engine.visual() != nullptr) {
-          last.visual = visual_surface_report(*engine.visual());
+          last.summary.visual = visual_surface_report(*engine.visual());
         }
       }
       last.positions.assign(engine.positions().begin(), engine.positions().end());
-      last.frames = frames;
-      last.time = engine.time();
-      last.physics_seconds = physics_seconds;
+      last.summary.frames = frames;
+      last.summary.time = engine.time();
+      last.summary.physics_seconds = physics_seconds;
+      last.summary.reaction_pushes = reaction_pushes;
+      last.summary.largest_reaction = largest_reaction;
     }
   }
   loop_over = true;
@@ -406,6 +400,7 @@ int serve(const ServeOptions& options) {
   watchdog.join();
   server->stop();
   haptics.stop();
+  SessionSummary session = last.summary;  // (the watchdog has gone: no lock needed)
   session.ended = ended;
   session.diverged = diverged;
   session.frames = frames;

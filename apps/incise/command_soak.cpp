@@ -304,7 +304,7 @@ std::string embedded_surface_problem(const VisualSurface& surface, std::span<con
     bad_edges += count[0] == 1 && count[1] == 1 ? 0 : 1;
     largest = std::max(largest, count[0] + count[1]);
   }
-  const std::vector<Vec3> rest(surface.rest_points().begin(), surface.rest_points().end());
+  const std::span<const Vec3> rest = surface.rest_points();
   std::size_t flat = 0;
   for (const Triangle& t : surface.triangles()) {
     const Vec3& a = rest[static_cast<std::size_t>(t[0])];

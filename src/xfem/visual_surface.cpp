@@ -103,8 +103,8 @@ bool is_flat(const Vec3& a, const Vec3& b, const Vec3& c) {
 
 std::size_t remove_coincident_pairs(std::vector<Triangle>& triangles,
                                     std::vector<std::uint8_t>& on_cut) {
-  // The same three points facing both ways enclose nothing: a piece of cut drawn where both
-  // sides are still carried by the same nodes (the blade's front). Both go.
+  // The same three points facing both ways enclose nothing: a piece of cut surface whose two
+  // sides the welds and the nodes that carry them could not tell apart. Both go.
   std::map<std::array<VertexId, 3>, std::vector<std::size_t>> by_corners;
   for (std::size_t t = 0; t < triangles.size(); ++t) {
     std::array<VertexId, 3> key = triangles[t];

@@ -75,24 +75,6 @@ TetId XfemCutter::rest_tet_of(TetId element) const {
   return index < rest_tets_.size() ? element : rest_of_appended_[index - rest_tets_.size()];
 }
 
-std::vector<TetId> XfemCutter::front() const {
-  std::vector<TetId> result;
-  for (TetId t : front_) {
-    if (state_[static_cast<std::size_t>(t)] == TetState::kFront) {
-      result.push_back(t);
-    }
-  }
-  return result;
-}
-
-std::optional<double> XfemCutter::crossing(VertexId a, VertexId b) const {
-  const EdgeRecord* found = record(a, b);
-  if (found == nullptr || found->crossings % 2 == 0) {
-    return std::nullopt;
-  }
-  return a < b ? found->at : 1.0 - found->at;
-}
-
 void XfemCutter::start(const BladePose& pose) {
   last_ = pose;
   started_ = true;

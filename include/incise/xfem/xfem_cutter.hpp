@@ -101,13 +101,6 @@ class XfemCutter {
   [[nodiscard]] TetId second_element(TetId rest_tet) const {
     return second_element_[static_cast<std::size_t>(rest_tet)];
   }
-  /// Rest tetrahedra the cut has reached without crossing them completely.
-  [[nodiscard]] std::vector<TetId> front() const;
-  /// Where the blade has crossed edge (a, b) of the rest mesh an odd number of times: the
-  /// fraction of the way from a to b of its last crossing; else nothing.
-  [[nodiscard]] std::optional<double> crossing(VertexId a, VertexId b) const;
-  /// The blade's pose after the last move (rest frame), once started.
-  [[nodiscard]] const BladePose& last_pose() const { return last_; }
   /// Whether a boundary face (vertex ids) was opened by the cut: its vertices, taken back to
   /// the originals they copy, are not a face of the body's boundary before the cut.
   [[nodiscard]] bool opened(const Triangle& face) const;
