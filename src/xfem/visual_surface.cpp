@@ -239,6 +239,10 @@ std::string closed_manifold_problem(std::span<const Vec3> points,
 
 namespace {
 
+/// Crossings this close to an end (a share of the edge) are the cutter's record of a cut
+/// through that vertex (XfemCutter puts them 1e-9 along).
+constexpr double kAtVertex = 1e-8;
+
 /// Where an output point is and what carries it: points that would move together merge.
 struct PointKey {
   double x, y, z;
@@ -318,6 +322,9 @@ VisualSurface::VisualSurface(const TetMesh& mesh, std::vector<Vec3> points,
     std::array<VertexId, 3> key = face.vertices;
     std::sort(key.begin(), key.end());
     rest_boundary_.insert(key);
+    for (std::size_t k = 0; k < 3; ++k) {
+      rest_boundary_edges_.insert(edge_key(key[k], key[(k + 1) % 3]));
+    }
   }
   point_cell_ = std::max(1e6 * nudge_, 1e-12);  // the mean edge length of the physics mesh
   for (std::size_t i = 0; i < original_points_.size(); ++i) {
@@ -471,14 +478,22 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
       const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
       const auto i = static_cast<std::size_t>(edge[0]);
       const auto j = static_cast<std::size_t>(edge[1]);
-      const auto [slot, added] = crossing_point.try_emplace(
-          edge_key(tet[i], tet[j]), static_cast<VertexId>(cut_points.size()));
+      const double along = cut->crossing[static_cast<std::size_t>(k)];
+      // A cut through a vertex (the cutter records it a hair along each edge from there) meets
+      // every edge there at the vertex itself: one point, not one a rounding error from the
+      // next on each edge (they would leave flat triangles wherever the picture meets them).
+      const std::size_t at_vertex = along <= kAtVertex ? i : (along >= 1.0 - kAtVertex ? j : 4);
+      const std::uint64_t key =
+          at_vertex < 4 ? edge_key(tet[at_vertex], tet[at_vertex]) : edge_key(tet[i], tet[j]);
+      const auto [slot, added] =
+          crossing_point.try_emplace(key, static_cast<VertexId>(cut_points.size()));
       if (added) {
-        const double along = cut->crossing[static_cast<std::size_t>(k)];
-        cut_points.push_back((1.0 - along) * x[i] + along * x[j]);
-        edge_of_point.push_back(edge_key(tet[i], tet[j]));
+        cut_points.push_back(at_vertex < 4 ? x[at_vertex] : (1.0 - along) * x[i] + along * x[j]);
+        edge_of_point.push_back(key);
       }
-      polygon.push_back(slot->second);
+      if (polygon.empty() || (polygon.back() != slot->second && polygon.front() != slot->second)) {
+        polygon.push_back(slot->second);
+      }
     }
     for (std::size_t m = 1; m + 1 < polygon.size(); ++m) {
       cut_triangles.push_back({polygon[0], polygon[m], polygon[m + 1]});
@@ -506,7 +521,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
       return;
     }
     try {
-      PMP::corefine(pair.visual, pair.cut);
+      PMP::corefine(pair.visual, pair.cut, CGAL::parameters::throw_on_self_intersection(true));
     } catch (const std::exception& error) {  // CGAL's failures, its constraint intersections
       ++failures_;
       last_failure_ = std::string("corefinement failed: ") + error.what();
@@ -539,22 +554,35 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
 }
 
 bool VisualSurface::corefinable(const Corefined& pair) const {
-  const CgalMesh& cut_surface = pair.cut;
-  if (PMP::does_self_intersect(cut_surface)) {
-    return false;
-  }
-  if (cgal_->self_crossings.empty()) {
-    return true;
-  }
-  for (const auto face : cut_surface.faces()) {
-    const CGAL::Bbox_3 box = PMP::face_bbox(face, cut_surface);
-    for (const CGAL::Bbox_3& crossing : cgal_->self_crossings) {
-      if (CGAL::do_overlap(box, crossing)) {
-        return false;
-      }
+  // Corefinement only works on the triangles where the two surfaces meet (CGAL checks those
+  // for self-intersection when asked to throw on them): elsewhere a surface may touch itself.
+  // The cut surface does, where the split tetrahedra round a mesh edge form separate fans
+  // (a waiting tetrahedron between them): their triangles share the edge's crossing point but
+  // orient_polygon_soup gives each fan its own copy of it. So only self-intersections whose
+  // faces' boxes reach the other surface's faces stop the update.
+  std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> crossing;
+  PMP::self_intersections(pair.cut, std::back_inserter(crossing));
+  std::vector<CGAL::Bbox_3> cut_crossings;
+  for (const auto& [f, g] : crossing) {
+    for (const auto face : {f, g}) {
+      cut_crossings.push_back(PMP::face_bbox(face, pair.cut));
     }
   }
-  return true;
+  const auto meets = [](std::span<const CGAL::Bbox_3> boxes, const CgalMesh& surface) {
+    if (boxes.empty()) {
+      return false;
+    }
+    for (const auto face : surface.faces()) {
+      const CGAL::Bbox_3 box = PMP::face_bbox(face, surface);
+      for (const CGAL::Bbox_3& other : boxes) {
+        if (CGAL::do_overlap(box, other)) {
+          return true;
+        }
+      }
+    }
+    return false;
+  };
+  return !meets(cut_crossings, pair.visual) && !meets(cgal_->self_crossings, pair.cut);
 }
 
 void VisualSurface::rebuild(const TetMesh& mesh, const XfemCutter& cutter, const Corefined& pair) {
@@ -771,12 +799,19 @@ void VisualSurface::add_skirt(std::vector<Vec3>& points, std::vector<Triangle>& 
     std::sort(ends.begin(), ends.end());
     std::array<VertexId, 3> face{};
     const auto last = std::unique(ends.begin(), ends.end());
-    if (last - ends.begin() != 3) {
-      continue;
-    }
-    std::copy(ends.begin(), last, face.begin());
-    if (!rest_boundary_.contains(face)) {
-      continue;
+    if (last - ends.begin() == 2) {
+      // Both ends at vertices (a cut through them): the rim runs along a mesh edge.
+      if (!rest_boundary_edges_.contains(edge_key(ends[0], ends[1]))) {
+        continue;
+      }
+    } else {
+      if (last - ends.begin() != 3) {
+        continue;
+      }
+      std::copy(ends.begin(), last, face.begin());
+      if (!rest_boundary_.contains(face)) {
+        continue;
+      }
     }
     rim.push_back(edge);
     outward[static_cast<std::size_t>(edge.first)] += out;

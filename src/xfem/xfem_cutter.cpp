@@ -150,6 +150,12 @@ bool XfemCutter::record_crossing(VertexId i, VertexId j, const std::array<Vec3, 
   std::int8_t& side_j = i_low ? rec.side_high : rec.side_low;
   // orient3d > 0: on the side the triangle's normal points to: side b.
   const auto side_of = [](Sign s) { return s == Sign::kPositive ? kSideB : kSideA; };
+  // A split tetrahedron's edge keeps its crossings (its neighbours must cut their shared faces
+  // as it did); a touch at an end still tells neighbours that corner lies on the surface.
+  if (frozen_.contains(edge_key(i, j)) &&
+      (rec.crossings % 2 == 1 || (si != Sign::kZero && sj != Sign::kZero))) {
+    return true;
+  }
   if (si == Sign::kZero || sj == Sign::kZero) {
     // The surface passes exactly through an end (or holds the whole edge): that end lies on
     // side a; the other end's side is its orientation.
@@ -394,8 +400,16 @@ bool XfemCutter::split(TetId rest_tet, const ElementCut& cut,
   }
   cuts_[index] = cut;
   state_[index] = TetState::kSplit;
+  freeze_edges(real);
   ++stats_.elements_split;
   return true;
+}
+
+void XfemCutter::freeze_edges(const Tet& rest_tet) {
+  for (const auto& edge : tet_local::kEdges) {
+    frozen_.insert(edge_key(rest_tet[static_cast<std::size_t>(edge[0])],
+                            rest_tet[static_cast<std::size_t>(edge[1])]));
+  }
 }
 
 void XfemCutter::sweep(const BladePose& from, const BladePose& to, std::vector<TetId>& changed) {
@@ -568,6 +582,12 @@ void XfemCutter::load_state(StateReader& in) {
     in.fail("xfem reached", "one per rest tetrahedron");
   }
   travel_ = in.value<double>("xfem travel");
+  frozen_.clear();
+  for (std::size_t t = 0; t < state_.size(); ++t) {
+    if (state_[t] == TetState::kSplit) {
+      freeze_edges(rest_tets_[t]);
+    }
+  }
 }
 
 }  // namespace incise

@@ -9,6 +9,8 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <map>
+#include <optional>
 #include <random>
 
 #include "blade_walks.hpp"
@@ -274,6 +276,82 @@ TEST(XfemCutter, RandomBladeWalksKeepEveryInvariantAfterEveryPose) {
         seed, cutter.rest_tet_count(), cutter.stats().elements_split, cutter.stats().copies,
         visual.failures(), visual.last_failure().c_str());
   }
+}
+
+TEST(XfemCutter, NeighboursSplitAtDifferentTimesAgreeOnTheFaceTheyShare) {
+  // Along the walks (tremor and re-entry cross an edge again after a tetrahedron on it has
+  // split), two split tetrahedra that share a face must cut it along the same segment: the
+  // same crossed edges, crossed at the same points. Else the cut surface has cracks and
+  // overlaps, and no picture can follow it.
+  const bool have_data = std::filesystem::exists(test::data_dir());
+  std::size_t shared_faces = 0;
+  for (unsigned seed = 1; seed <= 12; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    std::mt19937 rng(seed);
+    TetMesh mesh = test::walk_mesh(seed, have_data, rng);
+    const std::vector<Tet> rest(mesh.tets().begin(), mesh.tets().end());
+    XfemCutter cutter(mesh);
+    const auto path = test::random_walk(test::bounds(mesh), rng, 60);
+    cutter.start(path.front());
+    for (std::size_t i = 1; i < path.size(); ++i) {
+      cutter.move_to(path[i]);
+    }
+    // Per face (sorted vertex ids): the split tetrahedra holding it.
+    std::map<std::array<VertexId, 3>, std::vector<std::size_t>> holders;
+    for (std::size_t t = 0; t < rest.size(); ++t) {
+      if (!cutter.cut_of(static_cast<TetId>(t))) {
+        continue;
+      }
+      for (const auto& face : tet_local::kFaces) {
+        std::array<VertexId, 3> key{};
+        for (std::size_t k = 0; k < 3; ++k) {
+          key[k] = rest[t][static_cast<std::size_t>(face[k])];
+        }
+        std::sort(key.begin(), key.end());
+        holders[key].push_back(t);
+      }
+    }
+    // Where a tetrahedron's cut crosses the mesh edge (a, b), if it does.
+    const auto crossing = [&](std::size_t t, VertexId a, VertexId b) -> std::optional<Vec3> {
+      const ElementCut& cut = *cutter.cut_of(static_cast<TetId>(t));
+      for (std::size_t k = 0; k < 6; ++k) {
+        const auto i = static_cast<std::size_t>(tet_local::kEdges[k][0]);
+        const auto j = static_cast<std::size_t>(tet_local::kEdges[k][1]);
+        if (edge_key(rest[t][i], rest[t][j]) != edge_key(a, b)) {
+          continue;
+        }
+        if (cut.on_b[i] == cut.on_b[j]) {
+          return std::nullopt;
+        }
+        const double along = cut.crossing[k];
+        return (1.0 - along) * mesh.rest_position(rest[t][i]) +
+               along * mesh.rest_position(rest[t][j]);
+      }
+      ADD_FAILURE() << "edge not in tetrahedron " << t;
+      return std::nullopt;
+    };
+    for (const auto& [face, tets] : holders) {
+      if (tets.size() != 2) {
+        continue;
+      }
+      ++shared_faces;
+      for (std::size_t k = 0; k < 3; ++k) {
+        const VertexId a = face[k];
+        const VertexId b = face[(k + 1) % 3];
+        const auto first = crossing(tets[0], a, b);
+        const auto second = crossing(tets[1], a, b);
+        ASSERT_EQ(first.has_value(), second.has_value())
+            << "tetrahedra " << tets[0] << " and " << tets[1] << " disagree whether edge " << a
+            << "-" << b << " is crossed";
+        if (first) {
+          EXPECT_LT((*first - *second).norm(), 1e-12 * (1.0 + first->norm()))
+              << "tetrahedra " << tets[0] << " and " << tets[1] << " cross edge " << a << "-" << b
+              << " at different points";
+        }
+      }
+    }
+  }
+  EXPECT_GT(shared_faces, 100u);
 }
 
 TEST(XfemCutter, ACheckpointedCutterGoesOnAsIfNeverStopped) {

@@ -26,6 +26,7 @@
 #include <span>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "incise/core/types.hpp"
@@ -121,7 +122,8 @@ class VisualSurface {
   double nudge_ = 0.0;  ///< m: how far past a point its side is read
   double reach_ = 0.0;  ///< m: how far the surface sticks out of the body at most
   mutable std::map<std::array<double, 3>, std::pair<TetId, bool>> located_;
-  std::set<std::array<VertexId, 3>> rest_boundary_;  ///< sorted vertex ids of boundary faces
+  std::set<std::array<VertexId, 3>> rest_boundary_;        ///< sorted vertex ids of boundary faces
+  std::unordered_set<std::uint64_t> rest_boundary_edges_;  ///< edge_key of boundary edges
   double point_cell_ = 1.0;  ///< m: cell of the grid over the original points
   std::map<std::array<long, 3>, std::vector<std::size_t>> point_cells_;
   /// The cell of point_cells_ that holds q (saturated far out: see core/clamped_floor.hpp).

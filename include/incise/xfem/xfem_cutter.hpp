@@ -26,12 +26,16 @@
 //
 // The blade is given in the rest frame (as the subdivision cutter's in the engine). A
 // tetrahedron is cut once: later crossings of a split tetrahedron are ignored (one Heaviside
-// enrichment per element, as in the seed).
+// enrichment per element, as in the seed), and so are later crossings of its edges (only
+// touches at a corner still count): a neighbour that splits later then cuts the face they
+// share along the same segment, so the cut surface has no crack or overlap there (tremor and
+// re-entry would otherwise change an edge's parity between the two splits).
 
 #include <cstdint>
 #include <memory>
 #include <set>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "incise/core/state_archive.hpp"
@@ -132,6 +136,8 @@ class XfemCutter {
   /// Splits a rest tetrahedron; false when it must wait (three tied corners).
   bool split(TetId rest_tet, const ElementCut& cut, const std::vector<std::uint8_t>& tied);
   [[nodiscard]] const EdgeRecord* record(VertexId a, VertexId b) const;
+  /// Stops counting crossings of a split tetrahedron's edges.
+  void freeze_edges(const Tet& rest_tet);
 
   TetMesh* mesh_;
   XfemCutterOptions options_;
@@ -144,8 +150,9 @@ class XfemCutter {
   std::vector<TetId> second_element_;    ///< per rest tetrahedron: element b's id, or -1
   std::vector<TetId> rest_of_appended_;  ///< per appended element (id - rest count)
   std::unordered_map<std::uint64_t, EdgeRecord> edges_;
-  std::vector<std::uint8_t> touched_;  ///< per original vertex: on the swept surface
-  std::vector<VertexId> copy_of_;      ///< per original vertex, or kInvalidId
+  std::unordered_set<std::uint64_t> frozen_;  ///< edge_key of edges of split tetrahedra
+  std::vector<std::uint8_t> touched_;         ///< per original vertex: on the swept surface
+  std::vector<VertexId> copy_of_;             ///< per original vertex, or kInvalidId
   /// Per original vertex without a copy yet: elements that use it in place of its copy.
   std::unordered_map<VertexId, std::vector<TetId>> tied_users_;
   std::vector<TetId> front_;  ///< rest tetrahedra in state kFront or kWaiting
