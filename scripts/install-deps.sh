@@ -12,6 +12,9 @@ packages=(
   # planning: L-BFGS minimisation; CT volumes (MetaImage, DICOM through GDCM) read by ITK;
   # pydicom writes the DICOM series the imaging tests read
   liblbfgs-dev libinsighttoolkit5-dev python3-pydicom
+  # readers incise did not write, opening what it writes in the tests: VTK's own (what
+  # ParaView reads with) and meshio
+  python3-vtk9 python3-meshio python3-numpy
   # robust geometry (CGAL is header-only in 5.x; GMP/MPFR back its exact kernel)
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev
   # tetrahedral meshing (TetGen's library)

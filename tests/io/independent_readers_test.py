@@ -1,0 +1,134 @@
+#!/usr/bin/env python3
+"""The files incise writes, read by readers incise did not write: VTK's own XML readers
+(Debian's python3-vtk9, what ParaView uses) and meshio (Debian's python3-meshio). Every
+kind of VTK XML file incise writes (a converted mesh, a subdivision cut, an XFEM cut with its
+virtual elements, an XFEM visual surface, a simulation frame) is read by both; the counts must
+match incise's own report and the two readers must agree on every array, value for value.
+
+Usage: independent_readers_test.py INCISE SOURCE_DIR DATA_DIR
+"""
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+try:
+    import meshio
+    import numpy as np
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+except ImportError as error:  # scripts/install-deps.sh installs them
+    sys.exit(f"FAIL: {error} (python3-meshio, python3-vtk9 and python3-numpy are needed)")
+
+failures = []
+
+
+def check(condition, message):
+    if not condition:
+        failures.append(message)
+        print("FAIL:", message)
+
+
+def run(incise, *args):
+    result = subprocess.run([incise, *map(str, args)], capture_output=True, text=True)
+    if result.returncode != 0:
+        sys.exit(f"FAIL: incise {' '.join(map(str, args))}: {result.stderr}")
+    return result
+
+
+def vtk_read(path):
+    reader = vtk.vtkXMLUnstructuredGridReader() if path.suffix == ".vtu" else vtk.vtkXMLPolyDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    check(reader.GetErrorCode() == 0, f"{path.name}: VTK's reader reports error {reader.GetErrorCode()}")
+    return reader.GetOutput()
+
+
+def arrays(data):
+    out = {}
+    for k in range(data.GetNumberOfArrays()):
+        array = data.GetArray(k)
+        out[array.GetName()] = vtk_to_numpy(array)
+    return out
+
+
+def compare(path, expected_cells=None):
+    """Reads `path` with VTK's reader and (for .vtu: meshio has no .vtp reader) meshio, which
+    must agree on points, cells and every array."""
+    grid = vtk_read(path)
+    points = vtk_to_numpy(grid.GetPoints().GetData())
+    cells = grid.GetNumberOfCells()
+    check(cells > 0 and grid.GetNumberOfPoints() > 0, f"{path.name}: VTK reads nothing")
+    if expected_cells is not None:
+        check(cells == expected_cells, f"{path.name}: {cells} cells, incise reported {expected_cells}")
+    if path.suffix == ".vtu":
+        mesh = meshio.read(path)
+        check(np.array_equal(points, mesh.points), f"{path.name}: points differ between VTK and meshio")
+        meshio_cells = sum(len(block.data) for block in mesh.cells)
+        check(cells == meshio_cells, f"{path.name}: {cells} cells by VTK, {meshio_cells} by meshio")
+        check(all(block.type == "tetra" for block in mesh.cells),
+              f"{path.name}: meshio reads cells of types {[b.type for b in mesh.cells]}")
+        for kind, vtk_arrays, meshio_arrays in (
+            ("point", arrays(grid.GetPointData()), mesh.point_data),
+            ("cell", arrays(grid.GetCellData()), {k: v[0] for k, v in mesh.cell_data.items()}),
+        ):
+            check(set(vtk_arrays) == set(meshio_arrays),
+                  f"{path.name}: {kind} arrays {sorted(vtk_arrays)} by VTK, {sorted(meshio_arrays)} by meshio")
+            for name, values in vtk_arrays.items():
+                if name in meshio_arrays:
+                    other = np.asarray(meshio_arrays[name]).reshape(values.shape)
+                    check(np.array_equal(values, other), f"{path.name}: {kind} array '{name}' differs")
+    print(f"{path.name}: {grid.GetNumberOfPoints()} points, {cells} cells, "
+          f"point arrays {sorted(arrays(grid.GetPointData()))}, cell arrays {sorted(arrays(grid.GetCellData()))}")
+    return grid
+
+
+def main():
+    incise, source, data = sys.argv[1], Path(sys.argv[2]), Path(sys.argv[3])
+    liver = data / "sofa" / "liver.msh"
+    if not liver.exists():
+        print("SKIP: no data meshes")
+        return 0
+    work = Path(tempfile.mkdtemp(prefix="incise-readers-"))
+    # The liver cut of issue 11 (a vertical blade at 0.513 of its y-extent).
+    blade = work / "blade.csv"
+    y = 0.217888 + 0.513 * (5.15717 - 0.217888)
+    rows = ["t,tip_x,tip_y,tip_z,base_x,base_y,base_z"]
+    for i in range(25):
+        x = -5.17928 + (1.80331 + 4.67928 + 1.0) * i / 24.0
+        rows.append(f"{0.04 * i},{x},{y},-2.2,{x},{y},3.3")
+    blade.write_text("\n".join(rows) + "\n")
+
+    run(incise, "convert", liver, work / "liver.vtu")
+    info = json.loads(subprocess.run([incise, "info", "--json", liver], capture_output=True, text=True).stdout)
+    compare(work / "liver.vtu", info["tets"])
+
+    run(incise, "cut", liver, "--blade", blade, "-o", work / "sub.vtu", "--report", work / "sub.json")
+    compare(work / "sub.vtu", json.loads((work / "sub.json").read_text())["tets_out"])
+
+    # The case meshio misread before (raw appended data): XFEM's virtual elements.
+    run(incise, "cut", liver, "--blade", blade, "--method", "xfem", "-o", work / "xfem.vtu",
+        "--visual", data / "sofa" / "liver-smooth.obj", "--visual-out", work / "xfem.vtp",
+        "--report", work / "xfem.json")
+    report = json.loads((work / "xfem.json").read_text())
+    compare(work / "xfem.vtu", report["tets_out"])
+    compare(work / "xfem.vtp")
+
+    # A simulation's frames (an XFEM scene, a few frames).
+    frames = work / "frames"
+    run(incise, "run", source / "scenes" / "xfem_cut_pull.json", "--frames", 3, "--out", frames)
+    written = sorted(frames.glob("*.vtu"))
+    check(len(written) > 0, "incise run wrote no .vtu frame")
+    for frame in written[:2]:
+        compare(frame)
+
+    if failures:
+        print(f"{len(failures)} failures")
+        return 1
+    print("every file read alike by VTK and meshio")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
