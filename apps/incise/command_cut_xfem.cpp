@@ -17,6 +17,7 @@
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
+#include "incise/xfem/clipped_elements.hpp"
 #include "incise/xfem/visual_surface.hpp"
 #include "incise/xfem/xfem_cutter.hpp"
 #include "visual_report.hpp"
@@ -86,6 +87,25 @@ int cut_xfem(const XfemCutRequest& request) {
        std::vector<double>(mesh.material_fractions().begin(), mesh.material_fractions().end())});
   fields.cell_data.push_back({"rest_tet", 1, std::move(rest_tet)});
   write_vtu(request.output, mesh, {}, fields);
+  // Beside it, the virtual elements clipped to their sides: what ParaView integrates to the
+  // true volume and shows as two lips.
+  std::filesystem::path clipped_path = request.output;
+  clipped_path.replace_filename(clipped_path.stem().string() + "_clipped.vtu");
+  const ClippedElements clipped = clip_virtual_elements(mesh, cutter);
+  {
+    VtuFields clipped_fields;
+    clipped_fields.cell_data.push_back(
+        {"element", 1, std::vector<std::int32_t>(clipped.element.begin(), clipped.element.end())});
+    clipped_fields.cell_data.push_back({"fraction", 1, clipped.fraction});
+    write_vtu(clipped_path, clipped.points, clipped.tets, clipped_fields);
+  }
+  double clipped_volume = 0.0;  // mesh units cubed: what a reader integrates from that file
+  for (const Tet& t : clipped.tets) {
+    clipped_volume += signed_volume(clipped.points[static_cast<std::size_t>(t[0])],
+                                    clipped.points[static_cast<std::size_t>(t[1])],
+                                    clipped.points[static_cast<std::size_t>(t[2])],
+                                    clipped.points[static_cast<std::size_t>(t[3])]);
+  }
   if (visual && !request.visual_out.empty()) {
     VtuFields surface_fields;
     surface_fields.cell_data.push_back(
@@ -125,7 +145,10 @@ int cut_xfem(const XfemCutRequest& request) {
                            {"blade_travel_m", travel},
                            {"dofs_added_per_cm", per_cm},
                            {"min_fraction", stats.min_fraction},
-                           {"fractions_raised", stats.fractions_raised}};
+                           {"fractions_raised", stats.fractions_raised},
+                           {"clipped", clipped_path.string()},
+                           {"clipped_tets", clipped.tets.size()},
+                           {"clipped_volume", clipped_volume}};
     if (visual) {
       json["visual_volume_in"] = visual_volume_in;
       json["visual_volume_out"] = enclosed_volume(visual->rest_points(), visual->triangles());

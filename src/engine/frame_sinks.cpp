@@ -6,7 +6,9 @@
 #include "incise/core/timing.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/engine/frame_sink.hpp"
+#include "incise/xfem/clipped_elements.hpp"
 #include "incise/xfem/visual_surface.hpp"
+#include "incise/xfem/xfem_cutter.hpp"
 
 namespace incise {
 namespace {
@@ -30,7 +32,8 @@ VtuSeriesSink::VtuSeriesSink(const std::filesystem::path& dir, std::string name,
       last_frame_(last_frame),
       continue_series_(continue_series),
       series_(dir_ / (name_ + ".pvd")),
-      visual_series_(dir_ / (name_ + "_visual.pvd")) {}
+      visual_series_(dir_ / (name_ + "_visual.pvd")),
+      clipped_series_(dir_ / (name_ + "_clipped.pvd")) {}
 
 void VtuSeriesSink::write(const Engine& engine) {
   const TetMesh& mesh = engine.mesh();
@@ -59,8 +62,10 @@ void VtuSeriesSink::write(const Engine& engine) {
     fields.cell_data.push_back({"material", 1, std::move(ids)});
   }
   // Virtual elements (XFEM) hold part of their rest tetrahedron: ParaView can threshold the
-  // material fraction, or weigh by it.
-  if (std::any_of(mesh.material_fractions().begin(), mesh.material_fractions().end(),
+  // material fraction, or weigh by it. Written from the first frame of an XFEM body (ParaView's
+  // series reader offers the arrays of the first file only).
+  if (engine.xfem_cutter() != nullptr ||
+      std::any_of(mesh.material_fractions().begin(), mesh.material_fractions().end(),
                   [](double fraction) { return fraction < 1.0; })) {
     fields.cell_data.push_back(
         {"fraction", 1,
@@ -70,6 +75,18 @@ void VtuSeriesSink::write(const Engine& engine) {
   const std::string file = fmt::format("{}_{:06d}.vtu", name_, engine.frame());
   write_vtu(dir_ / file, mesh, state.x.values(), fields);
   series_.add(engine.time(), file);
+  // The elements clipped to their sides: non-overlapping tetrahedra a volume integral counts
+  // once (ParaView's Integrate Variables gives the body's true volume).
+  if (const XfemCutter* cutter = engine.xfem_cutter()) {
+    const ClippedElements clipped = clip_virtual_elements(mesh, *cutter, state.x.values());
+    VtuFields clipped_fields;
+    clipped_fields.cell_data.push_back(
+        {"element", 1, std::vector<std::int32_t>(clipped.element.begin(), clipped.element.end())});
+    clipped_fields.cell_data.push_back({"fraction", 1, clipped.fraction});
+    const std::string clipped_file = fmt::format("{}_clipped_{:06d}.vtu", name_, engine.frame());
+    write_vtu(dir_ / clipped_file, clipped.points, clipped.tets, clipped_fields);
+    clipped_series_.add(engine.time(), clipped_file);
+  }
   // The embedded visual surface at the same frames: its own series (ParaView opens both).
   if (const VisualSurface* visual = engine.visual()) {
     VtuFields surface_fields;
@@ -88,6 +105,9 @@ void VtuSeriesSink::begin(const Engine& engine) {
     series_.keep_existing_before(engine.time());
     if (engine.visual() != nullptr) {
       visual_series_.keep_existing_before(engine.time());
+    }
+    if (engine.xfem_cutter() != nullptr) {
+      clipped_series_.keep_existing_before(engine.time());
     }
   }
   write(engine);

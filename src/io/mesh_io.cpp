@@ -424,17 +424,22 @@ void add_field(CompressedVtkXml& document, const std::filesystem::path& path,
   }
 }
 
-void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
-               std::span<const Vec3> positions, const VtuFields& fields) {
-  if (positions.empty()) {
-    positions = mesh.rest_positions();
-  }
-  if (positions.size() != mesh.vertex_count()) {
-    throw InputError(path.string(), 0, "position count does not match the mesh");
-  }
+namespace {
+
+/// A .vtu of tetrahedra `tets` over `points`, region labels (none when empty) first.
+void write_tet_vtu(const std::filesystem::path& path, std::span<const Vec3> positions,
+                   std::span<const Tet> tets, std::span<const int> labels,
+                   const VtuFields& fields) {
   check_finite_positions(path, positions);
-  const std::size_t n_points = mesh.vertex_count();
-  const std::size_t n_cells = mesh.tet_count();
+  const std::size_t n_points = positions.size();
+  const std::size_t n_cells = tets.size();
+  for (const Tet& tet : tets) {
+    for (VertexId v : tet) {
+      if (v < 0 || static_cast<std::size_t>(v) >= n_points) {
+        throw InputError(path.string(), 0, "a tetrahedron refers to a point that is not there");
+      }
+    }
+  }
 
   CompressedVtkXml document;
   std::string& xml = document.xml;
@@ -454,9 +459,8 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
   }
   xml += "      </PointData>\n      <CellData>\n";
   // Region labels first: readers (incise, meshio) take the first integer cell array as them.
-  if (has_labels(mesh)) {
-    FieldArray region{
-        "region", 1, std::vector<std::int32_t>(mesh.tet_labels().begin(), mesh.tet_labels().end())};
+  if (!labels.empty()) {
+    FieldArray region{"region", 1, std::vector<std::int32_t>(labels.begin(), labels.end())};
     field_xml(region, n_cells);
   }
   for (const FieldArray& field : fields.cell_data) {
@@ -471,7 +475,7 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
   std::string types;
   connectivity.reserve(n_cells * 32);
   for (std::size_t c = 0; c < n_cells; ++c) {
-    for (VertexId v : mesh.tet(static_cast<TetId>(c))) {
+    for (VertexId v : tets[c]) {
       append_raw(connectivity, static_cast<std::int64_t>(v));
     }
     append_raw(offsets, static_cast<std::int64_t>(4 * (c + 1)));
@@ -482,6 +486,25 @@ void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
   document.add_array("type=\"UInt8\" Name=\"types\"", types);
   xml += "      </Cells>\n";
   document.write(path, "UnstructuredGrid");
+}
+
+}  // namespace
+
+void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
+               std::span<const Vec3> positions, const VtuFields& fields) {
+  if (positions.empty()) {
+    positions = mesh.rest_positions();
+  }
+  if (positions.size() != mesh.vertex_count()) {
+    throw InputError(path.string(), 0, "position count does not match the mesh");
+  }
+  write_tet_vtu(path, positions, mesh.tets(),
+                has_labels(mesh) ? mesh.tet_labels() : std::span<const int>(), fields);
+}
+
+void write_vtu(const std::filesystem::path& path, std::span<const Vec3> points,
+               std::span<const Tet> tets, const VtuFields& fields) {
+  write_tet_vtu(path, points, tets, {}, fields);
 }
 
 void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,

@@ -45,6 +45,14 @@ def vtk_read(path):
     return reader.GetOutput()
 
 
+def integrated_volume(data):
+    """What ParaView's Integrate Variables reports as the volume."""
+    integrate = vtk.vtkIntegrateAttributes()
+    integrate.SetInputData(data)
+    integrate.Update()
+    return integrate.GetOutput().GetCellData().GetArray("Volume").GetValue(0)
+
+
 def arrays(data):
     out = {}
     for k in range(data.GetNumberOfArrays()):
@@ -114,6 +122,15 @@ def main():
     report = json.loads((work / "xfem.json").read_text())
     compare(work / "xfem.vtu", report["tets_out"])
     compare(work / "xfem.vtp")
+    # Beside it, the virtual elements clipped to their sides: ParaView's Integrate Variables
+    # (vtkIntegrateAttributes) gives the liver's true volume, not the overlapping elements'.
+    clipped = compare(work / "xfem_clipped.vtu", report["clipped_tets"])
+    true_volume = report["volume_in"]
+    check(abs(integrated_volume(clipped) - true_volume) < 1e-9 * true_volume,
+          f"xfem_clipped.vtu integrates to {integrated_volume(clipped)}, the liver is {true_volume}")
+    overlapping = integrated_volume(vtk_read(work / "xfem.vtu"))
+    check(overlapping > 1.05 * true_volume,
+          f"the virtual elements themselves integrate to {overlapping} (they overlap by design)")
 
     # A simulation's frames (an XFEM scene, a few frames).
     frames = work / "frames"
@@ -122,6 +139,18 @@ def main():
     check(len(written) > 0, "incise run wrote no .vtu frame")
     for frame in written[:2]:
         compare(frame)
+    # ParaView's series reader offers the arrays of the first frame: `fraction` is there.
+    first = vtk_read(frames / "xfem_cut_pull_000000.vtu")
+    check(first.GetCellData().GetArray("fraction") is not None,
+          "the first frame of an XFEM scene has no 'fraction' array")
+    clipped_frames = sorted(frames.glob("xfem_cut_pull_clipped_*.vtu"))
+    check(len(clipped_frames) == len(written) - len(clipped_frames) and (frames / "xfem_cut_pull_clipped.pvd").exists(),
+          "no clipped series beside the frames")
+    if clipped_frames:
+        at_rest = integrated_volume(compare(clipped_frames[0]))
+        volume = integrated_volume(first)
+        check(abs(at_rest - volume) < 1e-9 * volume,
+              f"the first clipped frame integrates to {at_rest}, the body is {volume}")
 
     if failures:
         print(f"{len(failures)} failures")

@@ -33,7 +33,9 @@ class FrameSink {
 };
 
 /// A ParaView series: `DIR/NAME.pvd` and `DIR/NAME_NNNNNN.vtu` with current positions,
-/// displacement (m) and velocity (m/s), every `every`-th frame, the first and the last.
+/// displacement (m) and velocity (m/s), every `every`-th frame, the first and the last. An XFEM
+/// body's frames carry every element's material `fraction` from the first frame on, and a
+/// second series, `NAME_clipped.pvd`, holds the elements clipped to their sides.
 class VtuSeriesSink final : public FrameSink {
  public:
   /// `last_frame`: written even off the `every` grid (-1: unknown; end() writes it then).
@@ -47,6 +49,9 @@ class VtuSeriesSink final : public FrameSink {
   [[nodiscard]] const std::filesystem::path& pvd() const { return series_.path(); }
   /// The embedded visual surface's series (written only when the scene has one).
   [[nodiscard]] const std::filesystem::path& visual_pvd() const { return visual_series_.path(); }
+  /// An XFEM body's virtual elements clipped to their sides (written only for XFEM scenes):
+  /// what a reader that does not weigh by `fraction` should integrate.
+  [[nodiscard]] const std::filesystem::path& clipped_pvd() const { return clipped_series_.path(); }
 
  private:
   void write(const Engine& engine);
@@ -57,7 +62,8 @@ class VtuSeriesSink final : public FrameSink {
   int written_frame_ = -1;
   bool continue_series_;
   PvdSeries series_;
-  PvdSeries visual_series_;  ///< NAME_visual.pvd, when the scene has a visual surface
+  PvdSeries visual_series_;   ///< NAME_visual.pvd, when the scene has a visual surface
+  PvdSeries clipped_series_;  ///< NAME_clipped.pvd, when the scene cuts with XFEM
 };
 
 /// Records the blade pose of every frame to a blade-path CSV at the end, so a live session

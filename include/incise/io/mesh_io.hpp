@@ -89,10 +89,13 @@ struct VtuFields {
   std::vector<FieldArray> cell_data;
 };
 
-/// Writes a .vtu (binary appended, uncompressed) of the mesh at `positions` (one per vertex;
-/// empty means rest positions). Refuses NaN/Inf in positions or fields (InputError).
+/// Writes a .vtu (arrays inline, zlib-compressed, base64) of the mesh at `positions` (one per
+/// vertex; empty means rest positions). Refuses NaN/Inf in positions or fields (InputError).
 void write_vtu(const std::filesystem::path& path, const TetMesh& mesh,
                std::span<const Vec3> positions = {}, const VtuFields& fields = {});
+/// The same for tetrahedra that need not make a mesh (they may share no point, or overlap).
+void write_vtu(const std::filesystem::path& path, std::span<const Vec3> points,
+               std::span<const Tet> tets, const VtuFields& fields = {});
 
 /// A ParaView time series: each add() writes the .pvd anew so a partial run stays readable.
 class PvdSeries {
