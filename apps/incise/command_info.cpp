@@ -43,14 +43,23 @@ Runner add_info_command(CLI::App& app) {
       smallest = t == 0 ? v : std::min(smallest, v);
       largest = t == 0 ? v : std::max(largest, v);
     }
-    const double volume = total_volume(mesh);
+    // The material's volume: XFEM virtual elements count by their fraction (the two elements
+    // of a split tetrahedron hold it once between them).
+    double volume = 0.0;
+    std::size_t virtual_elements = 0;
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const double fraction = mesh.material_fraction(static_cast<TetId>(t));
+      volume += fraction * signed_volume(mesh, static_cast<TetId>(t));
+      virtual_elements += fraction < 1.0 ? 1 : 0;
+    }
     const bool valid = report.ok();
     // Regions by label: tetrahedra and volume (m^3 if the file is in metres).
     std::map<int, std::pair<std::size_t, double>> regions;
     for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
       auto& [count, region_volume] = regions[mesh.tet_label(static_cast<TetId>(t))];
       ++count;
-      region_volume += signed_volume(mesh, static_cast<TetId>(t));
+      region_volume += mesh.material_fraction(static_cast<TetId>(t)) *
+                       signed_volume(mesh, static_cast<TetId>(t));
     }
 
     if (*as_json) {
@@ -61,6 +70,7 @@ Runner add_info_command(CLI::App& app) {
       out["tets"] = mesh.tet_count();
       out["edges"] = mesh.edge_count();
       out["volume"] = volume;
+      out["virtual_elements"] = virtual_elements;
       out["min_tet_volume"] = smallest;
       out["max_tet_volume"] = largest;
       out["bounding_box"] = {{"min", {low.x(), low.y(), low.z()}},

@@ -246,6 +246,19 @@ TetMeshReadResult read_tet_mesh(const std::filesystem::path& path, const ReadOpt
   TetMeshReadResult result{
       TetMesh(std::move(points), std::move(raw.tets), std::move(raw.tet_labels)), raw.format,
       std::move(raw.notes), dropped};
+  if (raw.tet_fractions.size() == result.mesh.tet_count()) {
+    std::size_t partial = 0;
+    for (std::size_t t = 0; t < raw.tet_fractions.size(); ++t) {
+      result.mesh.set_material_fraction(static_cast<TetId>(t), raw.tet_fractions[t]);
+      partial += raw.tet_fractions[t] < 1.0 ? 1 : 0;
+    }
+    if (partial > 0) {
+      result.notes.push_back(fmt::format(
+          "{} virtual elements (XFEM: cell array 'fraction' below 1): each holds that share of "
+          "its tetrahedron, and the two of a split tetrahedron overlap by design",
+          partial));
+    }
+  }
   return result;
 }
 

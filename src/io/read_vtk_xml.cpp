@@ -126,7 +126,11 @@ class VtkXmlReader {
     if (pieces == 0) {
       fail_at(grid, "no <Piece> element");
     }
-    return builder_.finish(MeshFormat::kVtkXml);
+    RawMesh raw = builder_.finish(MeshFormat::kVtkXml);
+    if (any_fraction_) {
+      raw.tet_fractions = std::move(fractions_);
+    }
+    return raw;
   }
 
  private:
@@ -224,6 +228,7 @@ class VtkXmlReader {
     }
     const std::vector<double> types = values(types_node, cell_count, "types");
     const std::vector<double> labels = region_labels(piece, cell_count);
+    const std::vector<double> fractions = material_fractions(piece, cell_count);
     for (std::size_t c = 0; c < cell_count; ++c) {
       const std::size_t begin = c == 0 ? 0 : static_cast<std::size_t>(offsets[c - 1]);
       const std::size_t size = static_cast<std::size_t>(offsets[c]) - begin;
@@ -238,6 +243,7 @@ class VtkXmlReader {
       if ((type == 10 && size == 4) || (type == 24 && size == 10)) {
         builder_.add_tet({id(0), id(1), id(2), id(3)},
                          labels.empty() ? 0 : static_cast<long long>(labels[c]));
+        fractions_.push_back(fractions.empty() ? 1.0 : fractions[c]);
         if (type == 24) {
           builder_.skip("mid-edge nodes (kept the corners of quadratic tetrahedra)", 6);
         }
@@ -250,6 +256,27 @@ class VtkXmlReader {
         builder_.skip(vtk_cell_name(type));
       }
     }
+  }
+
+  /// XFEM material fractions per cell (the one-component cell array "fraction" incise writes
+  /// for virtual elements), or none; each must lie in (0, 1].
+  std::vector<double> material_fractions(const pugi::xml_node& piece, std::size_t cell_count) {
+    for (const pugi::xml_node array : piece.child("CellData").children("DataArray")) {
+      if (std::string(array.attribute("Name").as_string()) != "fraction" ||
+          array.attribute("NumberOfComponents").as_int(1) != 1) {
+        continue;
+      }
+      std::vector<double> fractions = values(array, cell_count, "material fractions");
+      for (std::size_t c = 0; c < fractions.size(); ++c) {
+        if (!(fractions[c] > 0.0 && fractions[c] <= 1.0)) {
+          fail_at(array, "cell " + std::to_string(c) + ": material fraction " +
+                             fmt::format("{}", fractions[c]) + " is not in (0, 1]");
+        }
+      }
+      any_fraction_ = true;
+      return fractions;
+    }
+    return {};
   }
 
   /// Region labels per cell: the CellData array named by the caller, else the first
@@ -560,6 +587,8 @@ class VtkXmlReader {
   bool compressed_ = false;
   std::size_t header_bytes_ = 4;
   std::string label_array_;
+  std::vector<double> fractions_;  ///< per tetrahedron read (1 where the file has none)
+  bool any_fraction_ = false;
 };
 
 }  // namespace

@@ -914,7 +914,17 @@ TEST(Cli, CutWithXfemSeparatesTheLiverWithFewerDofs) {
   // The virtual elements are readable, fractions and all.
   const CommandResult info = incise("info --json " + (dir / "xfem.vtu").string());
   ASSERT_LE(info.code, 1) << info.err;  // virtual elements overlap in rest space by design
-  EXPECT_EQ(nlohmann::json::parse(info.out)["tets"], x["tets_out"]);
+  const auto described = nlohmann::json::parse(info.out);
+  EXPECT_EQ(described["tets"], x["tets_out"]);
+  // incise info weighs each virtual element by its fraction: the liver's true volume, not
+  // the overlapping elements' (which count every split tetrahedron twice).
+  EXPECT_NEAR(described["volume"].get<double>(), x["volume_out"].get<double>(),
+              1e-9 * x["volume_out"].get<double>());
+  EXPECT_EQ(described["virtual_elements"].get<int>(), 2 * x["elements_split"].get<int>());
+  // Beside the file, the elements clipped to their sides, and the report says where.
+  EXPECT_TRUE(std::filesystem::exists(dir / "xfem_clipped.vtu"));
+  EXPECT_NEAR(x["clipped_volume"].get<double>(), x["volume_in"].get<double>(),
+              1e-9 * x["volume_in"].get<double>());
   // Anything but .vtu is refused with a clear message.
   const CommandResult obj = incise(common + "--method xfem -o " + (dir / "x.obj").string());
   EXPECT_EQ(obj.code, 2);

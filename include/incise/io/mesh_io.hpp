@@ -36,6 +36,8 @@ struct RawMesh {
   std::vector<Vec3> points;
   std::vector<Tet> tets;
   std::vector<int> tet_labels;  ///< region label per tetrahedron (0 where the file has none)
+  /// XFEM material fraction per tetrahedron (a .vtu's "fraction" cell array), else empty.
+  std::vector<double> tet_fractions;
   std::vector<Triangle> triangles;
   /// Human-readable notes ("skipped 120 hexahedra"), one per kind of thing skipped.
   std::vector<std::string> notes;
