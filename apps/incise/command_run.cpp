@@ -19,6 +19,7 @@
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/engine/engine.hpp"
+#include "incise/mesh/validate.hpp"
 #include "incise/solve/integrators.hpp"
 #include "incise/view/render_sink.hpp"
 #include "incise/view/session_recording.hpp"
@@ -274,8 +275,10 @@ Runner add_run_command(CLI::App& app) {
     if (!result.frames.empty()) {
       const FrameRecord& last = result.frames.back();
       std::cout << fmt::format(
-          "final: t = {:.4g} s, kinetic energy {:.4g} J, max displacement {:.4g} m, {} tets\n",
-          last.time, last.kinetic_energy, last.max_displacement, last.tets);
+          "final: t = {:.4g} s, kinetic energy {:.4g} J, max displacement {:.4g} m, {} tets, {} "
+          "inverted\n",
+          last.time, last.kinetic_energy, last.max_displacement, last.tets,
+          inverted_at(engine->mesh(), engine->positions()).size());
     }
     std::cout << "ParaView series: " << series.pvd().string() << "\n";
     if (engine->visual() != nullptr) {
@@ -298,6 +301,8 @@ Runner add_run_command(CLI::App& app) {
       report["kinetic_energy"] = result.frames.empty() ? 0.0 : result.frames.back().kinetic_energy;
       report["max_displacement"] =
           result.frames.empty() ? 0.0 : result.frames.back().max_displacement;
+      // Turned inside out in the final state (the rest shape is checked when the mesh loads).
+      report["inverted_tets"] = inverted_at(engine->mesh(), engine->positions()).size();
       report["diverged"] = result.diverged;
       if (result.diverged) {
         report["divergence"] = result.divergence;

@@ -8,6 +8,20 @@
 
 namespace incise {
 
+std::vector<TetId> inverted_at(const TetMesh& mesh, std::span<const Vec3> positions) {
+  std::vector<TetId> inverted;
+  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    if (!(signed_volume(positions[static_cast<std::size_t>(tet[0])],
+                        positions[static_cast<std::size_t>(tet[1])],
+                        positions[static_cast<std::size_t>(tet[2])],
+                        positions[static_cast<std::size_t>(tet[3])]) > 0.0)) {
+      inverted.push_back(static_cast<TetId>(t));
+    }
+  }
+  return inverted;
+}
+
 double normalized_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   const double squared_sum = (b - a).squaredNorm() + (c - a).squaredNorm() + (d - a).squaredNorm() +
                              (c - b).squaredNorm() + (d - b).squaredNorm() + (d - c).squaredNorm();

@@ -8,6 +8,15 @@
 
 namespace incise {
 
+std::array<Vec3, 4> volume_gradient(const std::array<Vec3, 4>& x) {
+  const Vec3 e1 = x[1] - x[0];
+  const Vec3 e2 = x[2] - x[0];
+  const Vec3 e3 = x[3] - x[0];
+  std::array<Vec3, 4> g{Vec3::Zero(), e2.cross(e3) / 6.0, e3.cross(e1) / 6.0, e1.cross(e2) / 6.0};
+  g[0] = -(g[1] + g[2] + g[3]);
+  return g;
+}
+
 MassSpringModel::MassSpringModel(TetMesh& mesh, const Material& material,
                                  const MassSpringParameters& parameters)
     : MassSpringModel(mesh, MaterialAssignment::uniform(material), parameters) {}
@@ -20,9 +29,13 @@ MassSpringModel::MassSpringModel(TetMesh& mesh, const MaterialAssignment& materi
       tet_mass_(mesh, 0.0, TetRule::kDefault),
       masses_(mesh, 0.0, VertexRule::kDefault),
       springs_(mesh, Spring{}, EdgeRule::kDefault),
+      volume_terms_(mesh, {0.0, 0.0}, TetRule::kDefault),
       marks_(mesh) {
   if (!(parameters_.prestrain >= 0.0 && parameters_.prestrain < 1.0)) {
     throw InputError("prestrain must lie in [0, 1)");
+  }
+  if (!(parameters_.volume_stiffness >= 0.0) || !std::isfinite(parameters_.volume_stiffness)) {
+    throw InputError("volume stiffness must be non-negative");
   }
   if (!(parameters_.spring_damping_ratio >= 0.0) ||
       !std::isfinite(parameters_.spring_damping_ratio)) {
@@ -48,6 +61,7 @@ MassSpringModel::~MassSpringModel() {
 
 void MassSpringModel::on_tet_added(const TetMesh& mesh, TetId tet) {
   tet_mass_[tet] = materials_.of(tet).density * std::abs(signed_volume(mesh, tet));
+  volume_terms_[tet] = volume_term(tet);
 }
 
 void MassSpringModel::load_state(StateReader& /*in*/) {
@@ -135,6 +149,18 @@ void MassSpringModel::refresh() {
           parameters_.spring_damping_ratio * 2.0 * std::sqrt(spring.stiffness * reduced);
     }
   }
+  // Volume terms of the tetrahedra at touched vertices (new ones, changed fractions).
+  if (marks_.size() == mesh.vertex_count()) {
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      volume_terms_[static_cast<TetId>(t)] = volume_term(static_cast<TetId>(t));
+    }
+  } else {
+    for (VertexId v : marks_.marked()) {
+      for (TetId t : mesh.vertex_tets(v)) {
+        volume_terms_[t] = volume_term(t);
+      }
+    }
+  }
   update_frequency_rows();
   marks_.clear();
 }
@@ -153,6 +179,27 @@ double MassSpringModel::frequency_row(VertexId vertex) const {
     const double stiffness = springs_[edges[k]].stiffness;
     const double mw = masses_[neighbours[k]];
     row += stiffness / mv + (mw > 0.0 ? stiffness / std::sqrt(mv * mw) : 0.0);
+  }
+  // The volume terms' blocks at rest, kappa / V0 g_v g_w^T, bounded by their norms.
+  if (parameters_.volume_stiffness > 0.0) {
+    for (TetId t : mesh_->vertex_tets(vertex)) {
+      const auto [kappa, rest_volume] = volume_terms_[t];
+      if (rest_volume <= 0.0) {
+        continue;
+      }
+      const Tet& tet = mesh_->tet(t);
+      const auto g = volume_gradient(rest_corners(*mesh_, t));
+      std::size_t own = 0;
+      while (tet[own] != vertex) {
+        ++own;
+      }
+      for (std::size_t k = 0; k < 4; ++k) {
+        const double mw = masses_[tet[k]];
+        if (mw > 0.0) {
+          row += kappa / rest_volume * g[own].norm() * g[k].norm() / std::sqrt(mv * mw);
+        }
+      }
+    }
   }
   return row;
 }
@@ -190,6 +237,28 @@ Vec3 MassSpringModel::spring_force(const Spring& spring, const Vec3& xa, const V
   return (spring.stiffness * (length - spring.rest_length) + spring.damping * (vb - va).dot(u)) * u;
 }
 
+std::pair<double, double> MassSpringModel::volume_term(TetId tet) const {
+  const double shrink = 1.0 - parameters_.prestrain;
+  const double rest_volume = shrink * shrink * shrink * std::abs(signed_volume(*mesh_, tet));
+  const double kappa = parameters_.volume_stiffness * materials_.of(tet).young_modulus *
+                       mesh_->material_fraction(tet);
+  return {kappa, rest_volume};
+}
+
+std::array<Vec3, 4> MassSpringModel::volume_forces(TetId tet, const std::array<Vec3, 4>& x) const {
+  const auto [kappa, rest_volume] = volume_term(tet);
+  std::array<Vec3, 4> g = volume_gradient(x);
+  if (rest_volume <= 0.0) {
+    return {Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  }
+  const double volume = signed_volume(x[0], x[1], x[2], x[3]);
+  const double pressure = -kappa * (volume - rest_volume) / rest_volume;  // Pa
+  for (Vec3& gk : g) {
+    gk *= pressure;
+  }
+  return g;
+}
+
 void MassSpringModel::add_forces(std::span<const Vec3> x, std::span<const Vec3> v,
                                  std::span<Vec3> f) const {
   const TetMesh& mesh = *mesh_;
@@ -199,6 +268,16 @@ void MassSpringModel::add_forces(std::span<const Vec3> x, std::span<const Vec3> 
     f[a] += force;
     f[b] -= force;
   }
+  if (parameters_.volume_stiffness > 0.0) {
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const Tet& tet = mesh.tet(static_cast<TetId>(t));
+      const auto forces =
+          volume_forces(static_cast<TetId>(t), {x[tet[0]], x[tet[1]], x[tet[2]], x[tet[3]]});
+      for (std::size_t k = 0; k < 4; ++k) {
+        f[tet[k]] += forces[k];
+      }
+    }
+  }
 }
 
 Vec3 MassSpringModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v,
@@ -206,11 +285,55 @@ Vec3 MassSpringModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v
   Vec3 force = Vec3::Zero();
   const auto edges = edges_at_.row(static_cast<std::size_t>(vertex));
   const auto neighbours = neighbours_.row(static_cast<std::size_t>(vertex));
+  // Each neighbour's state is asked for once (the volume terms read them again).
+  constexpr std::size_t kKept = 64;
+  std::array<Vec3, kKept> kept;
   for (std::size_t k = 0; k < edges.size(); ++k) {
     Vec3 xb;
     Vec3 vb;
     neighbor(neighbours[k], xb, vb);
     force += spring_force(springs_[edges[k]], x, v, xb, vb);
+    if (k < kKept) {
+      kept[k] = xb;
+    }
+  }
+  if (parameters_.volume_stiffness > 0.0) {
+    // Each tetrahedron's other corners are edge neighbours. Only this corner's share: d V / d
+    // x_own is a third of the opposite face's area along its inward normal.
+    const auto position_of = [&](VertexId w) {
+      for (std::size_t k = 0; k < neighbours.size() && k < kKept; ++k) {
+        if (neighbours[k] == w) {
+          return kept[k];
+        }
+      }
+      Vec3 xw;
+      Vec3 vw;
+      neighbor(w, xw, vw);
+      return xw;
+    };
+    for (TetId t : mesh_->vertex_tets(vertex)) {
+      const auto [kappa, rest_volume] = volume_terms_[t];
+      if (rest_volume <= 0.0) {
+        continue;
+      }
+      const Tet& tet = mesh_->tet(t);
+      std::array<Vec3, 4> corners;
+      std::size_t own = 0;
+      for (std::size_t k = 0; k < 4; ++k) {
+        if (tet[k] == vertex) {
+          corners[k] = x;
+          own = k;
+        } else {
+          corners[k] = position_of(tet[k]);
+        }
+      }
+      const auto& face = tet_local::kFaces[own];
+      const Vec3& f0 = corners[static_cast<std::size_t>(face[0])];
+      const Vec3 outward = (corners[static_cast<std::size_t>(face[1])] - f0)
+                               .cross(corners[static_cast<std::size_t>(face[2])] - f0);
+      const double volume = signed_volume(corners[0], corners[1], corners[2], corners[3]);
+      force += kappa * (volume - rest_volume) / rest_volume / 6.0 * outward;
+    }
   }
   return force;
 }
@@ -241,6 +364,14 @@ void MassSpringModel::prepare_linearization(std::span<const Vec3> x, std::span<c
     stiffness_blocks_[e] = spring.stiffness * (axial + transverse * (Mat3::Identity() - axial));
     damping_blocks_[e] = spring.damping * axial;
   }
+  volume_coefficients_.assign(parameters_.volume_stiffness > 0.0 ? mesh.tet_count() : 0, 0.0);
+  volume_gradients_.resize(volume_coefficients_.size());
+  for (std::size_t t = 0; t < volume_coefficients_.size(); ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    const auto [kappa, rest_volume] = volume_terms_[static_cast<TetId>(t)];
+    volume_coefficients_[t] = rest_volume > 0.0 ? kappa / rest_volume : 0.0;
+    volume_gradients_[t] = volume_gradient({x[tet[0]], x[tet[1]], x[tet[2]], x[tet[3]]});
+  }
 }
 
 void MassSpringModel::add_linearized_product(double a, double b, std::span<const Vec3> p,
@@ -254,6 +385,18 @@ void MassSpringModel::add_linearized_product(double a, double b, std::span<const
     y[i] += product;
     y[j] -= product;
   }
+  for (std::size_t t = 0; t < volume_coefficients_.size(); ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    const auto& g = volume_gradients_[t];
+    double along = 0.0;
+    for (std::size_t k = 0; k < 4; ++k) {
+      along += g[k].dot(p[tet[k]]);
+    }
+    const double scale = a * volume_coefficients_[t] * along;
+    for (std::size_t k = 0; k < 4; ++k) {
+      y[tet[k]] += scale * g[k];
+    }
+  }
 }
 
 void MassSpringModel::add_linearized_diagonal(double a, double b, std::span<Mat3> diagonal) const {
@@ -263,6 +406,13 @@ void MassSpringModel::add_linearized_diagonal(double a, double b, std::span<Mat3
     const Mat3 block = a * stiffness_blocks_[e] + b * damping_blocks_[e];
     diagonal[i] += block;
     diagonal[j] += block;
+  }
+  for (std::size_t t = 0; t < volume_coefficients_.size(); ++t) {
+    const Tet& tet = mesh.tet(static_cast<TetId>(t));
+    for (std::size_t k = 0; k < 4; ++k) {
+      const Vec3& g = volume_gradients_[t][k];
+      diagonal[tet[k]] += a * volume_coefficients_[t] * (g * g.transpose());
+    }
   }
 }
 
@@ -274,6 +424,17 @@ double MassSpringModel::elastic_energy(std::span<const Vec3> x) const {
     const Spring& spring = springs_[static_cast<EdgeId>(e)];
     const double stretch = (x[b] - x[a]).norm() - spring.rest_length;
     energy += 0.5 * spring.stiffness * stretch * stretch;
+  }
+  if (parameters_.volume_stiffness > 0.0) {
+    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const Tet& tet = mesh.tet(static_cast<TetId>(t));
+      const auto [kappa, rest_volume] = volume_terms_[static_cast<TetId>(t)];
+      if (rest_volume > 0.0) {
+        const double strain =
+            (signed_volume(x[tet[0]], x[tet[1]], x[tet[2]], x[tet[3]]) - rest_volume) / rest_volume;
+        energy += 0.5 * kappa * rest_volume * strain * strain;
+      }
+    }
   }
   return energy;
 }

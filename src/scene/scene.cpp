@@ -273,9 +273,9 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   // model
   bool fem_tangent_given = false;
   if (top.has("model")) {
-    const ObjectReader model(
-        context, top.at("model"), "model",
-        {"type", "spring_damping_ratio", "prestrain", "rayleigh", "tangent", "assemble"});
+    const ObjectReader model(context, top.at("model"), "model",
+                             {"type", "spring_damping_ratio", "prestrain", "volume_stiffness",
+                              "rayleigh", "tangent", "assemble"});
     scene.model_type = model.choice<ModelKind>("type", ModelKind::kMassSpring, kModels, "model");
     if (scene.model_type == ModelKind::kMassSpring) {
       for (const char* key : {"rayleigh", "tangent", "assemble"}) {
@@ -289,8 +289,10 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
       if (scene.mass_spring.prestrain >= 1.0) {
         context.fail("model.prestrain", "must be below 1");
       }
+      scene.mass_spring.volume_stiffness =
+          model.non_negative("volume_stiffness", scene.mass_spring.volume_stiffness);
     } else {
-      for (const char* key : {"spring_damping_ratio", "prestrain"}) {
+      for (const char* key : {"spring_damping_ratio", "prestrain", "volume_stiffness"}) {
         if (model.has(key)) {
           context.fail(std::string("model.") + key, "applies to mass-spring only");
         }

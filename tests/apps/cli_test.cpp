@@ -213,6 +213,20 @@ TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
   EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
 }
 
+TEST(Cli, TheDefaultSceneEndsWithNoTetrahedronInsideOut) {
+  // The main job (150 frames): with springs alone 46 of its 936 tetrahedra ended inside out;
+  // the mass-spring volume term keeps every one right side out, and the report counts them.
+  const auto dir = test::scratch_dir("cli-run-default-inverted");
+  const std::string report = (dir / "report.json").string();
+  const CommandResult run = incise("run --out " + (dir / "out").string() + " --report " + report);
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto json = nlohmann::json::parse(slurp(report));
+  ASSERT_TRUE(json.contains("inverted_tets"));
+  EXPECT_EQ(json["inverted_tets"].template get<int>(), 0);
+  EXPECT_GT(json["tets"].template get<int>(), 900);  // cut through
+  EXPECT_NE(run.out.find(", 0 inverted"), std::string::npos) << run.out;
+}
+
 TEST(Cli, RunTheDefaultSceneWithAReport) {
   const auto dir = test::scratch_dir("cli-run-default");
   const std::string report = (dir / "report.json").string();

@@ -2,6 +2,7 @@
 // Mesh validation: every problem is reported with the ids of the elements involved.
 
 #include <array>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -34,6 +35,10 @@ struct ValidationReport {
 };
 
 [[nodiscard]] ValidationReport validate(const TetMesh& mesh, const ValidationOptions& options = {});
+
+/// Tetrahedra turned inside out (signed volume zero or below) at `positions` (one per vertex):
+/// the deformed state, where validate() looks at the rest shape.
+[[nodiscard]] std::vector<TetId> inverted_at(const TetMesh& mesh, std::span<const Vec3> positions);
 
 /// Normalised volume of a tetrahedron: 1 for the regular one, 0 when flat, negative inverted.
 [[nodiscard]] double normalized_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);

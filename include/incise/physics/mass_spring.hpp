@@ -1,8 +1,14 @@
 #pragma once
 // Mass-spring tissue after Bielser et al. (seed 000, section 5): a mass at every vertex, a
-// damped spring on every tetrahedron edge. All data lives in attribute containers of the mesh,
-// and the model updates only what an edit touched.
+// damped spring on every tetrahedron edge. Springs alone do not resist a tetrahedron turning
+// inside out (a corner can pass through the opposite face with every edge at its length), so
+// each tetrahedron also keeps its volume: Teschner et al.'s F_V (the planning seed), energy
+// kappa V0 ((V - V0) / V0)^2 / 2 with kappa a share of the tetrahedron's Young's modulus.
+// All data lives in attribute containers of the mesh, and the model updates only what an edit
+// touched.
 
+#include <array>
+#include <utility>
 #include <vector>
 
 #include "incise/core/packed_rows.hpp"
@@ -22,7 +28,15 @@ struct MassSpringParameters {
   /// Springs rest at (1 - prestrain) times their initial length, so the tissue is under
   /// tension and a cut opens (dimensionless, in [0, 1)).
   double prestrain = 0.0;
+  /// kappa of each tetrahedron's volume term as a share of its Young's modulus
+  /// (dimensionless; 0: springs only, as the seed). Its rest volume is the one its springs
+  /// rest at: (1 - prestrain)^3 times its initial volume.
+  double volume_stiffness = 0.1;
 };
+
+/// d V / d x_k of a tetrahedron's signed volume V = (x1 - x0) . ((x2 - x0) x (x3 - x0)) / 6
+/// (m^2): a third of each face's area times its inward normal, for the corner opposite it.
+[[nodiscard]] std::array<Vec3, 4> volume_gradient(const std::array<Vec3, 4>& x);
 
 /// A damped linear spring.
 struct Spring {
@@ -90,6 +104,11 @@ class MassSpringModel final : public ForceModel,
   /// Spring force on vertex a from the spring to b (the force on b is its negative).
   [[nodiscard]] Vec3 spring_force(const Spring& spring, const Vec3& xa, const Vec3& va,
                                   const Vec3& xb, const Vec3& vb) const;
+  /// A tetrahedron's volume stiffness kappa (Pa, weighted by its material fraction) and rest
+  /// volume V0 (m^3), from the mesh (volume_terms_ holds them).
+  [[nodiscard]] std::pair<double, double> volume_term(TetId tet) const;
+  /// The volume forces (N) on the corners of a tetrahedron at `x`.
+  [[nodiscard]] std::array<Vec3, 4> volume_forces(TetId tet, const std::array<Vec3, 4>& x) const;
 
   TetMesh* mesh_;
   MaterialMap materials_;
@@ -99,6 +118,9 @@ class MassSpringModel final : public ForceModel,
   TetData<double> tet_mass_;
   VertexData<double> masses_;  ///< lumped: a quarter of each adjacent tetrahedron's mass
   EdgeData<Spring> springs_;
+  /// Per tetrahedron: kappa (Pa) and rest volume V0 (m^3) of its volume term, refreshed with
+  /// the springs around the vertices an edit touched.
+  TetData<std::pair<double, double>> volume_terms_;
 
   VertexMarks marks_;  ///< the vertices edits touched since the last refresh
   std::uint64_t adjacency_revision_ = ~std::uint64_t{0};  ///< mesh revision refresh() last saw
@@ -113,6 +135,10 @@ class MassSpringModel final : public ForceModel,
   // Linearisation: per-edge stiffness and damping blocks.
   std::vector<Mat3> stiffness_blocks_;
   std::vector<Mat3> damping_blocks_;
+  /// Per tetrahedron: kappa / V0 (Pa/m^3) and the volume gradient: the Gauss-Newton part of
+  /// the volume term's Hessian, kappa / V0 g g^T (positive semi-definite).
+  std::vector<double> volume_coefficients_;
+  std::vector<std::array<Vec3, 4>> volume_gradients_;
 };
 
 }  // namespace incise
