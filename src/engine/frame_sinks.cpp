@@ -50,6 +50,7 @@ void VtuSeriesSink::write(const Engine& engine) {
     }
   }
   VtuFields fields;
+  fields.time = engine.time();
   fields.point_data.push_back({"displacement", 3, std::move(displacement)});
   fields.point_data.push_back({"velocity", 3, std::move(velocity)});
   // A body of several materials shows which is where (ParaView: colour by "material").
@@ -80,6 +81,7 @@ void VtuSeriesSink::write(const Engine& engine) {
   if (const XfemCutter* cutter = engine.xfem_cutter()) {
     const ClippedElements clipped = clip_virtual_elements(mesh, *cutter, state.x.values());
     VtuFields clipped_fields;
+    clipped_fields.time = engine.time();
     clipped_fields.cell_data.push_back(
         {"element", 1, std::vector<std::int32_t>(clipped.element.begin(), clipped.element.end())});
     clipped_fields.cell_data.push_back({"fraction", 1, clipped.fraction});
@@ -90,6 +92,7 @@ void VtuSeriesSink::write(const Engine& engine) {
   // The embedded visual surface at the same frames: its own series (ParaView opens both).
   if (const VisualSurface* visual = engine.visual()) {
     VtuFields surface_fields;
+    surface_fields.time = engine.time();
     surface_fields.cell_data.push_back(
         {"on_cut", 1, std::vector<std::int32_t>(visual->on_cut().begin(), visual->on_cut().end())});
     const std::string surface_file = fmt::format("{}_visual_{:06d}.vtp", name_, engine.frame());

@@ -439,6 +439,18 @@ void add_field(CompressedVtkXml& document, const std::filesystem::path& path,
 
 namespace {
 
+/// The time of a frame as VTK's TimeValue field data (what ParaView shows for a single file).
+void add_time_value(CompressedVtkXml& document, const VtuFields& fields) {
+  if (!fields.time) {
+    return;
+  }
+  std::string bytes;
+  append_raw(bytes, *fields.time);
+  document.xml += "    <FieldData>\n";
+  document.add_array("type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\"", bytes);
+  document.xml += "    </FieldData>\n";
+}
+
 /// A .vtu of tetrahedra `tets` over `points`, region labels (none when empty) first.
 void write_tet_vtu(const std::filesystem::path& path, std::span<const Vec3> positions,
                    std::span<const Tet> tets, std::span<const int> labels,
@@ -463,9 +475,10 @@ void write_tet_vtu(const std::filesystem::path& path, std::span<const Vec3> posi
   xml += fmt::format(
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
       "byte_order=\"{}\" header_type=\"UInt64\" compressor=\"vtkZLibDataCompressor\">\n  "
-      "<UnstructuredGrid>\n    <Piece "
-      "NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n",
-      host_byte_order(), n_points, n_cells);
+      "<UnstructuredGrid>\n",
+      host_byte_order());
+  add_time_value(document, fields);
+  xml += fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", n_points, n_cells);
   xml += "      <PointData>\n";
   for (const FieldArray& field : fields.point_data) {
     field_xml(field, n_points);
@@ -526,11 +539,12 @@ void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
   CompressedVtkXml document;
   document.xml = fmt::format(
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"{}\" "
-      "header_type=\"UInt64\" compressor=\"vtkZLibDataCompressor\">\n  <PolyData>\n    <Piece "
-      "NumberOfPoints=\"{}\" "
-      "NumberOfPolys=\"{}\">\n"
-      "      <PointData>\n",
-      host_byte_order(), points.size(), triangles.size());
+      "header_type=\"UInt64\" compressor=\"vtkZLibDataCompressor\">\n  <PolyData>\n",
+      host_byte_order());
+  add_time_value(document, fields);
+  document.xml +=
+      fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfPolys=\"{}\">\n      <PointData>\n",
+                  points.size(), triangles.size());
   for (const FieldArray& field : fields.point_data) {
     add_field(document, path, field, points.size());
   }
@@ -578,7 +592,9 @@ void PvdSeries::add(double time, const std::string& file) {
   std::string xml =
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n";
   for (const auto& [entry_time, entry_file] : entries_) {
-    xml += fmt::format("    <DataSet timestep=\"{}\" group=\"\" part=\"0\" file=\"{}\"/>\n",
+    // 12 significant digits: a time summed from frame steps shows as 0.35, not as
+    // 0.35000000000000003.
+    xml += fmt::format("    <DataSet timestep=\"{:.12g}\" group=\"\" part=\"0\" file=\"{}\"/>\n",
                        entry_time, entry_file);
   }
   xml += "  </Collection>\n</VTKFile>\n";

@@ -139,6 +139,20 @@ def main():
     check(len(written) > 0, "incise run wrote no .vtu frame")
     for frame in written[:2]:
         compare(frame)
+    # Each frame holds its time (VTK's TimeValue field data, what ParaView shows for a single
+    # file), the one the .pvd lists, written without float noise (0.03, not 0.030000000000000002).
+    import xml.etree.ElementTree as ElementTree
+    listed = {Path(d.get("file")).name: d.get("timestep")
+              for d in ElementTree.parse(frames / "xfem_cut_pull.pvd").getroot().iter("DataSet")}
+    for frame in written[:2]:
+        data = vtk_read(frame)
+        time = data.GetFieldData().GetArray("TimeValue")
+        check(time is not None, f"{frame.name}: no TimeValue field data")
+        if time is not None and frame.name in listed:
+            check(abs(time.GetValue(0) - float(listed[frame.name])) < 1e-12,
+                  f"{frame.name}: TimeValue {time.GetValue(0)}, the .pvd says {listed[frame.name]}")
+    for name, timestep in listed.items():
+        check(len(timestep) <= 14, f"{name}: timestep '{timestep}' carries float noise")
     # ParaView's series reader offers the arrays of the first frame: `fraction` is there.
     first = vtk_read(frames / "xfem_cut_pull_000000.vtu")
     check(first.GetCellData().GetArray("fraction") is not None,

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -89,6 +90,8 @@ struct FieldArray {
 struct VtuFields {
   std::vector<FieldArray> point_data;
   std::vector<FieldArray> cell_data;
+  /// s: written as the file's TimeValue field data (a frame of a series), if given.
+  std::optional<double> time;
 };
 
 /// Writes a .vtu (arrays inline, zlib-compressed, base64) of the mesh at `positions` (one per
