@@ -465,6 +465,54 @@ void write_tet_vtu(const std::filesystem::path& path, std::span<const Vec3> posi
       }
     }
   }
+  // Points no tetrahedron uses (a cut's leftovers) are left out: they would stretch every
+  // point array's range in ParaView and carry no material.
+  std::vector<VertexId> new_index(n_points, kInvalidId);
+  for (const Tet& tet : tets) {
+    for (VertexId v : tet) {
+      new_index[static_cast<std::size_t>(v)] = 0;
+    }
+  }
+  std::vector<std::size_t> kept;
+  for (std::size_t v = 0; v < n_points; ++v) {
+    if (new_index[v] != kInvalidId) {
+      new_index[v] = static_cast<VertexId>(kept.size());
+      kept.push_back(v);
+    }
+  }
+  if (kept.size() < n_points) {
+    std::vector<Vec3> used_positions;
+    used_positions.reserve(kept.size());
+    for (std::size_t v : kept) {
+      used_positions.push_back(positions[v]);
+    }
+    std::vector<Tet> renumbered(tets.begin(), tets.end());
+    for (Tet& tet : renumbered) {
+      for (VertexId& v : tet) {
+        v = new_index[static_cast<std::size_t>(v)];
+      }
+    }
+    VtuFields used_fields = fields;
+    for (FieldArray& field : used_fields.point_data) {
+      const auto width = static_cast<std::size_t>(field.components);
+      std::visit(
+          [&](auto& values) {
+            if (values.size() != n_points * width) {
+              return;  // wrong size: refused as such below
+            }
+            std::remove_reference_t<decltype(values)> used;
+            used.reserve(kept.size() * width);
+            for (std::size_t v : kept) {
+              used.insert(used.end(), values.begin() + static_cast<std::ptrdiff_t>(v * width),
+                          values.begin() + static_cast<std::ptrdiff_t>((v + 1) * width));
+            }
+            values = std::move(used);
+          },
+          field.values);
+    }
+    write_tet_vtu(path, used_positions, renumbered, labels, used_fields);
+    return;
+  }
 
   CompressedVtkXml document;
   std::string& xml = document.xml;

@@ -70,6 +70,11 @@ def compare(path, expected_cells=None):
     check(cells > 0 and grid.GetNumberOfPoints() > 0, f"{path.name}: VTK reads nothing")
     if expected_cells is not None:
         check(cells == expected_cells, f"{path.name}: {cells} cells, incise reported {expected_cells}")
+    if grid.IsA("vtkUnstructuredGrid") and cells > 0:
+        # Every point is some cell's (unused ones would stretch every point array's range).
+        used = np.unique(vtk_to_numpy(grid.GetCells().GetConnectivityArray()))
+        check(len(used) == grid.GetNumberOfPoints(),
+              f"{path.name}: {grid.GetNumberOfPoints() - len(used)} points no cell uses")
     if path.suffix == ".vtu":
         mesh = meshio.read(path)
         check(np.array_equal(points, mesh.points), f"{path.name}: points differ between VTK and meshio")
@@ -113,7 +118,17 @@ def main():
     compare(work / "liver.vtu", info["tets"])
 
     run(incise, "cut", liver, "--blade", blade, "-o", work / "sub.vtu", "--report", work / "sub.json")
-    compare(work / "sub.vtu", json.loads((work / "sub.json").read_text())["tets_out"])
+    cut_tets = json.loads((work / "sub.json").read_text())["tets_out"]
+    compare(work / "sub.vtu", cut_tets)
+
+    # Gmsh and MEDIT files of the cut mesh, read by meshio: every tetrahedron, every point.
+    for suffix in (".msh", ".mesh"):
+        out = work / ("sub" + suffix)
+        run(incise, "convert", work / "sub.vtu", out)
+        mesh = meshio.read(out)
+        tets = sum(len(block.data) for block in mesh.cells if block.type == "tetra")
+        check(tets == cut_tets, f"{out.name}: meshio reads {tets} tetrahedra, incise wrote {cut_tets}")
+        print(f"{out.name}: {len(mesh.points)} points, {tets} tetrahedra (meshio)")
 
     # The case meshio misread before (raw appended data): XFEM's virtual elements.
     run(incise, "cut", liver, "--blade", blade, "--method", "xfem", "-o", work / "xfem.vtu",
