@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
@@ -213,18 +214,29 @@ TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
   EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
 }
 
-TEST(Cli, TheDefaultSceneEndsWithNoTetrahedronInsideOut) {
-  // The main job (150 frames): with springs alone 46 of its 936 tetrahedra ended inside out;
-  // the mass-spring volume term keeps every one right side out, and the report counts them.
+TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {
+  // The main job's scene (150 frames): with springs alone 46 of its 936 tetrahedra end inside
+  // out, and the report counts them; with the mass-spring volume term none does.
   const auto dir = test::scratch_dir("cli-run-default-inverted");
-  const std::string report = (dir / "report.json").string();
-  const CommandResult run = incise("run --out " + (dir / "out").string() + " --report " + report);
-  ASSERT_EQ(run.code, 0) << run.err;
-  const auto json = nlohmann::json::parse(slurp(report));
-  ASSERT_TRUE(json.contains("inverted_tets"));
-  EXPECT_EQ(json["inverted_tets"].template get<int>(), 0);
-  EXPECT_GT(json["tets"].template get<int>(), 900);  // cut through
-  EXPECT_NE(run.out.find(", 0 inverted"), std::string::npos) << run.out;
+  const std::string source = std::string(INCISE_SOURCE_DIR) + "/scenes/default.json";
+  auto scene = nlohmann::json::parse(slurp(source));
+  scene.erase("output");
+  std::map<double, int> inverted;
+  for (const double stiffness : {0.0, 0.1}) {
+    scene["model"]["volume_stiffness"] = stiffness;
+    const auto path = dir / ("scene_" + std::to_string(stiffness) + ".json");
+    std::ofstream(path) << scene.dump();
+    const std::string report = (dir / "report.json").string();
+    const CommandResult run =
+        incise("run " + path.string() + " --out " + (dir / "out").string() + " --report " + report);
+    ASSERT_EQ(run.code, 0) << run.err;
+    const auto json = nlohmann::json::parse(slurp(report));
+    ASSERT_TRUE(json.contains("inverted_tets"));
+    EXPECT_GT(json["tets"].template get<int>(), 900);  // cut through
+    inverted[stiffness] = json["inverted_tets"].template get<int>();
+  }
+  EXPECT_GT(inverted[0.0], 0);
+  EXPECT_EQ(inverted[0.1], 0);
 }
 
 TEST(Cli, RunTheDefaultSceneWithAReport) {

@@ -30,8 +30,10 @@ struct MassSpringParameters {
   double prestrain = 0.0;
   /// kappa of each tetrahedron's volume term as a share of its Young's modulus
   /// (dimensionless; 0: springs only, as the seed). Its rest volume is the one its springs
-  /// rest at: (1 - prestrain)^3 times its initial volume.
-  double volume_stiffness = 0.1;
+  /// rest at: (1 - prestrain)^3 times its initial volume. Off by default for now: 0.1 keeps
+  /// the default scene right side out but makes the hierarchical RK4's frames about 4x dearer
+  /// (BENCHMARKS.md, session 28).
+  double volume_stiffness = 0.0;
 };
 
 /// d V / d x_k of a tetrahedron's signed volume V = (x1 - x0) . ((x2 - x0) x (x3 - x0)) / 6
