@@ -14,6 +14,7 @@
 #include "commands.hpp"
 #include "incise/core/error.hpp"
 #include "incise/cut/blade.hpp"
+#include "incise/engine/frame_sink.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
@@ -92,13 +93,7 @@ int cut_xfem(const XfemCutRequest& request) {
   std::filesystem::path clipped_path = request.output;
   clipped_path.replace_filename(clipped_path.stem().string() + "_clipped.vtu");
   const ClippedElements clipped = clip_virtual_elements(mesh, cutter);
-  {
-    VtuFields clipped_fields;
-    clipped_fields.cell_data.push_back(
-        {"element", 1, std::vector<std::int32_t>(clipped.element.begin(), clipped.element.end())});
-    clipped_fields.cell_data.push_back({"fraction", 1, clipped.fraction});
-    write_vtu(clipped_path, clipped.points, clipped.tets, clipped_fields);
-  }
+  write_clipped_vtu(clipped_path, clipped);
   double clipped_volume = 0.0;  // mesh units cubed: what a reader integrates from that file
   for (const Tet& t : clipped.tets) {
     clipped_volume += signed_volume(clipped.points[static_cast<std::size_t>(t[0])],

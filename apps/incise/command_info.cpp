@@ -43,24 +43,22 @@ Runner add_info_command(CLI::App& app) {
       smallest = t == 0 ? v : std::min(smallest, v);
       largest = t == 0 ? v : std::max(largest, v);
     }
-    // The material's volume: XFEM virtual elements count by their fraction (the two elements
-    // of a split tetrahedron hold it once between them).
+    // The material's volume, in all and by region label (m^3 if the file is in metres): XFEM
+    // virtual elements count by their fraction (the two elements of a split tetrahedron hold
+    // it once between them).
     double volume = 0.0;
     std::size_t virtual_elements = 0;
-    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-      const double fraction = mesh.material_fraction(static_cast<TetId>(t));
-      volume += fraction * signed_volume(mesh, static_cast<TetId>(t));
-      virtual_elements += fraction < 1.0 ? 1 : 0;
-    }
-    const bool valid = report.ok();
-    // Regions by label: tetrahedra and volume (m^3 if the file is in metres).
     std::map<int, std::pair<std::size_t, double>> regions;
     for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
+      const double fraction = mesh.material_fraction(static_cast<TetId>(t));
+      const double material = fraction * signed_volume(mesh, static_cast<TetId>(t));
+      volume += material;
+      virtual_elements += fraction < 1.0 ? 1 : 0;
       auto& [count, region_volume] = regions[mesh.tet_label(static_cast<TetId>(t))];
       ++count;
-      region_volume += mesh.material_fraction(static_cast<TetId>(t)) *
-                       signed_volume(mesh, static_cast<TetId>(t));
+      region_volume += material;
     }
+    const bool valid = report.ok();
 
     if (*as_json) {
       nlohmann::ordered_json out;

@@ -24,6 +24,16 @@ std::filesystem::path created(const std::filesystem::path& dir) {
 
 }  // namespace
 
+void write_clipped_vtu(const std::filesystem::path& path, const ClippedElements& clipped,
+                       std::optional<double> time) {
+  VtuFields fields;
+  fields.time = time;
+  fields.cell_data.push_back(
+      {"element", 1, std::vector<std::int32_t>(clipped.element.begin(), clipped.element.end())});
+  fields.cell_data.push_back({"fraction", 1, clipped.fraction});
+  write_vtu(path, clipped.points, clipped.tets, fields);
+}
+
 VtuSeriesSink::VtuSeriesSink(const std::filesystem::path& dir, std::string name, int every,
                              int last_frame, bool continue_series)
     : dir_(created(dir)),
@@ -79,14 +89,9 @@ void VtuSeriesSink::write(const Engine& engine) {
   // The elements clipped to their sides: non-overlapping tetrahedra a volume integral counts
   // once (ParaView's Integrate Variables gives the body's true volume).
   if (const XfemCutter* cutter = engine.xfem_cutter()) {
-    const ClippedElements clipped = clip_virtual_elements(mesh, *cutter, state.x.values());
-    VtuFields clipped_fields;
-    clipped_fields.time = engine.time();
-    clipped_fields.cell_data.push_back(
-        {"element", 1, std::vector<std::int32_t>(clipped.element.begin(), clipped.element.end())});
-    clipped_fields.cell_data.push_back({"fraction", 1, clipped.fraction});
     const std::string clipped_file = fmt::format("{}_clipped_{:06d}.vtu", name_, engine.frame());
-    write_vtu(dir_ / clipped_file, clipped.points, clipped.tets, clipped_fields);
+    write_clipped_vtu(dir_ / clipped_file, clip_virtual_elements(mesh, *cutter, state.x.values()),
+                      engine.time());
     clipped_series_.add(engine.time(), clipped_file);
   }
   // The embedded visual surface at the same frames: its own series (ParaView opens both).

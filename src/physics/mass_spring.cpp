@@ -246,11 +246,11 @@ std::pair<double, double> MassSpringModel::volume_term(TetId tet) const {
 }
 
 std::array<Vec3, 4> MassSpringModel::volume_forces(TetId tet, const std::array<Vec3, 4>& x) const {
-  const auto [kappa, rest_volume] = volume_term(tet);
-  std::array<Vec3, 4> g = volume_gradient(x);
+  const auto [kappa, rest_volume] = volume_terms_[tet];
   if (rest_volume <= 0.0) {
     return {Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
   }
+  std::array<Vec3, 4> g = volume_gradient(x);
   const double volume = signed_volume(x[0], x[1], x[2], x[3]);
   const double pressure = -kappa * (volume - rest_volume) / rest_volume;  // Pa
   for (Vec3& gk : g) {

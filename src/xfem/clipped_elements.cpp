@@ -7,21 +7,6 @@
 #include "incise/xfem/xfem_cutter.hpp"
 
 namespace incise {
-namespace {
-
-Vec3 crossing(const std::array<Vec3, 4>& corners, const ElementCut& cut, int i, int j) {
-  for (std::size_t k = 0; k < 6; ++k) {
-    const auto& edge = tet_local::kEdges[k];
-    if ((edge[0] == i && edge[1] == j) || (edge[0] == j && edge[1] == i)) {
-      const double t = cut.crossing[k];
-      return (1.0 - t) * corners[static_cast<std::size_t>(edge[0])] +
-             t * corners[static_cast<std::size_t>(edge[1])];
-    }
-  }
-  INCISE_ASSERT(false, "corners of a tetrahedron share an edge");
-}
-
-}  // namespace
 
 std::vector<std::array<Vec3, 4>> side_tetrahedra(const std::array<Vec3, 4>& corners,
                                                  const ElementCut& cut, bool side_b) {
@@ -65,7 +50,7 @@ std::vector<std::array<Vec3, 4>> side_tetrahedra(const std::array<Vec3, 4>& corn
       part.push_back(corners[static_cast<std::size_t>(i)]);
     }
     if (on_side(i) != on_side(j)) {
-      part.push_back(crossing(corners, cut, i, j));
+      part.push_back(crossing_point(corners, cut, i, j));
     }
   }
   if (part.size() >= 3) {

@@ -20,15 +20,6 @@ int edge_of(int i, int j) {
   INCISE_ASSERT(false, "corners of a tetrahedron share an edge");
 }
 
-Vec3 crossing_point(const std::array<Vec3, 4>& corners, const ElementCut& cut, int i, int j) {
-  const int k = edge_of(i, j);
-  const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
-  const double t = cut.crossing[static_cast<std::size_t>(k)];
-  INCISE_ASSERT(t > 0.0 && t < 1.0, "a crossing lies inside its edge");
-  return (1.0 - t) * corners[static_cast<std::size_t>(edge[0])] +
-         t * corners[static_cast<std::size_t>(edge[1])];
-}
-
 /// Six times the signed volume of (origin, p, q, r).
 double triple(const Vec3& origin, const Vec3& p, const Vec3& q, const Vec3& r) {
   return (p - origin).dot((q - origin).cross(r - origin));
@@ -44,6 +35,15 @@ double fan_volume(const Vec3& origin, const std::vector<Vec3>& polygon) {
 }
 
 }  // namespace
+
+Vec3 crossing_point(const std::array<Vec3, 4>& corners, const ElementCut& cut, int i, int j) {
+  const int k = edge_of(i, j);
+  const auto& edge = tet_local::kEdges[static_cast<std::size_t>(k)];
+  const double t = cut.crossing[static_cast<std::size_t>(k)];
+  INCISE_ASSERT(t > 0.0 && t < 1.0, "a crossing lies inside its edge");
+  return (1.0 - t) * corners[static_cast<std::size_t>(edge[0])] +
+         t * corners[static_cast<std::size_t>(edge[1])];
+}
 
 bool ElementCut::splits() const {
   const auto on_far = std::count(on_b.begin(), on_b.end(), true);

@@ -144,18 +144,21 @@ bool XfemCutter::record_crossing(VertexId i, VertexId j, const std::array<Vec3, 
   const Vec3& xj = mesh_->rest_position(j);
   const Sign si = orient3d(triangle[0], triangle[1], triangle[2], xi);
   const Sign sj = orient3d(triangle[0], triangle[1], triangle[2], xj);
-  EdgeRecord& rec = edges_[edge_key(i, j)];
+  const std::uint64_t key = edge_key(i, j);
+  // A split tetrahedron's edge keeps its crossings (its neighbours must cut their shared faces
+  // as it did); a touch at an end still tells neighbours that corner lies on the surface.
+  if (frozen_.contains(key)) {
+    const EdgeRecord* kept = record(i, j);
+    if ((kept != nullptr && kept->crossings % 2 == 1) || (si != Sign::kZero && sj != Sign::kZero)) {
+      return true;
+    }
+  }
+  EdgeRecord& rec = edges_[key];
   const bool i_low = i < j;
   std::int8_t& side_i = i_low ? rec.side_low : rec.side_high;
   std::int8_t& side_j = i_low ? rec.side_high : rec.side_low;
   // orient3d > 0: on the side the triangle's normal points to: side b.
   const auto side_of = [](Sign s) { return s == Sign::kPositive ? kSideB : kSideA; };
-  // A split tetrahedron's edge keeps its crossings (its neighbours must cut their shared faces
-  // as it did); a touch at an end still tells neighbours that corner lies on the surface.
-  if (frozen_.contains(edge_key(i, j)) &&
-      (rec.crossings % 2 == 1 || (si != Sign::kZero && sj != Sign::kZero))) {
-    return true;
-  }
   if (si == Sign::kZero || sj == Sign::kZero) {
     // The surface passes exactly through an end (or holds the whole edge): that end lies on
     // side a; the other end's side is its orientation.

@@ -15,6 +15,12 @@ namespace incise {
 
 class Engine;
 struct FrameRecord;
+struct ClippedElements;
+
+/// Writes an XFEM body's elements clipped to their sides (xfem/clipped_elements.hpp) as a
+/// .vtu with cell arrays `element` and `fraction`, and the frame's time (s) if given.
+void write_clipped_vtu(const std::filesystem::path& path, const ClippedElements& clipped,
+                       std::optional<double> time = std::nullopt);
 
 class FrameSink {
  public:

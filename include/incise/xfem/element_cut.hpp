@@ -29,6 +29,10 @@ struct ElementCut {
   [[nodiscard]] bool splits() const;
 };
 
+/// Where the cut crosses the edge between corners i and j (either order; m).
+[[nodiscard]] Vec3 crossing_point(const std::array<Vec3, 4>& corners, const ElementCut& cut, int i,
+                                  int j);
+
 /// Volumes (m^3) of a tetrahedron on each side of its cut.
 struct SideVolumes {
   double a = 0.0;
