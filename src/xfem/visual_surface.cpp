@@ -59,6 +59,47 @@ CgalMesh to_cgal(std::span<const Vec3> points, std::span<const Triangle> triangl
   return mesh;
 }
 
+/// Where pieces of a cut surface touch at one point (split tetrahedra round a mesh edge in
+/// separate fans, a waiting one between them: to_cgal gives each fan its own copy of the
+/// point), each copy is drawn a millionth of the way towards the middle of its own fan. The
+/// fans then no longer touch, which corefinement needs (a surface that does not intersect
+/// itself), and the picture is not cut between them, where the physics is not either.
+void separate_touching_fans(CgalMesh& cut) {
+  std::map<std::array<double, 3>, std::vector<CgalMesh::Vertex_index>> at;
+  for (const auto v : cut.vertices()) {
+    const Point& p = cut.point(v);
+    at[{p.x(), p.y(), p.z()}].push_back(v);
+  }
+  std::vector<std::pair<CgalMesh::Vertex_index, Point>> moves;
+  for (const auto& [place, copies] : at) {
+    if (copies.size() < 2) {
+      continue;
+    }
+    for (const auto v : copies) {
+      Vec3 middle = Vec3::Zero();
+      int faces = 0;
+      for (const auto f : CGAL::faces_around_target(cut.halfedge(v), cut)) {
+        if (f == CgalMesh::null_face()) {
+          continue;
+        }
+        for (const auto corner : CGAL::vertices_around_face(cut.halfedge(f), cut)) {
+          middle += to_vec(cut.point(corner)) / 3.0;
+        }
+        ++faces;
+      }
+      if (faces == 0) {
+        continue;
+      }
+      const Vec3 p(place[0], place[1], place[2]);
+      const Vec3 moved = p + 1e-6 * (middle / faces - p);
+      moves.emplace_back(v, Point(moved.x(), moved.y(), moved.z()));
+    }
+  }
+  for (const auto& [v, p] : moves) {
+    cut.point(v) = p;
+  }
+}
+
 /// m^2: squared distance from p to a closed tetrahedron (0 inside).
 double squared_distance_to_tet(const Vec3& p, const std::array<Vec3, 4>& x) {
   const auto w = barycentric_coordinates(p, x[0], x[1], x[2], x[3]);
@@ -198,6 +239,9 @@ std::size_t flip_flat_triangles(std::span<const Vec3> points, std::vector<Triang
       }
       if (w == kInvalidId || w == m || directed.contains({m, w}) || directed.contains({w, m})) {
         continue;  // the new edge exists already: flipping would make it non-manifold
+      }
+      if (is_flat(at(m), at(u), at(w)) || is_flat(at(w), at(v), at(m))) {
+        continue;  // no better (w at m's place: the lips' two points there)
       }
       triangles[t] = {m, u, w};
       triangles[n] = {w, v, m};
@@ -508,6 +552,7 @@ void VisualSurface::follow(const TetMesh& mesh, const XfemCutter& cutter) {
   Corefined pair;
   pair.visual = cgal_->original;
   pair.cut = to_cgal(cut_points, cut_triangles);
+  separate_touching_fans(pair.cut);
   // Corefinement asks for surfaces that do not intersect themselves (else it may throw,
   // crash or never return): real visual surfaces sometimes do (SOFA's liver-smooth.obj), and
   // a skirt round a sharp rim may. Both are checked where they would meet; a cut that fails
@@ -656,11 +701,80 @@ void VisualSurface::rebuild(const TetMesh& mesh, const XfemCutter& cutter, const
   tidy();
   weld_near_points();
   remove_coincident_pairs(triangles_, on_cut_);
-  split_non_manifold();
+  split_non_manifold(mesh);
   flip_flat_triangles(rest_points_, triangles_, on_cut_);
+  close_flat_pockets();
 }
 
-void VisualSurface::split_non_manifold() {
+void VisualSurface::close_flat_pockets() {
+  // A flat triangle (u, v, m), m on u-v, whose neighbour across u-v is (v, u, w) with w at
+  // m's place (two points one place apart only by their carriers, as where a cut face meets
+  // the other side's point on a seam) encloses nothing: w is m, and the two go. (Flipping
+  // cannot help there: it would join m to w by an edge with no length.)
+  const auto at = [&](VertexId v) -> const Vec3& {
+    return rest_points_[static_cast<std::size_t>(v)];
+  };
+  for (int pass = 0; pass < 8; ++pass) {
+    std::map<std::pair<VertexId, VertexId>, std::size_t> directed;
+    for (std::size_t t = 0; t < triangles_.size(); ++t) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        directed[{triangles_[t][k], triangles_[t][(k + 1) % 3]}] = t;
+      }
+    }
+    std::vector<VertexId> into(rest_points_.size());
+    std::iota(into.begin(), into.end(), VertexId{0});
+    std::vector<bool> gone(triangles_.size(), false);
+    bool any = false;
+    for (std::size_t t = 0; t < triangles_.size(); ++t) {
+      const Triangle& tri = triangles_[t];
+      if (gone[t] || !is_flat(at(tri[0]), at(tri[1]), at(tri[2]))) {
+        continue;
+      }
+      for (std::size_t k = 0; k < 3; ++k) {
+        const VertexId u = tri[k];
+        const VertexId v = tri[(k + 1) % 3];
+        const VertexId m = tri[(k + 2) % 3];
+        const auto across = directed.find({v, u});
+        if (across == directed.end() || gone[across->second] || across->second == t) {
+          continue;
+        }
+        VertexId w = kInvalidId;
+        for (VertexId corner : triangles_[across->second]) {
+          w = corner != u && corner != v ? corner : w;
+        }
+        if (w == kInvalidId || w == m || into[static_cast<std::size_t>(w)] != w ||
+            into[static_cast<std::size_t>(m)] != m ||
+            (at(w) - at(m)).norm() > 1e-9 * (at(v) - at(u)).norm()) {
+          continue;
+        }
+        into[static_cast<std::size_t>(w)] = m;
+        gone[t] = gone[across->second] = true;
+        any = true;
+        break;
+      }
+    }
+    if (!any) {
+      return;
+    }
+    std::size_t kept = 0;
+    for (std::size_t t = 0; t < triangles_.size(); ++t) {
+      if (gone[t]) {
+        continue;
+      }
+      Triangle tri = triangles_[t];
+      for (VertexId& corner : tri) {
+        corner = into[static_cast<std::size_t>(corner)];
+      }
+      triangles_[kept] = tri;
+      on_cut_[kept] = on_cut_[t];
+      ++kept;
+    }
+    triangles_.resize(kept);
+    on_cut_.resize(kept);
+  }
+}
+
+void VisualSurface::split_non_manifold(const TetMesh& mesh) {
   // Where lips touch (tied nodes carry both sides' points alike) or pieces meet along an
   // edge, an edge can be used by 2k triangles, k each way. Each triangle using it one way is
   // paired with the one it meets first turning about the edge into the solid it bounds (the
@@ -696,7 +810,9 @@ void VisualSurface::split_non_manifold() {
     any = true;
     // Angles of the triangles' half-planes about the edge, looking along it (u -> v); a
     // triangle using the edge u -> v bounds the solid at smaller angles, one using v -> u the
-    // solid at larger ones. At equal angles the one using v -> u comes first.
+    // solid at larger ones. At equal angles (lips back to back, the gap between them outside)
+    // the one using u -> v comes first, so each lip is paired with a triangle on its own side
+    // and the lips part, rather than closing a solid of no thickness between them.
     const Vec3& u = rest_points_[static_cast<std::size_t>(edge.first)];
     const Vec3 d = (rest_points_[static_cast<std::size_t>(edge.second)] - u).normalized();
     const auto across = [&](std::size_t h) {
@@ -710,18 +826,18 @@ void VisualSurface::split_non_manifold() {
       const Vec3 e = across(h);
       double angle = std::atan2(e.dot(e1), e.dot(e0));
       angle += angle < 0.0 ? 2.0 * std::numbers::pi : 0.0;
-      order.push_back({{angle, from(h) == edge.first ? 1 : 0}, h});
+      order.push_back({{angle, from(h) == edge.first ? 0 : 1}, h});
     }
     std::sort(order.begin(), order.end());
     // Each u -> v triangle's twin: the nearest v -> u one before it (cyclically).
     std::vector<bool> taken(order.size(), false);
     for (std::size_t i = 0; i < order.size(); ++i) {
-      if (order[i].first.second != 1) {
+      if (order[i].first.second != 0) {
         continue;
       }
       for (std::size_t back = 1; back < order.size(); ++back) {
         const std::size_t j = (i + order.size() - back) % order.size();
-        if (order[j].first.second == 0 && !taken[j]) {
+        if (order[j].first.second == 1 && !taken[j]) {
           taken[j] = true;
           twin[order[i].second] = order[j].second;
           twin[order[j].second] = order[i].second;
@@ -761,6 +877,65 @@ void VisualSurface::split_non_manifold() {
   for (std::size_t t = 0; t < triangles_.size(); ++t) {
     for (std::size_t k = 0; k < 3; ++k) {
       triangles_[t][k] = corner_point[3 * t + k];
+    }
+  }
+  split_shared_edges(mesh, twin);
+}
+
+void VisualSurface::split_shared_edges(const TetMesh& mesh, std::span<const std::size_t> twin) {
+  // After the fans are apart, a pair can still share its edge's two points with another pair:
+  // where a cut reaches the visual surface along one of its edges, and the lips have not
+  // parted at either end (the slit is a two-sided hole between the same two points). Such a
+  // pair gets a point of its own in the edge's middle, carried as one of its ends is: each of
+  // its two triangles is split in two there, and every edge is then used by one pair.
+  using Edge = std::pair<VertexId, VertexId>;
+  std::map<Edge, std::vector<std::size_t>> uses;
+  for (std::size_t t = 0; t < triangles_.size(); ++t) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      const VertexId a = triangles_[t][k];
+      const VertexId b = triangles_[t][(k + 1) % 3];
+      uses[{std::min(a, b), std::max(a, b)}].push_back(3 * t + k);
+    }
+  }
+  std::vector<bool> split(triangles_.size(), false);
+  for (const auto& [edge, half_edges] : uses) {
+    if (half_edges.size() <= 2) {
+      continue;
+    }
+    bool first_pair = true;
+    for (const std::size_t h : half_edges) {
+      const std::size_t g = twin[h];
+      if (g == ~std::size_t{0} || g < h ||
+          std::find(half_edges.begin(), half_edges.end(), g) == half_edges.end()) {
+        continue;  // each pair once (from its lower half-edge); a lost twin: the check says so
+      }
+      if (std::exchange(first_pair, false) || split[h / 3] || split[g / 3]) {
+        continue;  // the first pair keeps the edge (a triangle is split once per update)
+      }
+      split[h / 3] = split[g / 3] = true;
+      const VertexId a = edge.first;
+      const VertexId b = edge.second;
+      const Vec3 middle = 0.5 * (rest_points_[static_cast<std::size_t>(a)] +
+                                 rest_points_[static_cast<std::size_t>(b)]);
+      Embedding carried = embedding_[static_cast<std::size_t>(a)];
+      carried.weights = barycentric_coordinates(
+          middle, mesh.rest_position(carried.nodes[0]), mesh.rest_position(carried.nodes[1]),
+          mesh.rest_position(carried.nodes[2]), mesh.rest_position(carried.nodes[3]));
+      const auto m = static_cast<VertexId>(rest_points_.size());
+      rest_points_.push_back(middle);
+      embedding_.push_back(carried);
+      for (const std::size_t half : {h, g}) {
+        const std::size_t t = half / 3;
+        const std::size_t k = half % 3;
+        const Triangle original = triangles_[t];
+        Triangle first = original;
+        Triangle second = original;
+        first[(k + 1) % 3] = m;  // (from, m, third)
+        second[k] = m;           // (m, to, third)
+        triangles_[t] = first;
+        triangles_.push_back(second);
+        on_cut_.push_back(on_cut_[t]);
+      }
     }
   }
 }
@@ -1003,8 +1178,11 @@ void VisualSurface::tidy() {
 
 void VisualSurface::weld_near_points() {
   // Corefinement's constructed points can land a rounding error (1e-18 m) from a point made
-  // elsewhere: two points that are one in all but rounding, carried by the same nodes, are
-  // welded (the triangles between them, needles with no area, go).
+  // elsewhere, and a point on a mesh face or edge may be carried from either side of it (its
+  // triangles read its element a little inside themselves): the two ends of an edge that are
+  // one point in all but rounding or carriers are welded, the first one's embedding carrying
+  // both (the triangles between them, needles with no area, go). Lips' points at one place
+  // are never joined by an edge, so they stay apart.
   const double near = 1e-9 * point_cell_;  // m
   std::vector<VertexId> into(rest_points_.size());
   std::iota(into.begin(), into.end(), VertexId{0});
@@ -1015,17 +1193,6 @@ void VisualSurface::weld_near_points() {
     }
     return v;
   };
-  const auto carriers_of = [&](VertexId v) {
-    const Embedding& e = embedding_[static_cast<std::size_t>(v)];
-    std::array<VertexId, 4> nodes{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
-    for (std::size_t k = 0; k < 4; ++k) {
-      if (std::abs(e.weights[k]) > 1e-12) {
-        nodes[k] = e.nodes[k];
-      }
-    }
-    std::sort(nodes.begin(), nodes.end());
-    return nodes;
-  };
   bool welded = false;
   for (const Triangle& t : triangles_) {
     for (std::size_t k = 0; k < 3; ++k) {
@@ -1033,8 +1200,7 @@ void VisualSurface::weld_near_points() {
       const VertexId b = find(t[(k + 1) % 3]);
       if (a == b ||
           (rest_points_[static_cast<std::size_t>(a)] - rest_points_[static_cast<std::size_t>(b)])
-                  .norm() > near ||
-          carriers_of(a) != carriers_of(b)) {
+                  .norm() > near) {
         continue;
       }
       into[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);

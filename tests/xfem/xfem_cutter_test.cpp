@@ -268,8 +268,9 @@ TEST(XfemCutter, RandomBladeWalksKeepEveryInvariantAfterEveryPose) {
         return;  // the first failing pose is the one to look at
       }
     }
-    // (How many updates kept the last good picture is printed: the walks' tremor and re-entry
-    // leave cuts the picture cannot yet follow as a 2-manifold every time; see issue notes.)
+    // The picture follows the cut at every update, tremor and re-entry included: none keeps
+    // the last picture (on the landed code of session 28, 29 of 72 did).
+    EXPECT_EQ(visual.failures(), 0u) << visual.last_failure();
     std::printf(
         "seed %u: %zu rest tets, %zu split, %zu copies, %zu visual updates kept the last "
         "picture (%s)\n",

@@ -103,7 +103,13 @@ class VisualSurface {
   void weld_near_points();
   /// Pairs the triangles of edges used more than twice by their order about the edge and
   /// copies each point once per fan around it: the same surface, a 2-manifold.
-  void split_non_manifold();
+  void split_non_manifold(const TetMesh& mesh);
+  /// Closes pockets of no volume: a flat triangle and its neighbour across its longest side
+  /// whose third points lie at one place are dropped, and those points welded.
+  void close_flat_pockets();
+  /// Gives each pair of triangles that still shares its edge's points with another pair a
+  /// point of its own in the edge's middle (`twin`: each half-edge's partner, 3 t + k).
+  void split_shared_edges(const TetMesh& mesh, std::span<const std::size_t> twin);
 
   /// The visual surface and the cut surface, corefined.
   struct Corefined;
