@@ -1,5 +1,5 @@
 // incise cut MESH --blade PATH.csv [--method subdivision|xfem] -o OUT [--report R.json]
-//   [--visual SURFACE --visual-out OUT.vtp] (xfem)
+//   [--visual SURFACE --visual-out OUT.vtp] (xfem) [--unit m|cm|mm]
 
 #include <fmt/format.h>
 
@@ -29,10 +29,12 @@ Runner add_cut_command(CLI::App& app) {
   auto merge = std::make_shared<bool>(false);
   auto visual = std::make_shared<std::string>();
   auto visual_out = std::make_shared<std::string>();
+  auto unit = std::make_shared<std::string>();
   command->add_option("mesh", *mesh_path, "Tetrahedral mesh")->required()->check(CLI::ExistingFile);
   command
       ->add_option("--blade", *blade_path,
-                   "Blade path CSV: t,tip_x,tip_y,tip_z,base_x,base_y,base_z (s, m)")
+                   "Blade path CSV: t,tip_x,tip_y,tip_z,base_x,base_y,base_z (s, and the "
+                   "mesh's length unit)")
       ->required()
       ->check(CLI::ExistingFile);
   command->add_option("--method", *method, "Cutting method")
@@ -57,12 +59,23 @@ Runner add_cut_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   command->add_option("--visual-out", *visual_out, "xfem: the cut visual surface (.vtp)");
   command
+      ->add_option("--unit", *unit,
+                   "The mesh's length unit, said in the report and the .vtu files (incise never "
+                   "rescales; without it lengths are in \"mesh units\")")
+      ->check(CLI::IsMember({"m", "cm", "mm"}));
+  command
       ->add_option("--snap", *snap, "Snap crossings within this fraction of an edge to its vertex")
       ->check(CLI::Range(0.001, 0.49))
       ->capture_default_str();
   return [=]() {
+    std::optional<double> length_unit_m;
+    if (!unit->empty()) {
+      length_unit_m = *unit == "m" ? 1.0 : (*unit == "cm" ? 1e-2 : 1e-3);
+    }
+    const std::string unit_name = length_unit_name(length_unit_m);
     if (*method == "xfem") {
-      return cut_xfem({*mesh_path, *blade_path, *output, *report_path, *visual, *visual_out});
+      return cut_xfem(
+          {*mesh_path, *blade_path, *output, *report_path, *visual, *visual_out, length_unit_m});
     }
     if (!visual->empty() || !visual_out->empty()) {
       throw InputError("--visual and --visual-out apply to --method xfem only");
@@ -108,18 +121,20 @@ Runner add_cut_command(CLI::App& app) {
     (void)tet_components(mesh, &components);
     const int vertex_pieces = pieces_by_vertices(mesh);
     const CutStats& stats = cutter.stats();
-    write_tet_mesh(*output, mesh);
+    write_tet_mesh(*output, mesh, length_unit_m);
     std::cerr << fmt::format(
         "cut {} with {} poses: {} -> {} tets, {} -> {} vertices, {} pieces ({} by vertices), cut "
-        "area {:.4g} m^2, cd {:.3f} ms, gc {:.3f} ms in total, {:.3f} ms for the slowest pose\n",
+        "area {:.4g} ({})^2, cd {:.3f} ms, gc {:.3f} ms in total, {:.3f} ms for the slowest "
+        "pose\n",
         *mesh_path, path.size(), tets_in, mesh.tet_count(), vertices_in, mesh.vertex_count(),
-        components, vertex_pieces, stats.cut_area, 1e3 * stats.total_cd_seconds,
+        components, vertex_pieces, stats.cut_area, unit_name, 1e3 * stats.total_cd_seconds,
         1e3 * stats.total_gc_seconds, 1e3 * stats.max_move_seconds);
     if (!report_path->empty()) {
       nlohmann::ordered_json json;
       json["mesh"] = *mesh_path;
       json["blade"] = *blade_path;
       json["method"] = *method;
+      json["length_unit"] = unit_name;  // of every length, area and volume below
       json["poses"] = path.size();
       json["tets_in"] = tets_in;
       json["tets_out"] = mesh.tet_count();

@@ -58,7 +58,7 @@ int cut_xfem(const XfemCutRequest& request) {
   }
 
   XfemCutter cutter(mesh);
-  double travel = 0.0;  // m, of the blade's midpoint
+  double travel = 0.0;  // mesh units, of the blade's midpoint
   double cd = 0.0;      // ms, over all poses
   double gc = 0.0;
   cutter.start(path.front());
@@ -87,13 +87,14 @@ int cut_xfem(const XfemCutRequest& request) {
       {"fraction", 1,
        std::vector<double>(mesh.material_fractions().begin(), mesh.material_fractions().end())});
   fields.cell_data.push_back({"rest_tet", 1, std::move(rest_tet)});
+  fields.length_unit_m = request.length_unit_m;
   write_vtu(request.output, mesh, {}, fields);
   // Beside it, the virtual elements clipped to their sides: what ParaView integrates to the
   // true volume and shows as two lips.
   std::filesystem::path clipped_path = request.output;
   clipped_path.replace_filename(clipped_path.stem().string() + "_clipped.vtu");
   const ClippedElements clipped = clip_virtual_elements(mesh, cutter);
-  write_clipped_vtu(clipped_path, clipped);
+  write_clipped_vtu(clipped_path, clipped, std::nullopt, request.length_unit_m);
   double clipped_volume = 0.0;  // mesh units cubed: what a reader integrates from that file
   for (const Tet& t : clipped.tets) {
     clipped_volume += signed_volume(clipped.points[static_cast<std::size_t>(t[0])],
@@ -103,23 +104,31 @@ int cut_xfem(const XfemCutRequest& request) {
   }
   if (visual && !request.visual_out.empty()) {
     VtuFields surface_fields;
+    surface_fields.length_unit_m = request.length_unit_m;
     surface_fields.cell_data.push_back(
         {"on_cut", 1, std::vector<std::int32_t>(visual->on_cut().begin(), visual->on_cut().end())});
     write_vtp(request.visual_out, visual->rest_points(), visual->triangles(), surface_fields);
   }
 
   const int pieces = pieces_by_vertices(mesh);
-  const double per_cm = travel > 0.0 ? cutter.dofs_added() / (100.0 * travel) : 0.0;
+  // Blade travel is in the mesh's units: per centimetre only where the unit is known.
+  const std::string unit = length_unit_name(request.length_unit_m);
+  const double per_unit = travel > 0.0 ? static_cast<double>(cutter.dofs_added()) / travel : 0.0;
+  const bool unit_known = request.length_unit_m.has_value();
+  const double per_cm = unit_known ? per_unit * 1e-2 / request.length_unit_m.value() : 0.0;
   std::cerr << fmt::format(
       "xfem cut {} with {} poses: {} tets, {} split into virtual elements ({} elements), {} "
-      "copies ({} DOFs, {:.1f} per cm of blade travel), {} pieces, smallest fraction {:.3g}, "
-      "cd {:.3f} ms, gc {:.3f} ms\n",
+      "copies ({} DOFs, {}), {} pieces, smallest fraction {:.3g}, cd {:.3f} ms, gc {:.3f} ms\n",
       request.mesh_path, path.size(), tets_in, stats.elements_split, mesh.tet_count(), stats.copies,
-      cutter.dofs_added(), per_cm, pieces, stats.min_fraction, cd, gc);
+      cutter.dofs_added(),
+      unit_known ? fmt::format("{:.1f} per cm of blade travel", per_cm)
+                 : fmt::format("{:.3g} per {} of blade travel", per_unit, unit),
+      pieces, stats.min_fraction, cd, gc);
   if (!request.report_path.empty()) {
     nlohmann::json json = {{"mesh", request.mesh_path},
                            {"blade", request.blade_path},
                            {"method", "xfem"},
+                           {"length_unit", unit},  // of every length, area and volume here
                            {"poses", path.size()},
                            {"tets_in", tets_in},
                            {"tets_out", mesh.tet_count()},
@@ -137,13 +146,16 @@ int cut_xfem(const XfemCutRequest& request) {
                            {"tied_vertices", stats.tied_vertices},
                            {"tremor_edges", stats.tremor_edges},
                            {"dofs_added", cutter.dofs_added()},
-                           {"blade_travel_m", travel},
-                           {"dofs_added_per_cm", per_cm},
+                           {"blade_travel", travel},
+                           {"dofs_added_per_length_unit", per_unit},
                            {"min_fraction", stats.min_fraction},
                            {"fractions_raised", stats.fractions_raised},
                            {"clipped", clipped_path.string()},
                            {"clipped_tets", clipped.tets.size()},
                            {"clipped_volume", clipped_volume}};
+    if (unit_known) {
+      json["dofs_added_per_cm"] = per_cm;
+    }
     if (visual) {
       json["visual_volume_in"] = visual_volume_in;
       json["visual_volume_out"] = enclosed_volume(visual->rest_points(), visual->triangles());

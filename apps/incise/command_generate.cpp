@@ -36,7 +36,7 @@ Runner add_generate_command(CLI::App& app) {
     options.origin = Vec3((*origin)[0], (*origin)[1], (*origin)[2]);
     options.tets_per_cell = *per_cell;
     const TetMesh mesh = make_box_grid(options);
-    write_tet_mesh(*output, mesh);
+    write_tet_mesh(*output, mesh, 1.0);  // metres, as the options say
     std::cerr << fmt::format("wrote {} ({} vertices, {} tetrahedra, volume {:.6g} m^3)\n", *output,
                              mesh.vertex_count(), mesh.tet_count(), total_volume(mesh));
     return 0;

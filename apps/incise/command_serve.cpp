@@ -102,6 +102,7 @@ void write_final_files(const std::filesystem::path& out, const SessionSummary& s
       displacement.insert(displacement.end(), {d.x(), d.y(), d.z()});
     }
     VtuFields fields;
+    fields.length_unit_m = 1.0;  // a scene's metres
     fields.point_data.push_back({"displacement", 3, std::move(displacement)});
     write_vtu(out / "final.vtu", mesh, positions, fields);
   }

@@ -22,12 +22,16 @@ std::filesystem::path created(const std::filesystem::path& dir) {
   return dir;
 }
 
+/// m per unit: a scene's lengths are metres (a mesh file's own unit is scaled by its "scale").
+constexpr double kSceneLengthUnit = 1.0;
+
 }  // namespace
 
 void write_clipped_vtu(const std::filesystem::path& path, const ClippedElements& clipped,
-                       std::optional<double> time) {
+                       std::optional<double> time, std::optional<double> length_unit_m) {
   VtuFields fields;
   fields.time = time;
+  fields.length_unit_m = length_unit_m;
   fields.cell_data.push_back(
       {"element", 1, std::vector<std::int32_t>(clipped.element.begin(), clipped.element.end())});
   fields.cell_data.push_back({"fraction", 1, clipped.fraction});
@@ -43,7 +47,11 @@ VtuSeriesSink::VtuSeriesSink(const std::filesystem::path& dir, std::string name,
       continue_series_(continue_series),
       series_(dir_ / (name_ + ".pvd")),
       visual_series_(dir_ / (name_ + "_visual.pvd")),
-      clipped_series_(dir_ / (name_ + "_clipped.pvd")) {}
+      clipped_series_(dir_ / (name_ + "_clipped.pvd")) {
+  for (PvdSeries* series : {&series_, &visual_series_, &clipped_series_}) {
+    series->set_length_unit(kSceneLengthUnit);
+  }
+}
 
 void VtuSeriesSink::write(const Engine& engine) {
   const TetMesh& mesh = engine.mesh();
@@ -61,6 +69,7 @@ void VtuSeriesSink::write(const Engine& engine) {
   }
   VtuFields fields;
   fields.time = engine.time();
+  fields.length_unit_m = kSceneLengthUnit;
   fields.point_data.push_back({"displacement", 3, std::move(displacement)});
   fields.point_data.push_back({"velocity", 3, std::move(velocity)});
   // A body of several materials shows which is where (ParaView: colour by "material").
@@ -91,13 +100,14 @@ void VtuSeriesSink::write(const Engine& engine) {
   if (const XfemCutter* cutter = engine.xfem_cutter()) {
     const std::string clipped_file = fmt::format("{}_clipped_{:06d}.vtu", name_, engine.frame());
     write_clipped_vtu(dir_ / clipped_file, clip_virtual_elements(mesh, *cutter, state.x.values()),
-                      engine.time());
+                      engine.time(), kSceneLengthUnit);
     clipped_series_.add(engine.time(), clipped_file);
   }
   // The embedded visual surface at the same frames: its own series (ParaView opens both).
   if (const VisualSurface* visual = engine.visual()) {
     VtuFields surface_fields;
     surface_fields.time = engine.time();
+    surface_fields.length_unit_m = kSceneLengthUnit;
     surface_fields.cell_data.push_back(
         {"on_cut", 1, std::vector<std::int32_t>(visual->on_cut().begin(), visual->on_cut().end())});
     const std::string surface_file = fmt::format("{}_visual_{:06d}.vtp", name_, engine.frame());

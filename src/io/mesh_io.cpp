@@ -439,15 +439,31 @@ void add_field(CompressedVtkXml& document, const std::filesystem::path& path,
 
 namespace {
 
-/// The time of a frame as VTK's TimeValue field data (what ParaView shows for a single file).
-void add_time_value(CompressedVtkXml& document, const VtuFields& fields) {
-  if (!fields.time) {
+/// The file's field data: the time of a frame as VTK's TimeValue (what ParaView shows for a
+/// single file) and the length unit as LengthUnitInMetres (numbers, which every reader takes:
+/// meshio refuses VTK's String arrays), with a comment saying both in words.
+void add_field_data(CompressedVtkXml& document, const VtuFields& fields) {
+  if (!fields.time && !fields.length_unit_m) {
     return;
   }
-  std::string bytes;
-  append_raw(bytes, *fields.time);
   document.xml += "    <FieldData>\n";
-  document.add_array("type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\"", bytes);
+  if (fields.length_unit_m) {
+    document.xml += fmt::format("      <!-- incise: point coordinates in {}, times in s -->\n",
+                                length_unit_name(fields.length_unit_m));
+  }
+  if (fields.time) {
+    std::string bytes;
+    append_raw(bytes, *fields.time);
+    document.add_array("type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\"", bytes);
+  }
+  if (fields.length_unit_m) {
+    if (!std::isfinite(*fields.length_unit_m) || *fields.length_unit_m <= 0.0) {
+      throw InputError("a length unit must be a positive number of metres");
+    }
+    std::string bytes;
+    append_raw(bytes, *fields.length_unit_m);
+    document.add_array("type=\"Float64\" Name=\"LengthUnitInMetres\" NumberOfTuples=\"1\"", bytes);
+  }
   document.xml += "    </FieldData>\n";
 }
 
@@ -525,7 +541,7 @@ void write_tet_vtu(const std::filesystem::path& path, std::span<const Vec3> posi
       "byte_order=\"{}\" header_type=\"UInt64\" compressor=\"vtkZLibDataCompressor\">\n  "
       "<UnstructuredGrid>\n",
       host_byte_order());
-  add_time_value(document, fields);
+  add_field_data(document, fields);
   xml += fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", n_points, n_cells);
   xml += "      <PointData>\n";
   for (const FieldArray& field : fields.point_data) {
@@ -589,7 +605,7 @@ void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"{}\" "
       "header_type=\"UInt64\" compressor=\"vtkZLibDataCompressor\">\n  <PolyData>\n",
       host_byte_order());
-  add_time_value(document, fields);
+  add_field_data(document, fields);
   document.xml +=
       fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfPolys=\"{}\">\n      <PointData>\n",
                   points.size(), triangles.size());
@@ -637,8 +653,12 @@ void PvdSeries::keep_existing_before(double time) {
 
 void PvdSeries::add(double time, const std::string& file) {
   entries_.emplace_back(time, file);
-  std::string xml =
-      "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n";
+  std::string xml = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n";
+  if (length_unit_m_) {
+    xml += fmt::format("  <!-- incise: point coordinates in {}, timesteps in s -->\n",
+                       length_unit_name(length_unit_m_));
+  }
+  xml += "  <Collection>\n";
   for (const auto& [entry_time, entry_file] : entries_) {
     // 12 significant digits: a time summed from frame steps shows as 0.35, not as
     // 0.35000000000000003.
@@ -651,9 +671,29 @@ void PvdSeries::add(double time, const std::string& file) {
   out.commit();
 }
 
+namespace {
+/// Gmsh physical group (dimension 2) of a cut's faces, named "cut".
+constexpr int kCutGroup = 1;
+
+/// 1-based numbers for the vertices some tetrahedron uses (0 for the rest: a cut's leftovers,
+/// which Gmsh and MEDIT files leave out as .vtu files do), and how many there are.
+std::pair<std::vector<std::size_t>, std::size_t> used_vertex_numbers(const TetMesh& mesh) {
+  std::vector<std::size_t> number(mesh.vertex_count(), 0);
+  for (const Tet& tet : mesh.tets()) {
+    for (VertexId v : tet) {
+      number[static_cast<std::size_t>(v)] = 1;
+    }
+  }
+  std::size_t used = 0;
+  for (std::size_t& n : number) {
+    n = n != 0 ? ++used : 0;
+  }
+  return {std::move(number), used};
+}
+}  // namespace
+
 void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
   check_finite_positions(path, mesh.rest_positions());
-  const std::size_t n = mesh.vertex_count();
   const std::size_t m = mesh.tet_count();
   const auto [low, high] = bounding_box(mesh);
   // One volume entity per region label, with the label as its physical group (Gmsh has no
@@ -665,8 +705,21 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
   if (regions.empty()) {
     regions[0];
   }
-  std::string out =
-      fmt::format("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 {}\n", regions.size());
+  // A cut's faces (its lips, back to back on duplicated nodes) as triangles of a surface
+  // entity in the physical group "cut": a Gmsh user can tell the wound from the skin, and
+  // sees what Coherence (which merges the duplicated nodes) would close.
+  const std::vector<BoundaryFace> faces = boundary_faces(mesh);
+  const std::vector<bool> lips = lip_faces(mesh, faces);
+  const auto cut_faces = static_cast<std::size_t>(std::count(lips.begin(), lips.end(), true));
+  std::string out = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n";
+  if (cut_faces > 0) {
+    out += fmt::format("$PhysicalNames\n1\n2 {} \"cut\"\n$EndPhysicalNames\n", kCutGroup);
+  }
+  out += fmt::format("$Entities\n0 0 {} {}\n", cut_faces > 0 ? 1 : 0, regions.size());
+  if (cut_faces > 0) {
+    out += fmt::format("1 {} {} {} {} {} {} 1 {} 0\n", low.x(), low.y(), low.z(), high.x(),
+                       high.y(), high.z(), kCutGroup);
+  }
   int entity = 0;
   for (const auto& [label, tets] : regions) {
     out += fmt::format("{} {} {} {} {} {} {} ", ++entity, low.x(), low.y(), low.z(), high.x(),
@@ -674,21 +727,40 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
     out += label != 0 ? fmt::format("1 {} 0\n", label) : std::string("0 0\n");
   }
   out += "$EndEntities\n";
+  const auto numbering = used_vertex_numbers(mesh);
+  const std::vector<std::size_t>& number = numbering.first;
+  const std::size_t n = numbering.second;
+  const auto node = [&number](VertexId v) { return number[static_cast<std::size_t>(v)]; };
   out += fmt::format("$Nodes\n1 {} 1 {}\n3 1 0 {}\n", n, n, n);
   for (std::size_t v = 1; v <= n; ++v) {
     out += fmt::format("{}\n", v);
   }
-  for (const Vec3& p : mesh.rest_positions()) {
-    out += fmt::format("{} {} {}\n", p.x(), p.y(), p.z());
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    if (number[v] != 0) {
+      const Vec3& p = mesh.rest_position(static_cast<VertexId>(v));
+      out += fmt::format("{} {} {}\n", p.x(), p.y(), p.z());
+    }
   }
-  out += fmt::format("$EndNodes\n$Elements\n{} {} 1 {}\n", regions.size(), m, m);
+  const std::size_t elements = m + cut_faces;
+  out += fmt::format("$EndNodes\n$Elements\n{} {} 1 {}\n", regions.size() + (cut_faces > 0 ? 1 : 0),
+                     elements, elements);
   entity = 0;
   std::size_t tag = 0;
   for (const auto& [label, tets] : regions) {
     out += fmt::format("3 {} 4 {}\n", ++entity, tets.size());
     for (std::size_t t : tets) {
       const Tet& tet = mesh.tet(static_cast<TetId>(t));
-      out += fmt::format("{} {} {} {} {}\n", ++tag, tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1);
+      out += fmt::format("{} {} {} {} {}\n", ++tag, node(tet[0]), node(tet[1]), node(tet[2]),
+                         node(tet[3]));
+    }
+  }
+  if (cut_faces > 0) {
+    out += fmt::format("2 1 2 {}\n", cut_faces);
+    for (std::size_t f = 0; f < faces.size(); ++f) {
+      if (lips[f]) {
+        const Triangle& v = faces[f].vertices;
+        out += fmt::format("{} {} {} {}\n", ++tag, node(v[0]), node(v[1]), node(v[2]));
+      }
     }
   }
   out += "$EndElements\n";
@@ -699,22 +771,30 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
 
 void write_medit(const std::filesystem::path& path, const TetMesh& mesh) {
   check_finite_positions(path, mesh.rest_positions());
-  std::string out =
-      fmt::format("MeshVersionFormatted 2\nDimension 3\nVertices\n{}\n", mesh.vertex_count());
-  for (const Vec3& p : mesh.rest_positions()) {
-    out += fmt::format("{} {} {} 0\n", p.x(), p.y(), p.z());
+  const auto numbering = used_vertex_numbers(mesh);
+  const std::vector<std::size_t>& number = numbering.first;
+  const std::size_t used = numbering.second;
+  const auto node = [&number](VertexId v) { return number[static_cast<std::size_t>(v)]; };
+  std::string out = fmt::format("MeshVersionFormatted 2\nDimension 3\nVertices\n{}\n", used);
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    if (number[v] != 0) {
+      const Vec3& p = mesh.rest_position(static_cast<VertexId>(v));
+      out += fmt::format("{} {} {} 0\n", p.x(), p.y(), p.z());
+    }
   }
   out += fmt::format("Tetrahedra\n{}\n", mesh.tet_count());
   for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
     const Tet& tet = mesh.tet(static_cast<TetId>(t));
-    out += fmt::format("{} {} {} {} {}\n", tet[0] + 1, tet[1] + 1, tet[2] + 1, tet[3] + 1,
+    out += fmt::format("{} {} {} {} {}\n", node(tet[0]), node(tet[1]), node(tet[2]), node(tet[3]),
                        mesh.tet_label(static_cast<TetId>(t)));
   }
+  // The boundary triangles, a cut's faces (its lips) with reference 1, the rest 0.
   const auto faces = boundary_faces(mesh);
+  const std::vector<bool> lips = lip_faces(mesh, faces);
   out += fmt::format("Triangles\n{}\n", faces.size());
-  for (const BoundaryFace& face : faces) {
-    out += fmt::format("{} {} {} 0\n", face.vertices[0] + 1, face.vertices[1] + 1,
-                       face.vertices[2] + 1);
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    const Triangle& v = faces[f].vertices;
+    out += fmt::format("{} {} {} {}\n", node(v[0]), node(v[1]), node(v[2]), lips[f] ? 1 : 0);
   }
   out += "End\n";
   AtomicFile file(path);
@@ -782,12 +862,15 @@ void write_tetgen(const std::filesystem::path& path, const TetMesh& mesh) {
   ele_file.commit();
 }
 
-void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh) {
+void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh,
+                    std::optional<double> length_unit_m) {
   const std::string extension = io_detail::lowercase(path.extension().string());
   if (extension == ".msh") {
     write_msh(path, mesh);
   } else if (extension == ".vtu") {
-    write_vtu(path, mesh);
+    VtuFields fields;
+    fields.length_unit_m = length_unit_m;
+    write_vtu(path, mesh, {}, fields);
   } else if (extension == ".mesh") {
     write_medit(path, mesh);
   } else if (extension == ".obj") {
@@ -798,6 +881,19 @@ void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh) {
     throw InputError(path.string(), 0,
                      "cannot write this extension (use .msh, .vtu, .mesh, .obj or .node)");
   }
+}
+
+std::string length_unit_name(std::optional<double> length_unit_m) {
+  if (!length_unit_m) {
+    return "mesh units";
+  }
+  for (const auto& [metres, name] :
+       {std::pair{1.0, "m"}, std::pair{1e-2, "cm"}, std::pair{1e-3, "mm"}, std::pair{1e-6, "um"}}) {
+    if (std::abs(*length_unit_m - metres) <= 1e-12 * metres) {
+      return name;
+    }
+  }
+  return fmt::format("units of {:.12g} m", *length_unit_m);
 }
 
 }  // namespace incise

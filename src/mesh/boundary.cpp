@@ -1,7 +1,9 @@
 #include "incise/mesh/boundary.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
+#include <map>
 #include <numeric>
 #include <unordered_map>
 
@@ -23,6 +25,30 @@ std::vector<BoundaryFace> boundary_faces(const TetMesh& mesh) {
     }
   }
   return faces;
+}
+
+std::vector<bool> lip_faces(const TetMesh& mesh, std::span<const BoundaryFace> faces) {
+  // A face by its three rest positions, in sorted order (the two lips of a cut face each
+  // other, so their corners run opposite ways).
+  using Place = std::array<std::array<double, 3>, 3>;
+  const auto place_of = [&](const BoundaryFace& face) {
+    Place place{};
+    for (std::size_t k = 0; k < 3; ++k) {
+      const Vec3& p = mesh.rest_position(face.vertices[k]);
+      place[k] = {p.x(), p.y(), p.z()};
+    }
+    std::sort(place.begin(), place.end());
+    return place;
+  };
+  std::map<Place, int> count;
+  for (const BoundaryFace& face : faces) {
+    ++count[place_of(face)];
+  }
+  std::vector<bool> lips(faces.size());
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    lips[f] = count[place_of(faces[f])] > 1;
+  }
+  return lips;
 }
 
 SurfaceEdgeCheck check_surface_edges(std::span<const Triangle> triangles) {

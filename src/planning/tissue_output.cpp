@@ -20,6 +20,7 @@ void write_surface_mm(const std::filesystem::path& path, std::span<const Vec3> p
     millimetres[i] = points[i] * kToMillimetres;
   }
   VtuFields fields;
+  fields.length_unit_m = 1.0 / kToMillimetres;
   if (!before.empty()) {
     std::vector<double> displacement;
     std::vector<double> magnitude;
@@ -74,6 +75,11 @@ void write_tissue_vtu_mm(const std::filesystem::path& path, const LayeredTissue&
   text +=
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" "
       "byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n";
+  // The unit as every incise file says it (io/mesh_io.hpp: LengthUnitInMetres).
+  text +=
+      "<FieldData>\n<!-- incise: point coordinates in mm -->\n<DataArray type=\"Float64\" "
+      "Name=\"LengthUnitInMetres\" NumberOfTuples=\"1\" format=\"ascii\">0.001</DataArray>\n"
+      "</FieldData>\n";
   text += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", x.size(),
                       tissue.prisms.size());
   text +=

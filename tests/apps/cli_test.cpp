@@ -12,6 +12,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -212,6 +213,41 @@ TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
       incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
   EXPECT_EQ(open.code, 2);
   EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
+}
+
+TEST(Cli, EverySceneDescriptionNamesOnlyFilesTheSceneWrites) {
+  // A description that names an output file (out/DIR/NAME) must name one the scene writes:
+  // each such scene is run for a frame into a scratch folder, and every file named is there.
+  int named = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(INCISE_SOURCE_DIR "/scenes")) {
+    if (entry.path().extension() != ".json") {
+      continue;
+    }
+    const auto scene = nlohmann::json::parse(slurp(entry.path()));
+    if (!scene.contains("description") || !scene.contains("output")) {
+      continue;
+    }
+    const std::string description = scene["description"].get<std::string>();
+    const std::regex file_pattern(R"(out/[A-Za-z0-9_]+/([A-Za-z0-9_.]+\.(pvd|vtu|vtp)))");
+    std::vector<std::string> files;
+    for (auto it = std::sregex_iterator(description.begin(), description.end(), file_pattern);
+         it != std::sregex_iterator(); ++it) {
+      files.push_back((*it)[1].str());
+    }
+    if (files.empty()) {
+      continue;
+    }
+    const auto dir = test::scratch_dir("described-" + entry.path().stem().string());
+    const CommandResult run =
+        incise("run " + entry.path().string() + " --frames 1 --out " + dir.string());
+    ASSERT_EQ(run.code, 0) << run.err;
+    for (const std::string& file : files) {
+      ++named;
+      EXPECT_TRUE(std::filesystem::exists(dir / file))
+          << entry.path().filename() << "'s description names " << file << ", not written";
+    }
+  }
+  EXPECT_GT(named, 0);
 }
 
 TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {

@@ -97,6 +97,12 @@ def compare(path, expected_cells=None):
     return grid
 
 
+def length_unit(data):
+    """m per coordinate unit from the file's LengthUnitInMetres field data (None: not said)."""
+    array = data.GetFieldData().GetArray("LengthUnitInMetres")
+    return None if array is None else array.GetValue(0)
+
+
 def main():
     incise, source, data = sys.argv[1], Path(sys.argv[2]), Path(sys.argv[3])
     liver = data / "sofa" / "liver.msh"
@@ -118,8 +124,13 @@ def main():
     compare(work / "liver.vtu", info["tets"])
 
     run(incise, "cut", liver, "--blade", blade, "-o", work / "sub.vtu", "--report", work / "sub.json")
-    cut_tets = json.loads((work / "sub.json").read_text())["tets_out"]
-    compare(work / "sub.vtu", cut_tets)
+    sub_report = json.loads((work / "sub.json").read_text())
+    cut_tets = sub_report["tets_out"]
+    # liver.msh does not say its unit (it is centimetres): nothing may claim one.
+    check(length_unit(compare(work / "sub.vtu", cut_tets)) is None,
+          "sub.vtu claims a length unit the mesh never gave")
+    check(sub_report.get("length_unit") == "mesh units",
+          f"the cut report says length_unit {sub_report.get('length_unit')!r}, not 'mesh units'")
 
     # Gmsh and MEDIT files of the cut mesh, read by meshio: every tetrahedron, every point.
     for suffix in (".msh", ".mesh"):
@@ -128,15 +139,35 @@ def main():
         mesh = meshio.read(out)
         tets = sum(len(block.data) for block in mesh.cells if block.type == "tetra")
         check(tets == cut_tets, f"{out.name}: meshio reads {tets} tetrahedra, incise wrote {cut_tets}")
-        print(f"{out.name}: {len(mesh.points)} points, {tets} tetrahedra (meshio)")
+        used = np.unique(np.concatenate([b.data.ravel() for b in mesh.cells if b.type == "tetra"]))
+        check(len(used) == len(mesh.points), f"{out.name}: {len(mesh.points) - len(used)} points no tetrahedron uses")
+        # The cut's faces (its lips, back to back) are marked: Gmsh's physical group "cut",
+        # MEDIT's reference 1 (the rest of the boundary 0).
+        triangles = [i for i, b in enumerate(mesh.cells) if b.type == "triangle"]
+        if suffix == ".msh":
+            check("cut" in mesh.field_data and len(triangles) == 1,
+                  f"{out.name}: no physical group 'cut' of triangles (field data {mesh.field_data})")
+            lips = sum(len(mesh.cells[i].data) for i in triangles)
+        else:
+            refs = np.concatenate([mesh.cell_data["medit:ref"][i] for i in triangles])
+            lips = int(np.count_nonzero(refs == 1))
+        check(lips > 0 and lips % 2 == 0, f"{out.name}: {lips} cut faces marked (the lips come in pairs)")
+        print(f"{out.name}: {len(mesh.points)} points, {tets} tetrahedra, {lips} cut faces (meshio)")
 
     # The case meshio misread before (raw appended data): XFEM's virtual elements.
     run(incise, "cut", liver, "--blade", blade, "--method", "xfem", "-o", work / "xfem.vtu",
         "--visual", data / "sofa" / "liver-smooth.obj", "--visual-out", work / "xfem.vtp",
-        "--report", work / "xfem.json")
+        "--report", work / "xfem.json", "--unit", "cm")
     report = json.loads((work / "xfem.json").read_text())
-    compare(work / "xfem.vtu", report["tets_out"])
-    compare(work / "xfem.vtp")
+    # Told the unit (cm), every file and the report say it; nothing says metres.
+    for name, grid in (("xfem.vtu", compare(work / "xfem.vtu", report["tets_out"])),
+                       ("xfem.vtp", compare(work / "xfem.vtp")),
+                       ("xfem_clipped.vtu", vtk_read(work / "xfem_clipped.vtu"))):
+        check(length_unit(grid) == 0.01, f"{name}: LengthUnitInMetres {length_unit(grid)}, not 0.01")
+    check(report.get("length_unit") == "cm" and "blade_travel_m" not in report,
+          f"the xfem report's units: length_unit {report.get('length_unit')!r}, keys {sorted(report)}")
+    check(abs(report["dofs_added_per_cm"] - report["dofs_added"] / report["blade_travel"]) < 1e-9 * report["dofs_added_per_cm"],
+          "dofs_added_per_cm is not the DOFs per centimetre of blade travel")
     # Beside it, the virtual elements clipped to their sides: ParaView's Integrate Variables
     # (vtkIntegrateAttributes) gives the liver's true volume, not the overlapping elements'.
     clipped = compare(work / "xfem_clipped.vtu", report["clipped_tets"])
@@ -166,6 +197,9 @@ def main():
         if time is not None and frame.name in listed:
             check(abs(time.GetValue(0) - float(listed[frame.name])) < 1e-12,
                   f"{frame.name}: TimeValue {time.GetValue(0)}, the .pvd says {listed[frame.name]}")
+        check(length_unit(data) == 1.0, f"{frame.name}: a scene's frame is not said to be in metres")
+    check("point coordinates in m," in (frames / "xfem_cut_pull.pvd").read_text(),
+          "the .pvd does not say its unit")
     for name, timestep in listed.items():
         check(len(timestep) <= 14, f"{name}: timestep '{timestep}' carries float noise")
     # ParaView's series reader offers the arrays of the first frame: `fraction` is there.

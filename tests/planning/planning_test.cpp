@@ -10,6 +10,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <sstream>
 
 #include "incise/core/error.hpp"
 #include "incise/planning/decimate.hpp"
@@ -569,6 +570,14 @@ TEST(Plan, RunsFromSurfacesToAPrediction) {
     for (const char* name : {"skin_before.vtp", "skin_after.vtp", "bone_before.vtp",
                              "bone_after.vtp", "tissue.vtu", "report.json"}) {
       EXPECT_TRUE(std::filesystem::exists(dir / "out" / name)) << name;
+    }
+    // Each file says its unit (millimetres) as numbers ParaView and meshio both read.
+    for (const char* name :
+         {"skin_before.vtp", "skin_after.vtp", "bone_before.vtp", "bone_after.vtp", "tissue.vtu"}) {
+      std::stringstream text_of;
+      text_of << std::ifstream(dir / "out" / name).rdbuf();
+      EXPECT_NE(text_of.str().find("Name=\"LengthUnitInMetres\""), std::string::npos) << name;
+      EXPECT_NE(text_of.str().find("point coordinates in mm"), std::string::npos) << name;
     }
     const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "out" / "report.json"));
     for (const char* key :

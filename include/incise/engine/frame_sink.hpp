@@ -18,9 +18,11 @@ struct FrameRecord;
 struct ClippedElements;
 
 /// Writes an XFEM body's elements clipped to their sides (xfem/clipped_elements.hpp) as a
-/// .vtu with cell arrays `element` and `fraction`, and the frame's time (s) if given.
+/// .vtu with cell arrays `element` and `fraction`, and the frame's time (s) and the length
+/// unit (m per coordinate unit) if given.
 void write_clipped_vtu(const std::filesystem::path& path, const ClippedElements& clipped,
-                       std::optional<double> time = std::nullopt);
+                       std::optional<double> time = std::nullopt,
+                       std::optional<double> length_unit_m = std::nullopt);
 
 class FrameSink {
  public:

@@ -92,6 +92,10 @@ struct VtuFields {
   std::vector<FieldArray> cell_data;
   /// s: written as the file's TimeValue field data (a frame of a series), if given.
   std::optional<double> time;
+  /// m per unit of the points' coordinates (1: metres, 1e-3: millimetres), written as the
+  /// file's LengthUnitInMetres field data and said in a comment; left out when not known
+  /// (a mesh read from a file that does not say, cut as it is).
+  std::optional<double> length_unit_m;
 };
 
 /// Writes a .vtu (arrays inline, zlib-compressed, base64) of the mesh at `positions` (one per
@@ -111,11 +115,14 @@ class PvdSeries {
   void keep_existing_before(double time);
   /// Records `file` (relative to the .pvd's folder) at time `time` (s) and rewrites the .pvd.
   void add(double time, const std::string& file);
+  /// m per unit of the files' coordinates, said in a comment in the .pvd (unset: not said).
+  void set_length_unit(double metres) { length_unit_m_ = metres; }
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
 
  private:
   std::filesystem::path path_;
   std::vector<std::pair<double, std::string>> entries_;
+  std::optional<double> length_unit_m_;
 };
 
 /// Gmsh 4.1 ASCII.
@@ -133,6 +140,12 @@ void write_vtp(const std::filesystem::path& path, std::span<const Vec3> points,
                std::span<const Triangle> triangles, const VtuFields& fields = {});
 
 /// Writes by extension: .msh, .vtu, .mesh, .obj, .node/.ele. Throws InputError otherwise.
-void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh);
+/// `length_unit_m` (m per coordinate unit, when known) goes into a .vtu's field data.
+void write_tet_mesh(const std::filesystem::path& path, const TetMesh& mesh,
+                    std::optional<double> length_unit_m = {});
+
+/// A length unit's name for m per unit (1 -> "m", 0.01 -> "cm", 1e-3 -> "mm", else "x m"),
+/// "mesh units" when not known: what reports and messages call lengths.
+[[nodiscard]] std::string length_unit_name(std::optional<double> length_unit_m);
 
 }  // namespace incise

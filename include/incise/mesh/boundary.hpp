@@ -18,6 +18,11 @@ struct BoundaryFace {
 /// Faces that no other tetrahedron shares, oriented outward.
 [[nodiscard]] std::vector<BoundaryFace> boundary_faces(const TetMesh& mesh);
 
+/// Per boundary face, whether another boundary face lies on the same three rest positions: a
+/// cut's lips (its faces back to back, on duplicated vertices), told apart from the body's
+/// own surface in the files Gmsh and MEDIT users read.
+[[nodiscard]] std::vector<bool> lip_faces(const TetMesh& mesh, std::span<const BoundaryFace> faces);
+
 /// Closedness of a triangle surface, judged by its edges.
 struct SurfaceEdgeCheck {
   std::size_t open_edges = 0;            ///< used by one triangle
