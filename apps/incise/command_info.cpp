@@ -29,7 +29,16 @@ Runner add_info_command(CLI::App& app) {
   return [path, as_json, labels]() {
     const TetMeshReadResult read = read_tet_mesh(*path, ReadOptions{*labels});
     const TetMesh& mesh = read.mesh;
-    const ValidationReport report = validate(mesh);
+    // A frame (deformed points with their "displacement"): the mesh is judged in its rest
+    // shape, and elements inside out in the positions the file holds are the state's, said
+    // apart (a simulation's inversion, not a broken mesh).
+    const bool frame = !read.rest_positions.empty();
+    const ValidationReport report =
+        frame ? validate(TetMesh(read.rest_positions,
+                                 std::vector<Tet>(mesh.tets().begin(), mesh.tets().end())))
+              : validate(mesh);
+    const std::vector<TetId> inverted_in_positions =
+        frame ? inverted_at(mesh, mesh.rest_positions()) : std::vector<TetId>{};
     const QualitySummary quality = summarize_quality(mesh);
     const SurfaceEdgeCheck boundary = check_boundary(mesh);
     const auto faces = boundary_faces(mesh);
@@ -96,7 +105,12 @@ Runner add_info_command(CLI::App& app) {
       out["inverted_ids"] = report.inverted_tets;
       out["degenerate_ids"] = report.degenerate_tets;
       out["notes"] = read.notes;
-      out["valid"] = valid;
+      out["valid"] = valid;  // as a mesh: in its rest shape, for a frame
+      out["rest_shape"] = frame ? "points minus 'displacement'" : "the points";
+      if (frame) {
+        out["inverted_in_positions"] = inverted_in_positions.size();
+        out["inverted_in_positions_ids"] = inverted_in_positions;
+      }
       std::cout << out.dump(2) << "\n";
       return valid ? 0 : kExitInvalid;
     }
@@ -137,6 +151,13 @@ Runner add_info_command(CLI::App& app) {
                                     : fmt::format("  >={:2} deg", bin * 10);
       std::cout << fmt::format("    {} {:>8} {}\n", label, count,
                                std::string(40 * count / peak, '#'));
+    }
+    if (frame) {
+      std::cout << fmt::format(
+          "  a deformed frame: the mesh is judged in its rest shape (points minus "
+          "'displacement'); in the positions it holds, {} tetrahedra are inside out{}\n",
+          inverted_in_positions.size(),
+          inverted_in_positions.empty() ? "" : " (the simulation's state, not the mesh)");
     }
     if (valid) {
       std::cout << "  valid: yes\n";

@@ -122,6 +122,8 @@ void write_final_files(const std::filesystem::path& out, const SessionSummary& s
       {"rest_volume_start_m3", session.rest_volume_start},
       {"rest_volume_m3", total_volume(mesh)},
       {"valid", validation.ok()},
+      // Elements inside out in the deformed state (the rest mesh's validity is "valid").
+      {"inverted_tets", session.diverged ? 0 : inverted_at(mesh, positions).size()},
       {"watertight", boundary.watertight()},
       {"clients", counters.clients},
       {"clients_refused", counters.refused},

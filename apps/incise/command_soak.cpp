@@ -369,7 +369,7 @@ CaseResult run_case(const std::filesystem::path& scene_path, bool full_sweep) {
       }
     }
     // Elements inside out in the deformed state: counted (the report's inverted_tets_max and
-    // each case's line), not yet refused: the mass-spring volume term (opt-in) keeps the
+    // each case's line), not yet refused: the mass-spring volume term (on by default) keeps the
     // default scene right side out, but sliver children of subdivision cuts still turn.
     result.inverted_max =
         std::max(result.inverted_max, inverted_at(mesh, engine.positions()).size());

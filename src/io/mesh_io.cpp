@@ -243,9 +243,18 @@ TetMeshReadResult read_tet_mesh(const std::filesystem::path& path, const ReadOpt
   if (raw.tet_labels.size() != raw.tets.size()) {
     raw.tet_labels.assign(raw.tets.size(), 0);
   }
+  std::vector<Vec3> rest;
+  if (raw.point_displacements.size() == raw.points.size()) {
+    rest.resize(points.size());
+    for (std::size_t v = 0; v < raw.points.size(); ++v) {
+      if (remap[v] != kInvalidId) {
+        rest[static_cast<std::size_t>(remap[v])] = raw.points[v] - raw.point_displacements[v];
+      }
+    }
+  }
   TetMeshReadResult result{
       TetMesh(std::move(points), std::move(raw.tets), std::move(raw.tet_labels)), raw.format,
-      std::move(raw.notes), dropped};
+      std::move(raw.notes), dropped, std::move(rest)};
   if (raw.tet_fractions.size() == result.mesh.tet_count()) {
     std::size_t partial = 0;
     for (std::size_t t = 0; t < raw.tet_fractions.size(); ++t) {

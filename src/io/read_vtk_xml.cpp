@@ -130,6 +130,10 @@ class VtkXmlReader {
     if (any_fraction_) {
       raw.tet_fractions = std::move(fractions_);
     }
+    if (any_displacement_) {
+      displacements_.resize(raw.points.size(), Vec3::Zero());
+      raw.point_displacements = std::move(displacements_);
+    }
     return raw;
   }
 
@@ -176,6 +180,17 @@ class VtkXmlReader {
     for (std::size_t i = 0; i < point_count; ++i) {
       builder_.add_point(first_point + static_cast<long long>(i),
                          Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]));
+    }
+    // A frame's points are deformed; its "displacement" from the rest shape (as incise and
+    // most FE post-processors write it) gives the rest shape back.
+    const pugi::xml_node moved = named_array(piece.child("PointData"), "displacement");
+    if (moved && moved.attribute("NumberOfComponents").as_int(1) == 3) {
+      const std::vector<double> d = values(moved, 3 * point_count, "displacement");
+      displacements_.resize(static_cast<std::size_t>(first_point), Vec3::Zero());
+      for (std::size_t i = 0; i < point_count; ++i) {
+        displacements_.emplace_back(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
+      }
+      any_displacement_ = true;
     }
     if (polydata) {
       for (const char* section : {"Polys", "Strips"}) {
@@ -589,6 +604,8 @@ class VtkXmlReader {
   std::string label_array_;
   std::vector<double> fractions_;  ///< per tetrahedron read (1 where the file has none)
   bool any_fraction_ = false;
+  std::vector<Vec3> displacements_;  ///< per point read (0 in pieces without the array)
+  bool any_displacement_ = false;
 };
 
 }  // namespace

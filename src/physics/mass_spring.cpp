@@ -77,6 +77,33 @@ void MassSpringModel::rebuild_adjacency() {
     return std::span<const EdgeId>(graph.edge)
         .subspan(graph.row_start[v], graph.row_start[v + 1] - graph.row_start[v]);
   });
+  if (parameters_.volume_stiffness > 0.0) {
+    tet_corners_.assign(n, [](std::size_t) { return std::span<const TetCorners>(); });
+    for (std::size_t v = 0; v < n; ++v) {
+      set_tet_corners(static_cast<VertexId>(v));
+    }
+  }
+}
+
+void MassSpringModel::set_tet_corners(VertexId v) {
+  const auto neighbours = neighbours_.row(static_cast<std::size_t>(v));
+  std::vector<TetCorners> row;
+  for (TetId t : mesh_->vertex_tets(v)) {
+    const Tet& tet = mesh_->tet(t);
+    TetCorners corners;
+    corners.tet = t;
+    for (std::size_t k = 0; k < 4; ++k) {
+      if (tet[k] == v) {
+        corners.own = static_cast<std::uint8_t>(k);
+        continue;
+      }
+      const auto at = std::find(neighbours.begin(), neighbours.end(), tet[k]);
+      INCISE_ASSERT(at != neighbours.end(), "a tetrahedron's corner is an edge neighbour");
+      corners.slot[k] = static_cast<std::uint32_t>(at - neighbours.begin());
+    }
+    row.push_back(corners);
+  }
+  tet_corners_.set_row(static_cast<std::size_t>(v), row);
 }
 
 void MassSpringModel::update_adjacency() {
@@ -104,6 +131,13 @@ void MassSpringModel::update_adjacency() {
     }
     edges_at_.set_row(static_cast<std::size_t>(v), edges);
     neighbours_.set_row(static_cast<std::size_t>(v), neighbours);
+  }
+  if (parameters_.volume_stiffness > 0.0) {
+    tet_corners_.add_rows(mesh.vertex_count());
+    for (VertexId v : marks_.marked()) {
+      set_tet_corners(v);
+    }
+    (void)tet_corners_.compact_if_fragmented();
   }
   (void)edges_at_.compact_if_fragmented();
   (void)neighbours_.compact_if_fragmented();
@@ -298,40 +332,33 @@ Vec3 MassSpringModel::vertex_force(VertexId vertex, const Vec3& x, const Vec3& v
     }
   }
   if (parameters_.volume_stiffness > 0.0) {
-    // Each tetrahedron's other corners are edge neighbours. Only this corner's share: d V / d
-    // x_own is a third of the opposite face's area along its inward normal.
-    const auto position_of = [&](VertexId w) {
-      for (std::size_t k = 0; k < neighbours.size() && k < kKept; ++k) {
-        if (neighbours[k] == w) {
-          return kept[k];
-        }
-      }
-      Vec3 xw;
-      Vec3 vw;
-      neighbor(w, xw, vw);
-      return xw;
-    };
-    for (TetId t : mesh_->vertex_tets(vertex)) {
-      const auto [kappa, rest_volume] = volume_terms_[t];
+    // Each tetrahedron's other corners are edge neighbours, whose states were read above. Only
+    // this corner's share: d V / d x_own is a third of the opposite face's area along its
+    // inward normal.
+    for (const TetCorners& at : tet_corners_.row(static_cast<std::size_t>(vertex))) {
+      const auto [kappa, rest_volume] = volume_terms_[at.tet];
       if (rest_volume <= 0.0) {
         continue;
       }
-      const Tet& tet = mesh_->tet(t);
+      const Tet& tet = mesh_->tet(at.tet);
       std::array<Vec3, 4> corners;
-      std::size_t own = 0;
       for (std::size_t k = 0; k < 4; ++k) {
-        if (tet[k] == vertex) {
+        if (k == at.own) {
           corners[k] = x;
-          own = k;
+        } else if (at.slot[k] < kKept) {
+          corners[k] = kept[at.slot[k]];
         } else {
-          corners[k] = position_of(tet[k]);
+          Vec3 vw;
+          neighbor(tet[k], corners[k], vw);
         }
       }
-      const auto& face = tet_local::kFaces[own];
+      const auto& face = tet_local::kFaces[at.own];
       const Vec3& f0 = corners[static_cast<std::size_t>(face[0])];
       const Vec3 outward = (corners[static_cast<std::size_t>(face[1])] - f0)
                                .cross(corners[static_cast<std::size_t>(face[2])] - f0);
-      const double volume = signed_volume(corners[0], corners[1], corners[2], corners[3]);
+      // The opposite face (tet_local::kFaces) faces away from this corner in a tetrahedron
+      // the right way out: the volume is a sixth of the corner's height times twice its area.
+      const double volume = -(x - f0).dot(outward) / 6.0;
       force += kappa * (volume - rest_volume) / rest_volume / 6.0 * outward;
     }
   }

@@ -39,6 +39,9 @@ struct RawMesh {
   std::vector<int> tet_labels;  ///< region label per tetrahedron (0 where the file has none)
   /// XFEM material fraction per tetrahedron (a .vtu's "fraction" cell array), else empty.
   std::vector<double> tet_fractions;
+  /// Per point, its displacement from the rest shape (a .vtu frame's "displacement" point
+  /// array), else empty.
+  std::vector<Vec3> point_displacements;
   std::vector<Triangle> triangles;
   /// Human-readable notes ("skipped 120 hexahedra"), one per kind of thing skipped.
   std::vector<std::string> notes;
@@ -62,6 +65,9 @@ struct TetMeshReadResult {
   MeshFormat format = MeshFormat::kUnknown;
   std::vector<std::string> notes;
   std::size_t dropped_vertices = 0;  ///< points used by no tetrahedron, removed
+  /// The rest shape of a deformed frame (points minus their "displacement"), one per vertex of
+  /// `mesh`, whose positions are the frame's; empty when the file gives none.
+  std::vector<Vec3> rest_positions;
 };
 
 /// Reads a tetrahedral mesh. Points used by no tetrahedron are dropped (and noted) so that
