@@ -41,8 +41,12 @@ int cut_xfem(const XfemCutRequest& request) {
   }
   TetMesh mesh = read_tet_mesh(request.mesh_path).mesh;
   const ValidationReport input_report = validate(mesh);
-  if (!input_report.ok()) {
+  if (!input_report.usable()) {
     throw InputError(request.mesh_path, 0, "the mesh is not valid:\n" + input_report.describe());
+  }
+  if (!input_report.sliver_tets.empty()) {
+    std::cerr << fmt::format("note: {} slivers (positive but tiny volume) in {}: cut as they are\n",
+                             input_report.sliver_tets.size(), request.mesh_path);
   }
   const std::vector<BladePose> path = read_blade_path(request.blade_path);
   const std::size_t tets_in = mesh.tet_count();

@@ -67,7 +67,8 @@ Runner add_info_command(CLI::App& app) {
       ++count;
       region_volume += material;
     }
-    const bool valid = report.ok();
+    // Slivers (positive but tiny volume) are listed, but a mesh with them is valid to use.
+    const bool valid = report.usable();
 
     if (*as_json) {
       nlohmann::ordered_json out;
@@ -84,6 +85,7 @@ Runner add_info_command(CLI::App& app) {
                              {"max", {high.x(), high.y(), high.z()}}};
       out["inverted"] = report.inverted_tets.size();
       out["degenerate"] = report.degenerate_tets.size();
+      out["slivers"] = report.sliver_tets.size();
       out["nonmanifold_faces"] = report.nonmanifold_faces.size();
       out["overlapping_tets"] = report.overlapping_tets.size();
       out["duplicate_tets"] = report.duplicate_tets.size();
@@ -104,6 +106,7 @@ Runner add_info_command(CLI::App& app) {
                         {"min_dihedral_histogram_10deg", quality.min_dihedral_histogram}};
       out["inverted_ids"] = report.inverted_tets;
       out["degenerate_ids"] = report.degenerate_tets;
+      out["sliver_ids"] = report.sliver_tets;
       out["notes"] = read.notes;
       out["valid"] = valid;  // as a mesh: in its rest shape, for a frame
       out["rest_shape"] = frame ? "points minus 'displacement'" : "the points";
@@ -160,7 +163,11 @@ Runner add_info_command(CLI::App& app) {
           inverted_in_positions.empty() ? "" : " (the simulation's state, not the mesh)");
     }
     if (valid) {
-      std::cout << "  valid: yes\n";
+      std::cout << (report.sliver_tets.empty()
+                        ? std::string("  valid: yes\n")
+                        : fmt::format("  valid: yes, with {} slivers (positive but tiny volume: "
+                                      "cut and simulated as they are)\n",
+                                      report.sliver_tets.size()));
     } else {
       std::cout << "  valid: NO\n";
       std::istringstream lines(report.describe());

@@ -53,8 +53,10 @@ TetMesh build_mesh(const SceneDescription& scene) {
     mesh = TetMesh(std::move(positions), std::vector<Tet>(mesh.tets().begin(), mesh.tets().end()),
                    std::vector<int>(mesh.tet_labels().begin(), mesh.tet_labels().end()));
   }
+  // Slivers of positive volume are simulated as they are (their mass and stiffness are small,
+  // and cuts make such tetrahedra too); anything worse is refused.
   const ValidationReport report = validate(mesh);
-  if (!report.ok()) {
+  if (!report.usable()) {
     throw InputError(scene.mesh_file->string(), 0,
                      "the mesh is not valid for simulation:\n" + report.describe() +
                          "(`incise convert --fix-orientation` repairs inverted tetrahedra)");

@@ -61,9 +61,10 @@ ValidationReport validate(const TetMesh& mesh, const ValidationOptions& options)
     const Sign orientation = orient3d(a, b, c, d);
     if (orientation == Sign::kNegative) {
       report.inverted_tets.push_back(id);
-    } else if (orientation == Sign::kZero ||
-               normalized_volume(a, b, c, d) < options.degenerate_tolerance) {
+    } else if (orientation == Sign::kZero) {
       report.degenerate_tets.push_back(id);
+    } else if (normalized_volume(a, b, c, d) < options.degenerate_tolerance) {
+      report.sliver_tets.push_back(id);
     }
     const auto& neighbors = mesh.tet_neighbors(id);
     for (int f = 0; f < 4; ++f) {
@@ -114,13 +115,18 @@ ValidationReport validate(const TetMesh& mesh, const ValidationOptions& options)
 }
 
 bool ValidationReport::ok() const {
+  return usable() && sliver_tets.empty();
+}
+
+bool ValidationReport::usable() const {
   return nonfinite_vertices.empty() && inverted_tets.empty() && degenerate_tets.empty() &&
          nonmanifold_faces.empty() && overlapping_tets.empty() && duplicate_tets.empty();
 }
 
 std::size_t ValidationReport::problem_count() const {
   return nonfinite_vertices.size() + inverted_tets.size() + degenerate_tets.size() +
-         nonmanifold_faces.size() + overlapping_tets.size() + duplicate_tets.size();
+         sliver_tets.size() + nonmanifold_faces.size() + overlapping_tets.size() +
+         duplicate_tets.size();
 }
 
 namespace {
@@ -151,7 +157,8 @@ std::string ValidationReport::describe(std::size_t max_listed) const {
   auto face = [&out](const auto& f) { out << "(" << f[0] << "," << f[1] << "," << f[2] << ")"; };
   describe_list(out, "vertices with NaN or Inf coordinates", nonfinite_vertices, max_listed, id);
   describe_list(out, "inverted tetrahedra", inverted_tets, max_listed, id);
-  describe_list(out, "degenerate tetrahedra", degenerate_tets, max_listed, id);
+  describe_list(out, "degenerate tetrahedra (zero volume)", degenerate_tets, max_listed, id);
+  describe_list(out, "slivers (positive but tiny volume; usable)", sliver_tets, max_listed, id);
   describe_list(out, "faces shared by more than two tetrahedra", nonmanifold_faces, max_listed,
                 face);
   describe_list(out, "overlapping neighbour pairs", overlapping_tets, max_listed, pair);

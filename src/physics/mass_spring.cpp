@@ -274,8 +274,30 @@ Vec3 MassSpringModel::spring_force(const Spring& spring, const Vec3& xa, const V
 std::pair<double, double> MassSpringModel::volume_term(TetId tet) const {
   const double shrink = 1.0 - parameters_.prestrain;
   const double rest_volume = shrink * shrink * shrink * std::abs(signed_volume(*mesh_, tet));
-  const double kappa = parameters_.volume_stiffness * materials_.of(tet).young_modulus *
-                       mesh_->material_fraction(tet);
+  double kappa = parameters_.volume_stiffness * materials_.of(tet).young_modulus *
+                 mesh_->material_fraction(tet);
+  // The term's stiffness, kappa |g|^2 / V0, grows as 1 / height for a sliver (a mesher's, or
+  // a cut's child) while its mass shrinks with its volume: an explicit step would have to
+  // shrink without bound. It is held to 10 times that of the regular tetrahedron of the same
+  // root-mean-square edge length L (kappa sqrt(2) L / 8), which leaves well-shaped elements
+  // as they are and lets a sliver give way.
+  const auto x = rest_corners(*mesh_, tet);
+  const auto g = volume_gradient(x);
+  double largest = 0.0;
+  for (const Vec3& gk : g) {
+    largest = std::max(largest, gk.squaredNorm());
+  }
+  double squared_edges = 0.0;
+  for (const auto& edge : tet_local::kEdges) {
+    squared_edges +=
+        (x[static_cast<std::size_t>(edge[1])] - x[static_cast<std::size_t>(edge[0])]).squaredNorm();
+  }
+  const double rms_edge = std::sqrt(squared_edges / 6.0);  // m
+  constexpr double kHeadroom = 10.0;
+  const double bound = kHeadroom * std::sqrt(2.0) / 8.0 * rms_edge * rest_volume;  // m^4
+  if (largest > bound && largest > 0.0) {
+    kappa *= bound / largest;
+  }
   return {kappa, rest_volume};
 }
 

@@ -38,13 +38,21 @@ TEST(Validate, FindsInvertedTet) {
       << report.describe();
 }
 
-TEST(Validate, FindsDegenerateTets) {
-  // Exactly flat, and nearly flat (normalised volume 1e-9).
+TEST(Validate, FindsDegenerateTetsAndToleratesSlivers) {
+  // Exactly flat: degenerate, not usable. Nearly flat (normalised volume 1e-9) but of positive
+  // volume: a sliver, usable (every mesher leaves some), though not ok() (a cut's output must
+  // have none).
   TetMesh flat({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(1, 1, 0)}, {Tet{0, 1, 2, 3}});
   EXPECT_EQ(validate(flat).degenerate_tets, std::vector<TetId>{0});
+  EXPECT_FALSE(validate(flat).usable());
   TetMesh sliver({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0.3, 0.3, 1e-9)},
                  {Tet{0, 1, 2, 3}});
-  EXPECT_EQ(validate(sliver).degenerate_tets, std::vector<TetId>{0});
+  const ValidationReport report = validate(sliver);
+  EXPECT_TRUE(report.degenerate_tets.empty());
+  EXPECT_EQ(report.sliver_tets, std::vector<TetId>{0});
+  EXPECT_TRUE(report.usable());
+  EXPECT_FALSE(report.ok());
+  EXPECT_NE(report.describe().find("slivers"), std::string::npos) << report.describe();
   EXPECT_TRUE(validate(sliver, {.degenerate_tolerance = 1e-12}).ok());
 }
 
