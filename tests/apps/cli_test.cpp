@@ -952,7 +952,10 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
   ASSERT_EQ(std::system(("kill -TERM " + pid.substr(0, pid.find('\n'))).c_str()), 0);
   ASSERT_TRUE(appears(dir / "out" / "report.json")) << slurp(dir / "serve.log");
   const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
-  EXPECT_EQ(report["ended"], "stopped (SIGINT/SIGTERM)");
+  // (Under a sanitizer a frame can outlast the 0.7 s the server waits: it then says it
+  // abandoned that frame, after the same words.)
+  EXPECT_EQ(report["ended"].get<std::string>().rfind("stopped (SIGINT/SIGTERM)", 0), 0u)
+      << report["ended"];
   EXPECT_EQ(report["clients"].get<int>(), 3);
   EXPECT_GT(report["messages"]["dropped_total"].get<int>(), 0);  // the garbage, counted
   EXPECT_GT(report["messages"]["poses"].get<int>(), 400);        // both devices' poses
