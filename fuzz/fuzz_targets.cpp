@@ -65,6 +65,7 @@ constexpr char kNode[] = ".node";
 constexpr char kObj[] = ".obj";
 constexpr char kStl[] = ".stl";
 constexpr char kPly[] = ".ply";
+constexpr char kOff[] = ".off";
 
 void scene(std::string_view bytes) {
   (void)load_scene(write_input(bytes, ".json"));
@@ -132,6 +133,7 @@ constexpr std::array kTargets{
     Target{"mesh_obj", kObj, mesh<kObj>},
     Target{"mesh_stl", kStl, mesh<kStl>},
     Target{"mesh_ply", kPly, mesh<kPly>},
+    Target{"mesh_off", kOff, mesh<kOff>},
     Target{"scene", ".json", scene},
     Target{"plan", ".json", plan},
     Target{"blade_path", ".csv", blade_path},

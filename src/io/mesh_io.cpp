@@ -39,6 +39,8 @@ std::string format_name(MeshFormat format) {
       return "STL";
     case MeshFormat::kPly:
       return "PLY";
+    case MeshFormat::kOff:
+      return "OFF";
     case MeshFormat::kUnknown:
       break;
   }
@@ -72,6 +74,9 @@ MeshFormat format_from_extension(const std::filesystem::path& path) {
   }
   if (extension == ".ply") {
     return MeshFormat::kPly;
+  }
+  if (extension == ".off") {
+    return MeshFormat::kOff;
   }
   return MeshFormat::kUnknown;
 }
@@ -122,6 +127,12 @@ MeshFormat format_from_content(std::string_view bytes) {
   }
   if (starts_with(text, "ply\n") || starts_with(text, "ply\r\n")) {
     return MeshFormat::kPly;
+  }
+  for (const char* keyword : {"OFF", "COFF", "NOFF", "CNOFF", "STOFF", "STCOFF"}) {
+    const std::string_view word = text.substr(0, text.find_first_of(" \t\r\n"));
+    if (word == keyword) {
+      return MeshFormat::kOff;
+    }
   }
   if (starts_with(head, "meshversionformatted")) {
     return MeshFormat::kMedit;
@@ -194,12 +205,14 @@ RawMesh read_raw_mesh(const std::filesystem::path& path, const ReadOptions& opti
       return io_detail::read_stl(source);
     case MeshFormat::kPly:
       return io_detail::read_ply(source);
+    case MeshFormat::kOff:
+      return io_detail::read_off(source);
     case MeshFormat::kUnknown:
       break;
   }
   throw InputError(path.string(), 0,
                    "unrecognised mesh format (supported: .msh, .node/.ele, .mesh, .vtk, .vtu, "
-                   ".vtp, .obj, .stl, .ply)");
+                   ".vtp, .obj, .stl, .ply, .off)");
 }
 
 TetMeshReadResult read_tet_mesh(const std::filesystem::path& path, const ReadOptions& options) {

@@ -238,10 +238,68 @@ RawMesh read_obj(Source& source) {
       source.skip_line();  // vt, vn, g, o, s, usemtl, mtllib, ...
     }
   }
+  RawMesh raw = builder.finish(MeshFormat::kObj);
   if (polygons > 0) {
-    builder.skip("polygons with more than 3 corners (split into triangles, not skipped)", polygons);
+    raw.notes.push_back("split " + std::to_string(polygons) +
+                        " polygons with more than 3 corners into triangles");
   }
-  return builder.finish(MeshFormat::kObj);
+  return raw;
+}
+
+// ---- OFF (Object File Format: Geomview, CGAL, Meshlab) ------------------------------------
+
+RawMesh read_off(Source& source) {
+  source.set_comment_char('#');
+  MeshBuilder builder(source);
+  builder.set_implicit_tags(0);
+  // The header keyword names what each vertex carries besides x y z (ST: texture, C: colour,
+  // N: normal, 4: a fourth coordinate); the extras are skipped with the rest of the line.
+  const std::string keyword(source.token("the OFF keyword"));
+  if (keyword.size() < 3 || keyword.substr(keyword.size() - 3) != "OFF" ||
+      keyword.find_first_not_of("STCN4") < keyword.size() - 3) {
+    source.fail("not an OFF file: the first word is '" + keyword + "', not OFF");
+  }
+  if (keyword.find('4') != std::string::npos) {
+    source.fail("4OFF (four coordinates per vertex) is not a 3-D surface");
+  }
+  constexpr std::size_t kLimit = std::size_t{1} << 31;
+  const std::size_t vertices = source.count("the vertex count", kLimit);
+  const std::size_t faces = source.count("the face count", kLimit);
+  (void)source.count("the edge count", kLimit);
+  source.require_room(3 * vertices + 4 * faces, 0, "the vertices and faces");
+  for (std::size_t i = 0; i < vertices; ++i) {
+    const double x = source.real("x");
+    const double y = source.real("y");
+    const double z = source.real("z");
+    builder.add_point(static_cast<long long>(i), Vec3(x, y, z));
+    source.skip_line();  // colour, normal, texture coordinates
+  }
+  std::size_t polygons = 0;
+  for (std::size_t f = 0; f < faces; ++f) {
+    const std::size_t corners = source.count("a face's corner count", vertices + 1);
+    if (corners < 3) {
+      if (corners > 0) {
+        builder.skip(corners == 1 ? "point elements" : "line elements");
+      }
+      source.skip_line();
+      continue;
+    }
+    std::vector<long long> ids(corners);
+    for (long long& id : ids) {
+      id = source.integer("a face corner");
+    }
+    polygons += corners > 3 ? 1 : 0;
+    for (std::size_t i = 1; i + 1 < corners; ++i) {
+      builder.add_triangle({ids[0], ids[i], ids[i + 1]});
+    }
+    source.skip_line();  // a colour
+  }
+  RawMesh raw = builder.finish(MeshFormat::kOff);
+  if (polygons > 0) {
+    raw.notes.push_back("split " + std::to_string(polygons) +
+                        " polygons with more than 3 corners into triangles");
+  }
+  return raw;
 }
 
 // ---- STL ----------------------------------------------------------------------------------

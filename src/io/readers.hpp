@@ -48,6 +48,7 @@ RawMesh read_medit(Source& source);
 RawMesh read_vtk_legacy(Source& source, const std::string& label_array = {});
 RawMesh read_vtk_xml(Source& source, const std::string& label_array = {});
 RawMesh read_obj(Source& source);
+RawMesh read_off(Source& source);
 RawMesh read_stl(Source& source);
 RawMesh read_ply(Source& source);
 

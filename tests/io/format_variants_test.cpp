@@ -209,6 +209,47 @@ TEST(MeditVariants, SkippedSectionsAndComments) {
   EXPECT_TRUE(has_note(mesh, "skipped 2 corners"));
 }
 
+// ---- OFF ---------------------------------------------------------------------------------------
+
+TEST(OffVariants, QuadsCommentsColoursAndDetectionByContent) {
+  // A unit cube of quads (one with a face colour), with a comment; read by extension and,
+  // renamed, by its first word. Quads are split, and the note says so (not "skipped").
+  const std::string cube =
+      "OFF\n# a cube\n8 6 12\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0 1\n1 0 1\n1 1 1\n0 1 1\n"
+      "4 0 3 2 1\n4 4 5 6 7\n4 0 1 5 4\n4 1 2 6 5\n4 2 3 7 6\n4 3 0 4 7 255 0 0\n";
+  for (const char* name : {"cube.off", "cube.surface"}) {
+    const RawMesh mesh = read_raw_mesh(write(name, cube));
+    EXPECT_EQ(mesh.format, MeshFormat::kOff) << name;
+    EXPECT_EQ(mesh.points.size(), 8u);
+    EXPECT_EQ(mesh.triangles.size(), 12u);
+    EXPECT_TRUE(has_note(mesh, "split 6 polygons with more than 3 corners into triangles"));
+  }
+  // Vertex colours (COFF) are skipped with the rest of their line.
+  const RawMesh coloured =
+      read_raw_mesh(write("tri.off",
+                          "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n"
+                          "3 0 1 2\n"));
+  EXPECT_EQ(coloured.triangles.size(), 1u);
+  EXPECT_DOUBLE_EQ(coloured.points[1].x(), 1.0);
+  // A face corner past the vertices is an error naming the line.
+  try {
+    (void)read_raw_mesh(write("bad.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"));
+    ADD_FAILURE() << "a corner past the vertices was accepted";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find(":6"), std::string::npos) << error.what();
+  }
+}
+
+TEST(ObjVariants, QuadsAreSplitAndTheNoteSaysSo) {
+  const RawMesh mesh =
+      read_raw_mesh(write("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"));
+  EXPECT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_TRUE(has_note(mesh, "split 1 polygons with more than 3 corners into triangles"));
+  for (const std::string& note : mesh.notes) {
+    EXPECT_EQ(note.find("skipped"), std::string::npos) << note;
+  }
+}
+
 // ---- VTK legacy --------------------------------------------------------------------------------
 
 const char* kVtkPoints = "POINTS 5 double\n0 0 0 1 0 0 0 1 0\n0 0 1 1 1 1\n";

@@ -6,7 +6,7 @@
 // Read: Gmsh .msh (v1, v2 ASCII/binary, v4.0 ASCII, v4.1 ASCII/binary), TetGen .node/.ele,
 //       MEDIT .mesh, VTK legacy .vtk (UNSTRUCTURED_GRID and POLYDATA, ASCII and BINARY,
 //       file versions up to 5.1), VTK XML .vtu/.vtp (ascii, base64, appended raw or base64,
-//       zlib-compressed), OBJ, STL (ASCII and binary) and PLY (ASCII and binary) surfaces.
+//       zlib-compressed), OBJ, STL (ASCII and binary), PLY (ASCII and binary) and OFF surfaces.
 // Write: Gmsh .msh 4.1, VTK XML .vtu with point and cell data, .pvd series, MEDIT .mesh,
 //       OBJ (boundary surface), TetGen .node/.ele.
 
@@ -24,7 +24,18 @@
 
 namespace incise {
 
-enum class MeshFormat { kUnknown, kGmsh, kTetGen, kMedit, kVtkLegacy, kVtkXml, kObj, kStl, kPly };
+enum class MeshFormat {
+  kUnknown,
+  kGmsh,
+  kTetGen,
+  kMedit,
+  kVtkLegacy,
+  kVtkXml,
+  kObj,
+  kStl,
+  kPly,
+  kOff
+};
 
 [[nodiscard]] std::string format_name(MeshFormat format);
 
