@@ -101,6 +101,15 @@ def main():
                 os.makedirs(folder)
                 problems = session(incise, scene, stroke, version, folder)
                 if problems:
+                    # A real-time session on a machine the rest of the suite loads (ctest -j2
+                    # on 2 cores) failed once in a full run and never alone: what went wrong is
+                    # printed, and the session is played once more; a failure that repeats fails.
+                    print("    failed once, played again: " + "; ".join(problems[:5]))
+                    print(open(os.path.join(folder, "serve.log")).read()[-2000:])
+                    folder = os.path.join(scratch, f"{index}-v{version}-again")
+                    os.makedirs(folder)
+                    problems = session(incise, scene, stroke, version, folder)
+                if problems:
                     failed += 1
                     print("    FAILED: " + "; ".join(problems[:5]))
                     print(open(os.path.join(folder, "serve.log")).read()[-2000:])
