@@ -128,9 +128,9 @@ MeshFormat format_from_content(std::string_view bytes) {
   if (starts_with(text, "ply\n") || starts_with(text, "ply\r\n")) {
     return MeshFormat::kPly;
   }
+  const std::string_view first_word = text.substr(0, text.find_first_of(" \t\r\n"));
   for (const char* keyword : {"OFF", "COFF", "NOFF", "CNOFF", "STOFF", "STCOFF"}) {
-    const std::string_view word = text.substr(0, text.find_first_of(" \t\r\n"));
-    if (word == keyword) {
+    if (first_word == keyword) {
       return MeshFormat::kOff;
     }
   }
@@ -161,6 +161,28 @@ MeshFormat format_from_content(std::string_view bytes) {
     return MeshFormat::kTetGen;
   }
   return MeshFormat::kUnknown;
+}
+
+/// The points some tetrahedron uses, numbered afresh in order (kInvalidId for the rest: a
+/// cut's leftovers, which carry no mass and would stretch every point array's range), and how
+/// many there are. Reading drops the others, and so does every writer.
+struct UsedPoints {
+  std::vector<VertexId> index;
+  std::size_t count = 0;
+};
+UsedPoints used_points(std::span<const Tet> tets, std::size_t point_count) {
+  UsedPoints used{std::vector<VertexId>(point_count, kInvalidId), 0};
+  for (const Tet& tet : tets) {
+    for (VertexId v : tet) {
+      used.index[static_cast<std::size_t>(v)] = 0;
+    }
+  }
+  for (VertexId& index : used.index) {
+    if (index != kInvalidId) {
+      index = static_cast<VertexId>(used.count++);
+    }
+  }
+  return used;
 }
 
 }  // namespace
@@ -226,17 +248,11 @@ TetMeshReadResult read_tet_mesh(const std::filesystem::path& path, const ReadOpt
                                            " triangles: tetrahedralise it with `incise mesh`)"));
   }
   // Drop points no tetrahedron uses: they would carry no mass.
-  std::vector<VertexId> remap(raw.points.size(), kInvalidId);
-  for (const Tet& tet : raw.tets) {
-    for (VertexId v : tet) {
-      remap[v] = 0;
-    }
-  }
+  const std::vector<VertexId> remap = used_points(raw.tets, raw.points.size()).index;
   std::vector<Vec3> points;
   points.reserve(raw.points.size());
   for (std::size_t v = 0; v < raw.points.size(); ++v) {
-    if (remap[v] == 0) {
-      remap[v] = static_cast<VertexId>(points.size());
+    if (remap[v] != kInvalidId) {
       points.push_back(raw.points[v]);
     }
   }
@@ -505,20 +521,16 @@ void write_tet_vtu(const std::filesystem::path& path, std::span<const Vec3> posi
   }
   // Points no tetrahedron uses (a cut's leftovers) are left out: they would stretch every
   // point array's range in ParaView and carry no material.
-  std::vector<VertexId> new_index(n_points, kInvalidId);
-  for (const Tet& tet : tets) {
-    for (VertexId v : tet) {
-      new_index[static_cast<std::size_t>(v)] = 0;
+  const UsedPoints used_numbers = used_points(tets, n_points);
+  const std::vector<VertexId>& new_index = used_numbers.index;
+  if (used_numbers.count < n_points) {
+    std::vector<std::size_t> kept;
+    kept.reserve(used_numbers.count);
+    for (std::size_t v = 0; v < n_points; ++v) {
+      if (new_index[v] != kInvalidId) {
+        kept.push_back(v);
+      }
     }
-  }
-  std::vector<std::size_t> kept;
-  for (std::size_t v = 0; v < n_points; ++v) {
-    if (new_index[v] != kInvalidId) {
-      new_index[v] = static_cast<VertexId>(kept.size());
-      kept.push_back(v);
-    }
-  }
-  if (kept.size() < n_points) {
     std::vector<Vec3> used_positions;
     used_positions.reserve(kept.size());
     for (std::size_t v : kept) {
@@ -696,22 +708,6 @@ void PvdSeries::add(double time, const std::string& file) {
 namespace {
 /// Gmsh physical group (dimension 2) of a cut's faces, named "cut".
 constexpr int kCutGroup = 1;
-
-/// 1-based numbers for the vertices some tetrahedron uses (0 for the rest: a cut's leftovers,
-/// which Gmsh and MEDIT files leave out as .vtu files do), and how many there are.
-std::pair<std::vector<std::size_t>, std::size_t> used_vertex_numbers(const TetMesh& mesh) {
-  std::vector<std::size_t> number(mesh.vertex_count(), 0);
-  for (const Tet& tet : mesh.tets()) {
-    for (VertexId v : tet) {
-      number[static_cast<std::size_t>(v)] = 1;
-    }
-  }
-  std::size_t used = 0;
-  for (std::size_t& n : number) {
-    n = n != 0 ? ++used : 0;
-  }
-  return {std::move(number), used};
-}
 }  // namespace
 
 void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
@@ -749,16 +745,15 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
     out += label != 0 ? fmt::format("1 {} 0\n", label) : std::string("0 0\n");
   }
   out += "$EndEntities\n";
-  const auto numbering = used_vertex_numbers(mesh);
-  const std::vector<std::size_t>& number = numbering.first;
-  const std::size_t n = numbering.second;
-  const auto node = [&number](VertexId v) { return number[static_cast<std::size_t>(v)]; };
+  const UsedPoints used = used_points(mesh.tets(), mesh.vertex_count());
+  const std::size_t n = used.count;
+  const auto node = [&used](VertexId v) { return used.index[static_cast<std::size_t>(v)] + 1; };
   out += fmt::format("$Nodes\n1 {} 1 {}\n3 1 0 {}\n", n, n, n);
   for (std::size_t v = 1; v <= n; ++v) {
     out += fmt::format("{}\n", v);
   }
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    if (number[v] != 0) {
+    if (used.index[v] != kInvalidId) {
       const Vec3& p = mesh.rest_position(static_cast<VertexId>(v));
       out += fmt::format("{} {} {}\n", p.x(), p.y(), p.z());
     }
@@ -793,13 +788,11 @@ void write_msh(const std::filesystem::path& path, const TetMesh& mesh) {
 
 void write_medit(const std::filesystem::path& path, const TetMesh& mesh) {
   check_finite_positions(path, mesh.rest_positions());
-  const auto numbering = used_vertex_numbers(mesh);
-  const std::vector<std::size_t>& number = numbering.first;
-  const std::size_t used = numbering.second;
-  const auto node = [&number](VertexId v) { return number[static_cast<std::size_t>(v)]; };
-  std::string out = fmt::format("MeshVersionFormatted 2\nDimension 3\nVertices\n{}\n", used);
+  const UsedPoints used = used_points(mesh.tets(), mesh.vertex_count());
+  const auto node = [&used](VertexId v) { return used.index[static_cast<std::size_t>(v)] + 1; };
+  std::string out = fmt::format("MeshVersionFormatted 2\nDimension 3\nVertices\n{}\n", used.count);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    if (number[v] != 0) {
+    if (used.index[v] != kInvalidId) {
       const Vec3& p = mesh.rest_position(static_cast<VertexId>(v));
       out += fmt::format("{} {} {} 0\n", p.x(), p.y(), p.z());
     }
