@@ -10,6 +10,7 @@
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/quality.hpp"
 #include "incise/mesh/validate.hpp"
+#include "incise/meshing/repair_surface.hpp"
 #include "incise/meshing/tetrahedralize.hpp"
 
 namespace incise::app {
@@ -56,6 +57,26 @@ Runner add_mesh_command(CLI::App& app) {
   auto largest = std::make_shared<bool>(false);
   command->add_flag("--largest-shell", *largest,
                     "Mesh only the largest closed shell of the surface (drops stray pieces)");
+  auto repair = std::make_shared<std::string>("auto");
+  auto repair_options = std::make_shared<SurfaceRepairOptions>();
+  command
+      ->add_option("--repair", *repair,
+                   "What to do with a surface that is not closed and clean: auto (repair it in "
+                   "place: duplicates, orientation, non-manifold vertices, borders, holes; wrap "
+                   "it where that is not enough), in-place (never wrap), wrap (always "
+                   "alpha-wrap), none (refuse it)")
+      ->check(CLI::IsMember({"auto", "in-place", "wrap", "none"}))
+      ->capture_default_str();
+  command
+      ->add_option("--wrap-alpha", repair_options->wrap_alpha,
+                   "Alpha wrapping: gaps and cavities narrower than this are closed over "
+                   "(surface units; 0: the bounding box diagonal / 100)")
+      ->check(CLI::NonNegativeNumber);
+  command
+      ->add_option("--wrap-offset", repair_options->wrap_offset,
+                   "Alpha wrapping: how far outside the input the wrap lies (surface units; 0: "
+                   "the bounding box diagonal / 1000)")
+      ->check(CLI::NonNegativeNumber);
   command->add_option("--timeout", options->timeout_seconds, "TetGen time limit (s)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -72,6 +93,16 @@ Runner add_mesh_command(CLI::App& app) {
       surface = shells.front();
       std::cerr << fmt::format("note: kept the largest shell ({} triangles), dropped {} others\n",
                                surface.triangles.size(), shells.size() - 1);
+    }
+    using RepairMode = SurfaceRepairOptions::Mode;
+    repair_options->mode = *repair == "none"       ? RepairMode::kNone
+                           : *repair == "in-place" ? RepairMode::kInPlace
+                           : *repair == "wrap"     ? RepairMode::kWrap
+                                                   : RepairMode::kAuto;
+    SurfaceRepairReport repaired;
+    surface = repair_surface(surface, *repair_options, repaired);
+    for (const std::string& note : repaired.notes) {
+      std::cerr << "repair: " << note << "\n";
     }
     options->remesh = *remesh == "always"  ? TetrahedralizeOptions::Remesh::kAlways
                       : *remesh == "never" ? TetrahedralizeOptions::Remesh::kNever

@@ -278,8 +278,12 @@ Runner add_run_command(CLI::App& app) {
       const FrameRecord& last = result.frames.back();
       std::cout << fmt::format(
           "final: t = {:.4g} s, kinetic energy {:.4g} J, max displacement {:.4g} m, {} tets, {} "
-          "inverted\n",
-          last.time, last.kinetic_energy, last.max_displacement, last.tets, inverted);
+          "inverted{}\n",
+          last.time, last.kinetic_energy, last.max_displacement, last.tets, inverted,
+          engine->guarded_tets() > 0
+              ? fmt::format(" ({} pushed back right side out over the run, at most {} in a step)",
+                            engine->guarded_tets(), engine->guarded_tets_most())
+              : std::string());
     }
     std::cout << "ParaView series: " << series.pvd().string() << "\n";
     if (engine->visual() != nullptr) {
@@ -303,6 +307,11 @@ Runner add_run_command(CLI::App& app) {
       report["max_displacement"] =
           result.frames.empty() ? 0.0 : result.frames.back().max_displacement;
       report["inverted_tets"] = inverted;
+      // What the inversion guard did to get there (summed over steps; most in one step).
+      report["guarded_tets"] = engine->guarded_tets();
+      report["guarded_tets_most_in_a_step"] = engine->guarded_tets_most();
+      report["guard_vertices_moved_back"] = engine->backtracked_vertices();
+      report["guard_vertices_moved_back_most_in_a_step"] = engine->backtracked_vertices_most();
       report["diverged"] = result.diverged;
       if (result.diverged) {
         report["divergence"] = result.divergence;

@@ -69,8 +69,9 @@ struct SessionSummary {
   std::size_t tets_start = 0;
   double rest_volume_start = 0.0;
   int reaction_pushes = 0;
-  double largest_reaction = 0.0;  ///< N
-  nlohmann::ordered_json visual;  ///< the visual surface's report, if any
+  double largest_reaction = 0.0;   ///< N
+  std::uint64_t guarded_tets = 0;  ///< pushed back right side out, summed over steps
+  nlohmann::ordered_json visual;   ///< the visual surface's report, if any
 };
 
 /// The last frame that ended, kept by the physics thread for the stop watchdog: what the
@@ -124,6 +125,8 @@ void write_final_files(const std::filesystem::path& out, const SessionSummary& s
       {"valid", validation.ok()},
       // Elements inside out in the deformed state (the rest mesh's validity is "valid").
       {"inverted_tets", session.diverged ? 0 : inverted_at(mesh, positions).size()},
+      // What the inversion guard did to keep them so (model.inversion_guard).
+      {"guarded_tets", session.guarded_tets},
       {"watertight", boundary.watertight()},
       {"clients", counters.clients},
       {"clients_refused", counters.refused},
@@ -391,6 +394,7 @@ int serve(const ServeOptions& options) {
       last.summary.physics_seconds = physics_seconds;
       last.summary.reaction_pushes = reaction_pushes;
       last.summary.largest_reaction = largest_reaction;
+      last.summary.guarded_tets = engine.guarded_tets();
     }
   }
   loop_over = true;
@@ -411,6 +415,7 @@ int serve(const ServeOptions& options) {
   session.physics_seconds = physics_seconds;
   session.reaction_pushes = reaction_pushes;
   session.largest_reaction = largest_reaction;
+  session.guarded_tets = engine.guarded_tets();
   if (engine.visual() != nullptr) {
     session.visual = visual_surface_report(*engine.visual());
   }

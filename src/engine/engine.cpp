@@ -169,7 +169,7 @@ Engine::Parts::Parts(const SceneDescription& scene)
       mesh(build_mesh(scene)),
       model(factory_for(kModelFactories, scene.model_type)(mesh, scene)),
       conditions(mesh),
-      system(mesh, *model, conditions, scene.damping),
+      system(mesh, *model, conditions, scene.damping, scene.inversion_guard),
       state(mesh),
       integrator(factory_for(kIntegratorFactories, scene.integrator.type)(scene.integrator)) {}
 
@@ -220,10 +220,15 @@ Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(s
   }
   p.limit = p.integrator->stability_limit(p.system);
   if (!p.integrator->implicit() && spec.dt > p.limit) {
+    // The inversion guard would push back what an unstable step throws inside out, hiding the
+    // instability (a body jittering in place, not a run that says it diverged): it is off.
+    const bool guarded = p.system.guard().min_volume_ratio > 0.0;
+    p.system.turn_guard_off();
     p.warnings.push_back(fmt::format(
         "integrator.dt = {:.3g} s exceeds the estimated stability limit {:.3g} s of {}; expect "
-        "divergence (use a smaller dt or backward-euler)",
-        spec.dt, p.limit, p.integrator->name()));
+        "divergence (use a smaller dt or backward-euler){}",
+        spec.dt, p.limit, p.integrator->name(),
+        guarded ? "; the inversion guard is off, so that the instability shows" : ""));
   }
   if (p.conditions.constrained_count() == 0 && scene.gravity.norm() > 0.0) {
     p.warnings.push_back("nothing is fixed: the body falls freely under gravity");
@@ -644,6 +649,18 @@ const Integrator& Engine::integrator() const {
 }
 double Engine::total_mass() const {
   return parts_->model->total_mass();
+}
+std::uint64_t Engine::guarded_tets() const {
+  return parts_->system.guarded_tets();
+}
+std::size_t Engine::guarded_tets_most() const {
+  return parts_->system.guarded_tets_most();
+}
+std::uint64_t Engine::backtracked_vertices() const {
+  return parts_->system.backtracked_vertices();
+}
+std::size_t Engine::backtracked_vertices_most() const {
+  return parts_->system.backtracked_vertices_most();
 }
 double Engine::stability_limit() const {
   return parts_->limit;

@@ -1,5 +1,6 @@
 #include "incise/physics/mechanical_system.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "incise/core/error.hpp"
@@ -30,11 +31,15 @@ SimulationState::SimulationState(TetMesh& mesh)
 }
 
 MechanicalSystem::MechanicalSystem(TetMesh& mesh, ForceModel& model, BoundaryConditions& conditions,
-                                   const DampingParameters& damping)
-    : mesh_(mesh), model_(model), conditions_(conditions), damping_(damping) {
+                                   const DampingParameters& damping,
+                                   const InversionGuardParameters& guard)
+    : mesh_(mesh), model_(model), conditions_(conditions), damping_(damping), guard_(guard) {
   if (!(damping_.viscous >= 0.0) || !(damping_.penalty >= 0.0) ||
       !std::isfinite(damping_.viscous) || !std::isfinite(damping_.penalty)) {
     throw InputError("damping rates must be non-negative (1/s)");
+  }
+  if (!(guard_.min_volume_ratio >= 0.0 && guard_.min_volume_ratio < 1.0) || guard_.max_passes < 1) {
+    throw InputError("the inversion guard's volume share must be in [0, 1) and it needs a pass");
   }
 }
 
@@ -164,6 +169,42 @@ void MechanicalSystem::end_step(double dt, VertexId, Vec3& v) {
   if (damping_.penalty > 0.0) {
     v *= std::exp(-damping_.penalty * dt);
   }
+}
+
+void MechanicalSystem::begin_step(double /*t*/, std::span<Vec3> x, std::span<Vec3> v) {
+  if (!(guard_.min_volume_ratio > 0.0)) {
+    return;
+  }
+  step_start_.assign(x.begin(), x.end());
+  if (mesh_.revision() != revision_checked_) {
+    // A cut's children are as right side out as their parent was, but thinner than their
+    // share of it where the parent was: pushed back before the step. The state the edit left
+    // is the fallback's start (cut edits keep every tetrahedron right side out, at rest and
+    // as deformed).
+    note(keep_right_side_out(
+        mesh_, model_.masses(),
+        [this](VertexId vertex) { return conditions_.is_constrained(vertex); }, guard_, step_start_,
+        x, v));
+    step_start_.assign(x.begin(), x.end());
+  }
+}
+
+void MechanicalSystem::finish_step(double /*t*/, std::span<Vec3> x, std::span<Vec3> v) {
+  if (!(guard_.min_volume_ratio > 0.0)) {
+    return;
+  }
+  note(keep_right_side_out(
+      mesh_, model_.masses(),
+      [this](VertexId vertex) { return conditions_.is_constrained(vertex); }, guard_, step_start_,
+      x, v));
+  revision_checked_ = mesh_.revision();
+}
+
+void MechanicalSystem::note(const InversionGuardOutcome& outcome) {
+  guarded_tets_ += outcome.corrected;
+  guarded_tets_most_ = std::max(guarded_tets_most_, outcome.corrected);
+  backtracked_ += outcome.backtracked;
+  backtracked_most_ = std::max(backtracked_most_, outcome.backtracked);
 }
 
 void apply_constraints(DynamicSystem& system, double t, std::span<Vec3> x, std::span<Vec3> v) {

@@ -275,8 +275,24 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
   if (top.has("model")) {
     const ObjectReader model(context, top.at("model"), "model",
                              {"type", "spring_damping_ratio", "prestrain", "volume_stiffness",
-                              "rayleigh", "tangent", "assemble"});
+                              "inversion_guard", "rayleigh", "tangent", "assemble"});
     scene.model_type = model.choice<ModelKind>("type", ModelKind::kMassSpring, kModels, "model");
+    if (scene.model_type != ModelKind::kMassSpring) {
+      scene.inversion_guard.min_volume_ratio = 0.0;
+    }
+    if (model.has("inversion_guard")) {
+      const Json& guard = model.at("inversion_guard");
+      if (guard.is_boolean()) {
+        scene.inversion_guard.min_volume_ratio =
+            guard.get<bool>() ? InversionGuardParameters{}.min_volume_ratio : 0.0;
+      } else if (guard.is_number() && guard.get<double>() >= 0.0 && guard.get<double>() < 1.0) {
+        scene.inversion_guard.min_volume_ratio = guard.get<double>();
+      } else {
+        context.fail("model.inversion_guard",
+                     "expected true, false or the share of its rest volume below which no "
+                     "tetrahedron ends a step (a number in [0, 1))");
+      }
+    }
     if (scene.model_type == ModelKind::kMassSpring) {
       for (const char* key : {"rayleigh", "tangent", "assemble"}) {
         if (model.has(key)) {

@@ -71,6 +71,7 @@ void euler_step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, dou
                 bool symplectic, std::vector<Vec3>& force, IntegratorStats& stats) {
   check_step(dt);
   system.refresh();
+  system.begin_step(t, x, v);
   force.assign(x.size(), Vec3::Zero());
   system.forces(t, x, v, force);
   divide_by_mass(system, force, force);
@@ -85,6 +86,7 @@ void euler_step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, dou
   }
   constrain(system, t + dt, x, v);
   system.end_step(dt, v);
+  system.finish_step(t + dt, x, v);
   ++stats.force_evaluations;
   stats.vertex_updates += x.size();
   stats.touched_last_step = x.size();
@@ -116,6 +118,7 @@ void RungeKutta4::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3>
                        double dt) {
   check_step(dt);
   system.refresh();
+  system.begin_step(t, x, v);
   const std::size_t n = x.size();
   resize_for_edits(xs_, n);
   resize_for_edits(vs_, n);
@@ -145,6 +148,7 @@ void RungeKutta4::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3>
   }
   constrain(system, t + dt, x, v);
   system.end_step(dt, v);
+  system.finish_step(t + dt, x, v);
   stats_.vertex_updates += n;
   stats_.touched_last_step = n;
 }
@@ -173,6 +177,7 @@ void HierarchicalRungeKutta4::step(DynamicSystem& system, std::span<Vec3> x, std
                                    double t, double dt) {
   check_step(dt);
   system.refresh();
+  system.begin_step(t, x, v);
   // Vertices are coupled explicitly (neighbours are extrapolated over the whole sweep), so a
   // sweep may not be longer than the explicit limit of the coupled system; per-vertex
   // sub-steps only resolve each vertex's own motion. The seed keeps dt below that limit; a
@@ -188,6 +193,7 @@ void HierarchicalRungeKutta4::step(DynamicSystem& system, std::span<Vec3> x, std
   }
   stats_.touched_last_step = touched;
   last_sweeps_ = sweeps;
+  system.finish_step(t + dt, x, v);
 }
 
 void HierarchicalRungeKutta4::sweep(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v,
@@ -313,6 +319,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
   const auto step_start = Clock::now();
   system.refresh();
   stats_.seconds_refresh = seconds_since(step_start);
+  system.begin_step(t, x, v);
   const std::size_t n = x.size();
   const auto masses = system.masses();
   const double end = t + dt;
@@ -412,6 +419,7 @@ void BackwardEuler::step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec
     }
   }
   system.end_step(dt, v);
+  system.finish_step(end, x, v);
   stats_.vertex_updates += n;
   stats_.touched_last_step = n;
   stats_.seconds_step = seconds_since(step_start);

@@ -15,6 +15,7 @@
 #include <regex>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "incise/render/image.hpp"
 #include "planning/tissue_support.hpp"
@@ -295,33 +296,47 @@ TEST(Cli, EverySceneDescriptionNamesOnlyFilesTheSceneWrites) {
 }
 
 TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {
-  // The main job's scene (150 frames): with springs alone 46 of its 936 tetrahedra end inside
-  // out, and the report counts them; with the mass-spring volume term (on by default) none
-  // does. `incise info` on the last frame tells the state's inversion from a broken mesh: the
-  // mesh is valid in its rest shape either way.
+  // The main job's scene (150 frames): with springs alone and no inversion guard 46 of its 936
+  // tetrahedra end inside out, and the report counts them; with the mass-spring volume term,
+  // or the guard, or both (the default) none does. `incise info` on the last frame tells the
+  // state's inversion from a broken mesh: the mesh is valid in its rest shape either way.
   const auto dir = test::scratch_dir("cli-run-default-inverted");
   const std::string source = std::string(INCISE_SOURCE_DIR) + "/scenes/default.json";
   auto scene = nlohmann::json::parse(slurp(source));
   scene.erase("output");
   std::map<std::string, int> inverted;
   std::map<std::string, int> inverted_by_info;
-  for (const std::string stiffness : {"0", "0.1", "default"}) {
-    if (stiffness == "default") {
-      scene["model"].erase("volume_stiffness");
-    } else {
+  std::map<std::string, int> guarded;
+  // name: volume_stiffness ("-": the default), inversion_guard (null: the default)
+  const std::vector<std::tuple<std::string, std::string, nlohmann::json>> runs{
+      {"springs", "0", false},
+      {"guard", "0", nullptr},
+      {"volume", "0.1", false},
+      {"default", "-", nullptr}};
+  for (const auto& run_spec : runs) {
+    const std::string& name = std::get<0>(run_spec);
+    const std::string& stiffness = std::get<1>(run_spec);
+    const nlohmann::json& guard = std::get<2>(run_spec);
+    scene["model"].erase("volume_stiffness");
+    scene["model"].erase("inversion_guard");
+    if (stiffness != "-") {
       scene["model"]["volume_stiffness"] = std::stod(stiffness);
     }
-    const auto path = dir / ("scene_" + stiffness + ".json");
+    if (!guard.is_null()) {
+      scene["model"]["inversion_guard"] = guard;
+    }
+    const auto path = dir / ("scene_" + name + ".json");
     std::ofstream(path) << scene.dump();
     const std::string report = (dir / "report.json").string();
-    const auto out = dir / ("out_" + stiffness);
+    const auto out = dir / ("out_" + name);
     const CommandResult run =
         incise("run " + path.string() + " --out " + out.string() + " --report " + report);
     ASSERT_EQ(run.code, 0) << run.err;
     const auto json = nlohmann::json::parse(slurp(report));
     ASSERT_TRUE(json.contains("inverted_tets"));
     EXPECT_GT(json["tets"].template get<int>(), 900);  // cut through
-    inverted[stiffness] = json["inverted_tets"].template get<int>();
+    inverted[name] = json["inverted_tets"].template get<int>();
+    guarded[name] = json["guarded_tets"].template get<int>();
     std::filesystem::path last;
     for (const auto& entry : std::filesystem::directory_iterator(out)) {
       if (entry.path().extension() == ".vtu" &&
@@ -334,13 +349,33 @@ TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {
     EXPECT_EQ(info.code, 0) << info.out << info.err;  // a valid mesh, whatever its state
     const auto described = nlohmann::json::parse(info.out);
     EXPECT_TRUE(described["valid"].get<bool>()) << last;
-    inverted_by_info[stiffness] = described["inverted_in_positions"].get<int>();
+    inverted_by_info[name] = described["inverted_in_positions"].get<int>();
   }
-  EXPECT_GT(inverted["0"], 0);
-  EXPECT_EQ(inverted["0.1"], 0);
+  EXPECT_GT(inverted["springs"], 0);
+  EXPECT_EQ(inverted["guard"], 0);
+  EXPECT_GT(guarded["guard"], 0);  // the guard did the work
+  EXPECT_EQ(inverted["volume"], 0);
+  EXPECT_EQ(guarded["volume"], 0);
   EXPECT_EQ(inverted["default"], 0);
-  EXPECT_EQ(inverted_by_info["0"], inverted["0"]);
+  EXPECT_EQ(inverted_by_info["springs"], inverted["springs"]);
   EXPECT_EQ(inverted_by_info["default"], 0);
+}
+
+TEST(Cli, SoakMassSpringCutsEndEveryFrameRightSideOut) {
+  // Soak cases whose subdivision slivers turned inside out with the volume term alone (seeds
+  // 41, 51 and 64 of 2026-11-27: up to 5, 6 and 20 tetrahedra): the soak now refuses any
+  // mass-spring tetrahedron inside out after a frame, and none is.
+  const auto dir = test::scratch_dir("cli-soak-right-side-out");
+  for (const int seed : {41, 51, 64}) {
+    const auto out = dir / std::to_string(seed);
+    const CommandResult run = incise("soak --seed " + std::to_string(seed) + " --cuts 1 --out " +
+                                     out.string() + " --data " + test::data_dir().string());
+    EXPECT_EQ(run.code, 0) << run.out << run.err;
+    EXPECT_NE(run.out.find("subdivision + mass-spring"), std::string::npos) << run.out;
+    EXPECT_NE(run.out.find(" grid"), std::string::npos) << run.out;
+    const auto report = nlohmann::json::parse(slurp(out / "soak.json"));
+    EXPECT_EQ(report["inverted_tets_max"], 0) << seed;
+  }
 }
 
 TEST(Cli, RunTheDefaultSceneWithAReport) {

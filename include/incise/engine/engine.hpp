@@ -144,6 +144,13 @@ class Engine {
   /// The materials of the body (table and one per tetrahedron), or null if the model keeps none.
   [[nodiscard]] const MaterialMap* materials() const;
   [[nodiscard]] double total_mass() const;  ///< kg
+  /// Tetrahedra the inversion guard (model.inversion_guard) pushed back right side out, summed
+  /// over the steps so far, and the most in one step.
+  [[nodiscard]] std::uint64_t guarded_tets() const;
+  [[nodiscard]] std::size_t guarded_tets_most() const;
+  /// Vertices its fallback moved back towards the start of their step: summed, most in a step.
+  [[nodiscard]] std::uint64_t backtracked_vertices() const;
+  [[nodiscard]] std::size_t backtracked_vertices_most() const;
   /// The integrator's largest stable step on this scene (s; infinity for implicit schemes).
   [[nodiscard]] double stability_limit() const;
   /// Warnings about the scene (e.g. a step beyond the stability limit).

@@ -79,6 +79,12 @@ class DynamicSystem {
   /// advanced (e.g. to apply velocity-penalty damping); does nothing by default.
   virtual void end_step(double /*dt*/, std::span<Vec3> /*v*/) {}
   virtual void end_step(double /*dt*/, VertexId /*vertex*/, Vec3& /*v*/) {}
+  /// Called by integrators as a step starts, after refresh(), with every vertex's state (which
+  /// it may correct after mesh edits).
+  virtual void begin_step(double /*t*/, std::span<Vec3> /*x*/, std::span<Vec3> /*v*/) {}
+  /// Called by integrators once a whole step has ended at time t, with every vertex's state:
+  /// the last word on it (e.g. tetrahedra pushed back right side out); nothing by default.
+  virtual void finish_step(double /*t*/, std::span<Vec3> /*x*/, std::span<Vec3> /*v*/) {}
 };
 
 /// Kinetic energy (J) of velocities v with masses m.

@@ -5,6 +5,7 @@
 #include "incise/mesh/attributes.hpp"
 #include "incise/physics/boundary_conditions.hpp"
 #include "incise/physics/force_model.hpp"
+#include "incise/physics/inversion_guard.hpp"
 
 namespace incise {
 
@@ -27,8 +28,10 @@ struct DampingParameters {
 
 class MechanicalSystem final : public DynamicSystem {
  public:
+  /// `guard` (off unless its ratio is set) keeps tetrahedra right side out after each step.
   MechanicalSystem(TetMesh& mesh, ForceModel& model, BoundaryConditions& conditions,
-                   const DampingParameters& damping = {});
+                   const DampingParameters& damping = {},
+                   const InversionGuardParameters& guard = {.min_volume_ratio = 0.0});
 
   void refresh() override { model_.refresh(); }
   void extend_vertex_values(std::vector<Vec3>& values) const override;
@@ -59,6 +62,19 @@ class MechanicalSystem final : public DynamicSystem {
   [[nodiscard]] double max_frequency() const override;
   void end_step(double dt, std::span<Vec3> v) override;
   void end_step(double dt, VertexId vertex, Vec3& v) override;
+  void begin_step(double t, std::span<Vec3> x, std::span<Vec3> v) override;
+  void finish_step(double t, std::span<Vec3> x, std::span<Vec3> v) override;
+
+  /// Tetrahedra the inversion guard pushed back since the start (summed over steps), and the
+  /// most it found in one step.
+  [[nodiscard]] std::uint64_t guarded_tets() const { return guarded_tets_; }
+  [[nodiscard]] std::size_t guarded_tets_most() const { return guarded_tets_most_; }
+  /// Vertices its fallback moved back towards the start of their step, summed over steps.
+  [[nodiscard]] std::uint64_t backtracked_vertices() const { return backtracked_; }
+  [[nodiscard]] std::size_t backtracked_vertices_most() const { return backtracked_most_; }
+  [[nodiscard]] const InversionGuardParameters& guard() const { return guard_; }
+  /// An explicit step beyond its stability limit must show as divergence, not be pushed back.
+  void turn_guard_off() { guard_.min_volume_ratio = 0.0; }
 
   [[nodiscard]] ForceModel& model() { return model_; }
   [[nodiscard]] BoundaryConditions& conditions() { return conditions_; }
@@ -70,11 +86,22 @@ class MechanicalSystem final : public DynamicSystem {
   [[nodiscard]] ForceLinearization& linearized() const;
   /// f = gravity, point forces and viscous damping (overwrites f).
   void external_and_damping_forces(std::span<const Vec3> v, std::span<Vec3> f) const;
+  /// Adds what one call of the inversion guard did to the counts.
+  void note(const InversionGuardOutcome& outcome);
 
   TetMesh& mesh_;
   ForceModel& model_;
   BoundaryConditions& conditions_;
   DampingParameters damping_;
+  InversionGuardParameters guard_;
+  std::vector<Vec3> step_start_;  ///< positions (m) as the step began, for the guard's fallback
+  /// The mesh's revision at the end of the last step: an edit since (a cut's slid or collapsed
+  /// vertex takes its deformed position from other vertices) is checked as the step begins.
+  std::uint64_t revision_checked_ = ~std::uint64_t{0};
+  std::uint64_t guarded_tets_ = 0;
+  std::uint64_t backtracked_ = 0;
+  std::size_t backtracked_most_ = 0;
+  std::size_t guarded_tets_most_ = 0;
 };
 
 /// Puts constrained vertices at their prescribed state for time t.

@@ -127,6 +127,9 @@ struct SceneDescription {
   MassSpringParameters mass_spring;
   CorotationalFemParameters fem;
   DampingParameters damping;
+  /// model.inversion_guard: the share of its rest volume no tetrahedron ends a step below (0:
+  /// off); on (0.05) by default for mass-spring, off for corotational FEM.
+  InversionGuardParameters inversion_guard;
   IntegratorSpec integrator;
   std::vector<RegionSpec> fixed;
   std::vector<DisplacementSpec> displacements;

@@ -1,0 +1,239 @@
+#include "incise/meshing/repair_surface.hpp"
+
+#include <CGAL/AABB_face_graph_triangle_primitive.h>
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Polygon_mesh_processing/stitch_borders.h>
+#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/alpha_wrap_3.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <iterator>
+
+#include "incise/core/error.hpp"
+#include "incise/meshing/tetrahedralize.hpp"
+
+namespace incise {
+
+namespace {
+
+namespace PMP = CGAL::Polygon_mesh_processing;
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Point = Kernel::Point_3;
+using CgalMesh = CGAL::Surface_mesh<Point>;
+using Soup = std::vector<std::array<std::size_t, 3>>;
+
+std::vector<Point> points_of(const SurfaceMesh& surface) {
+  std::vector<Point> points;
+  points.reserve(surface.points.size());
+  for (const Vec3& p : surface.points) {
+    points.emplace_back(p.x(), p.y(), p.z());
+  }
+  return points;
+}
+
+Soup triangles_of(const SurfaceMesh& surface) {
+  Soup soup;
+  soup.reserve(surface.triangles.size());
+  for (const Triangle& t : surface.triangles) {
+    soup.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
+                    static_cast<std::size_t>(t[2])});
+  }
+  return soup;
+}
+
+SurfaceMesh surface_of(CgalMesh mesh) {
+  mesh.collect_garbage();
+  SurfaceMesh surface;
+  surface.points.reserve(mesh.number_of_vertices());
+  for (const auto vertex : mesh.vertices()) {
+    const Point& p = mesh.point(vertex);
+    surface.points.emplace_back(p.x(), p.y(), p.z());
+  }
+  for (const auto face : mesh.faces()) {
+    Triangle triangle{};
+    int k = 0;
+    for (const auto vertex : CGAL::vertices_around_face(mesh.halfedge(face), mesh)) {
+      if (k < 3) {
+        triangle[static_cast<std::size_t>(k)] = static_cast<VertexId>(vertex.idx());
+      }
+      ++k;
+    }
+    if (k != 3) {
+      throw InternalError("surface repair produced a face that is not a triangle");
+    }
+    surface.triangles.push_back(triangle);
+  }
+  return surface;
+}
+
+double diagonal_of(const SurfaceMesh& surface) {
+  Vec3 low = Vec3::Constant(std::numeric_limits<double>::infinity());
+  Vec3 high = -low;
+  for (const Vec3& p : surface.points) {
+    low = low.cwiseMin(p);
+    high = high.cwiseMax(p);
+  }
+  return surface.points.empty() ? 0.0 : (high - low).norm();
+}
+
+/// Largest distance from a vertex of `from` to the triangles of `to` (surface units).
+double largest_vertex_distance(const SurfaceMesh& from, const SurfaceMesh& to) {
+  CgalMesh target;
+  PMP::polygon_soup_to_polygon_mesh(points_of(to), triangles_of(to), target);
+  using Primitive = CGAL::AABB_face_graph_triangle_primitive<CgalMesh>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
+  if (target.number_of_faces() == 0) {
+    return 0.0;
+  }
+  Tree tree(faces(target).first, faces(target).second, target);
+  tree.accelerate_distance_queries();
+  double largest = 0.0;
+  for (const Vec3& p : from.points) {
+    largest = std::max(largest, tree.squared_distance(Point(p.x(), p.y(), p.z())));
+  }
+  return std::sqrt(largest);
+}
+
+/// In place: soup repairs, orientation with non-manifold vertices split, stitching, holes.
+SurfaceMesh repair_in_place(const SurfaceMesh& surface, SurfaceRepairReport& report) {
+  std::vector<Point> points = points_of(surface);
+  Soup soup = triangles_of(surface);
+  const std::size_t points_before = points.size();
+  const std::size_t triangles_before = soup.size();
+  PMP::repair_polygon_soup(points, soup);
+  // Isolated points are dropped too: count only what the triangles used.
+  std::vector<char> used(points_before, 0);
+  for (const Triangle& t : surface.triangles) {
+    for (VertexId v : t) {
+      used[static_cast<std::size_t>(v)] = 1;
+    }
+  }
+  const auto used_before = static_cast<std::size_t>(std::count(used.begin(), used.end(), 1));
+  report.points_merged = used_before > points.size() ? used_before - points.size() : 0;
+  report.triangles_removed = triangles_before - soup.size();
+  const std::size_t points_merged = points.size();
+  PMP::orient_polygon_soup(points, soup);
+  report.vertices_split = points.size() - points_merged;
+  CgalMesh mesh;
+  PMP::polygon_soup_to_polygon_mesh(points, soup, mesh);
+  report.edges_stitched = PMP::stitch_borders(mesh);
+  std::vector<CgalMesh::Halfedge_index> borders;
+  PMP::extract_boundary_cycles(mesh, std::back_inserter(borders));
+  for (const CgalMesh::Halfedge_index border : borders) {
+    std::vector<CgalMesh::Face_index> added;
+    PMP::triangulate_and_refine_hole(mesh, border, std::back_inserter(added),
+                                     CGAL::Emptyset_iterator());
+    double area = 0.0;
+    for (const CgalMesh::Face_index face : added) {
+      area += PMP::face_area(face, mesh);
+    }
+    ++report.holes_filled;
+    report.hole_area += area;
+    report.largest_hole_area = std::max(report.largest_hole_area, area);
+  }
+  if (CGAL::is_closed(mesh) && !PMP::does_self_intersect(mesh)) {
+    const bool outward = PMP::is_outward_oriented(mesh);
+    PMP::orient_to_bound_a_volume(mesh);
+    report.reoriented = !outward;
+  }
+  return surface_of(std::move(mesh));
+}
+
+SurfaceMesh wrap(const SurfaceMesh& surface, const SurfaceRepairOptions& options,
+                 SurfaceRepairReport& report) {
+  const double diagonal = diagonal_of(surface);
+  report.alpha = options.wrap_alpha > 0.0 ? options.wrap_alpha : diagonal / 100.0;
+  report.offset = options.wrap_offset > 0.0 ? options.wrap_offset : diagonal / 1000.0;
+  const std::vector<Point> points = points_of(surface);
+  const Soup soup = triangles_of(surface);
+  CgalMesh wrapped;
+  CGAL::alpha_wrap_3(points, soup, report.alpha, report.offset, wrapped);
+  report.wrapped = true;
+  return surface_of(std::move(wrapped));
+}
+
+}  // namespace
+
+SurfaceMesh repair_surface(const SurfaceMesh& surface, const SurfaceRepairOptions& options,
+                           SurfaceRepairReport& report) {
+  using Mode = SurfaceRepairOptions::Mode;
+  report = {};
+  const SurfaceCheckReport check = check_closed_surface(surface);
+  if (check.ok() && options.mode != Mode::kWrap) {
+    return surface;
+  }
+  if (options.mode == Mode::kNone) {
+    throw InputError("the surface cannot be tetrahedralised:\n" + check.describe() +
+                     "\n(--repair auto repairs it in place where it can and wraps it where it "
+                     "cannot)");
+  }
+  SurfaceMesh result;
+  SurfaceCheckReport after;
+  if (options.mode != Mode::kWrap) {
+    result = repair_in_place(surface, report);
+    after = check_closed_surface(result);
+    if (report.points_merged > 0) {
+      report.notes.push_back(fmt::format("merged {} duplicate points", report.points_merged));
+    }
+    if (report.triangles_removed > 0) {
+      report.notes.push_back(
+          fmt::format("removed {} duplicate or degenerate triangles", report.triangles_removed));
+    }
+    if (report.vertices_split > 0) {
+      report.notes.push_back(fmt::format(
+          "split {} non-manifold vertices (one copy per fan of triangles)", report.vertices_split));
+    }
+    if (report.edges_stitched > 0) {
+      report.notes.push_back(fmt::format("stitched {} border edges", report.edges_stitched));
+    }
+    if (report.holes_filled > 0) {
+      report.notes.push_back(fmt::format(
+          "filled {} holes (area {:.4g} in all, the largest {:.4g}; surface units squared)",
+          report.holes_filled, report.hole_area, report.largest_hole_area));
+    }
+    if (report.reoriented) {
+      report.notes.push_back("turned the triangles to face outward");
+    }
+  }
+  if (options.mode == Mode::kWrap || (options.mode == Mode::kAuto && !after.ok())) {
+    if (options.mode == Mode::kAuto) {
+      report.notes.push_back("in place, the surface still has " + after.describe() +
+                             "; wrapped it instead");
+      report = SurfaceRepairReport{.notes = report.notes};
+    }
+    result = wrap(surface, options, report);
+    after = check_closed_surface(result);
+    report.notes.push_back(fmt::format(
+        "alpha-wrapped the surface (alpha {:.4g}, offset {:.4g} surface units): {} triangles, "
+        "closed, manifold, no self-intersection, lying about the offset outside the input",
+        report.alpha, report.offset, result.triangles.size()));
+  }
+  if (!after.ok()) {
+    throw InputError("the surface cannot be tetrahedralised:\n" + check.describe() +
+                     "\nand in place it could not be repaired: what is left is " +
+                     after.describe() + "\n(--repair auto wraps it instead)");
+  }
+  report.changed = true;
+  report.result_to_input = largest_vertex_distance(result, surface);
+  report.input_to_result = largest_vertex_distance(surface, result);
+  report.notes.push_back(fmt::format(
+      "the result lies within {:.4g} of the input and the input within {:.4g} of the result "
+      "(surface units, measured at vertices)",
+      report.result_to_input, report.input_to_result));
+  return result;
+}
+
+}  // namespace incise
