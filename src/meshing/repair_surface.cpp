@@ -1,8 +1,8 @@
 #include "incise/meshing/repair_surface.hpp"
 
-#include <CGAL/AABB_face_graph_triangle_primitive.h>
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
@@ -89,16 +89,28 @@ double diagonal_of(const SurfaceMesh& surface) {
   return surface.points.empty() ? 0.0 : (high - low).norm();
 }
 
-/// Largest distance from a vertex of `from` to the triangles of `to` (surface units).
+/// Largest distance from a vertex of `from` to the triangles of `to` (surface units). The
+/// triangles are taken as a soup: `to` may be the broken input.
 double largest_vertex_distance(const SurfaceMesh& from, const SurfaceMesh& to) {
-  CgalMesh target;
-  PMP::polygon_soup_to_polygon_mesh(points_of(to), triangles_of(to), target);
-  using Primitive = CGAL::AABB_face_graph_triangle_primitive<CgalMesh>;
-  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
-  if (target.number_of_faces() == 0) {
+  std::vector<Kernel::Triangle_3> triangles;
+  triangles.reserve(to.triangles.size());
+  for (const Triangle& t : to.triangles) {
+    const auto at = [&](int k) {
+      const Vec3& p = to.points[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])];
+      return Point(p.x(), p.y(), p.z());
+    };
+    Kernel::Triangle_3 triangle(at(0), at(1), at(2));
+    if (!triangle.is_degenerate()) {
+      triangles.push_back(triangle);
+    }
+  }
+  if (triangles.empty()) {
     return 0.0;
   }
-  Tree tree(faces(target).first, faces(target).second, target);
+  using Primitive =
+      CGAL::AABB_triangle_primitive<Kernel, std::vector<Kernel::Triangle_3>::iterator>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
+  Tree tree(triangles.begin(), triangles.end());
   tree.accelerate_distance_queries();
   double largest = 0.0;
   for (const Vec3& p : from.points) {
@@ -127,6 +139,15 @@ SurfaceMesh repair_in_place(const SurfaceMesh& surface, SurfaceRepairReport& rep
   const std::size_t points_merged = points.size();
   PMP::orient_polygon_soup(points, soup);
   report.vertices_split = points.size() - points_merged;
+  // Two triangles on the same three points, once opposite, are duplicates once oriented (the
+  // points orientation split stay split: only triangles are merged).
+  report.triangles_removed += PMP::merge_duplicate_polygons_in_polygon_soup(points, soup);
+  if (!PMP::is_polygon_soup_a_polygon_mesh(soup)) {
+    report.failure =
+        "triangles that no orientation makes a surface (an edge shared by more "
+        "than two of them after every other repair)";
+    return {};
+  }
   CgalMesh mesh;
   PMP::polygon_soup_to_polygon_mesh(points, soup, mesh);
   report.edges_stitched = PMP::stitch_borders(mesh);
@@ -165,6 +186,31 @@ SurfaceMesh wrap(const SurfaceMesh& surface, const SurfaceRepairOptions& options
   return surface_of(std::move(wrapped));
 }
 
+/// The volume a closed surface bounds, negative when it faces inward (surface units cubed).
+double signed_enclosed_volume(const SurfaceMesh& surface) {
+  double volume = 0.0;
+  for (const Triangle& t : surface.triangles) {
+    const Vec3& a = surface.points[static_cast<std::size_t>(t[0])];
+    volume += a.dot(surface.points[static_cast<std::size_t>(t[1])].cross(
+                  surface.points[static_cast<std::size_t>(t[2])])) /
+              6.0;
+  }
+  return volume;
+}
+
+/// What the in-place repair left, on one line.
+std::string left_after(const SurfaceCheckReport& after, const SurfaceRepairReport& report) {
+  if (!report.failure.empty()) {
+    return report.failure;
+  }
+  std::string text = after.describe();
+  std::replace(text.begin(), text.end(), '\n', ' ');
+  while (!text.empty() && text.back() == ' ') {
+    text.pop_back();
+  }
+  return text;
+}
+
 }  // namespace
 
 SurfaceMesh repair_surface(const SurfaceMesh& surface, const SurfaceRepairOptions& options,
@@ -173,7 +219,18 @@ SurfaceMesh repair_surface(const SurfaceMesh& surface, const SurfaceRepairOption
   report = {};
   const SurfaceCheckReport check = check_closed_surface(surface);
   if (check.ok() && options.mode != Mode::kWrap) {
-    return surface;
+    if (signed_enclosed_volume(surface) >= 0.0) {
+      return surface;
+    }
+    // Closed and consistent, but facing in (TetGen would fill the outside).
+    SurfaceMesh turned = surface;
+    for (Triangle& t : turned.triangles) {
+      std::swap(t[1], t[2]);
+    }
+    report.changed = true;
+    report.reoriented = true;
+    report.notes.push_back("turned every triangle to face outward (the surface faced inward)");
+    return turned;
   }
   if (options.mode == Mode::kNone) {
     throw InputError("the surface cannot be tetrahedralised:\n" + check.describe() +
@@ -183,8 +240,16 @@ SurfaceMesh repair_surface(const SurfaceMesh& surface, const SurfaceRepairOption
   SurfaceMesh result;
   SurfaceCheckReport after;
   if (options.mode != Mode::kWrap) {
-    result = repair_in_place(surface, report);
-    after = check_closed_surface(result);
+    try {
+      result = repair_in_place(surface, report);
+    } catch (const std::exception& error) {  // a CGAL precondition the input breaks
+      report.failure = std::string("a repair step refused it: ") + error.what();
+    }
+    if (!report.failure.empty()) {
+      after.nonmanifold_edges = 1;  // not ok: what is left is said by the failure
+    } else {
+      after = check_closed_surface(result);
+    }
     if (report.points_merged > 0) {
       report.notes.push_back(fmt::format("merged {} duplicate points", report.points_merged));
     }
@@ -210,9 +275,11 @@ SurfaceMesh repair_surface(const SurfaceMesh& surface, const SurfaceRepairOption
   }
   if (options.mode == Mode::kWrap || (options.mode == Mode::kAuto && !after.ok())) {
     if (options.mode == Mode::kAuto) {
-      report.notes.push_back("in place, the surface still has " + after.describe() +
+      report.notes.push_back("in place, the surface still has " + left_after(after, report) +
                              "; wrapped it instead");
-      report = SurfaceRepairReport{.notes = report.notes};
+      std::vector<std::string> notes = std::move(report.notes);
+      report = {};
+      report.notes = std::move(notes);
     }
     result = wrap(surface, options, report);
     after = check_closed_surface(result);
@@ -224,7 +291,7 @@ SurfaceMesh repair_surface(const SurfaceMesh& surface, const SurfaceRepairOption
   if (!after.ok()) {
     throw InputError("the surface cannot be tetrahedralised:\n" + check.describe() +
                      "\nand in place it could not be repaired: what is left is " +
-                     after.describe() + "\n(--repair auto wraps it instead)");
+                     left_after(after, report) + "\n(--repair auto wraps it instead)");
   }
   report.changed = true;
   report.result_to_input = largest_vertex_distance(result, surface);

@@ -295,6 +295,49 @@ TEST(Cli, EverySceneDescriptionNamesOnlyFilesTheSceneWrites) {
   EXPECT_GT(named, 0);
 }
 
+TEST(Cli, ARefusedSurfaceIsRepairedMeshedCutAndSimulated) {
+  // SOFA's smooth liver surface intersects itself: `incise mesh` refused it. Now it is wrapped
+  // (saying so, and how far the result lies from the input), and the body is cut and run.
+  const auto dir = test::scratch_dir("cli-mesh-repair");
+  const std::string surface = test::data_file("sofa/liver-smooth.obj").string();
+  const std::string mesh = (dir / "liver.vtu").string();
+  const CommandResult refused = incise("mesh " + surface + " -o " + mesh + " --repair none");
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("self-intersections"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("--repair auto"), std::string::npos) << refused.err;
+  const CommandResult meshed = incise("mesh " + surface + " -o " + mesh + " --wrap-alpha 0.4");
+  ASSERT_EQ(meshed.code, 0) << meshed.err;
+  EXPECT_NE(meshed.err.find("alpha-wrapped"), std::string::npos) << meshed.err;
+  EXPECT_NE(meshed.err.find("the result lies within"), std::string::npos) << meshed.err;
+  {
+    std::ofstream path(dir / "path.csv");
+    path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
+         << "0,-5.5,2.7,-2.5,-5.5,2.7,3.5\n"
+         << "1,-1.5,2.7,-2.5,-1.5,2.7,3.5\n";
+  }
+  const CommandResult cut =
+      incise("cut " + mesh + " --blade " + (dir / "path.csv").string() + " -o " +
+             (dir / "cut.vtu").string() + " --report " + (dir / "cut.json").string());
+  ASSERT_EQ(cut.code, 0) << cut.err;
+  const auto cut_report = nlohmann::json::parse(slurp(dir / "cut.json"));
+  EXPECT_TRUE(cut_report["valid"].get<bool>());
+  EXPECT_GT(cut_report["tets_out"].get<int>(), cut_report["tets_in"].get<int>());
+  {
+    std::ofstream scene(dir / "scene.json");
+    scene << R"({"mesh": {"file": "liver.vtu", "scale": 0.01}, "material": "liver",
+                 "fixed": [{"box": [[-1, -1, -1], [1, 1, 0]]}], "gravity": [0, 0, -9.81],
+                 "integrator": {"type": "backward-euler", "dt": 0.01},
+                 "frames": 3, "frame_dt": 0.01, "output": {"dir": "out", "vtu_every": 3}})";
+  }
+  const CommandResult run =
+      incise("run " + (dir / "scene.json").string() + " --out " + (dir / "out").string() +
+             " --report " + (dir / "report.json").string());
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto report = nlohmann::json::parse(slurp(dir / "report.json"));
+  EXPECT_FALSE(report["diverged"].get<bool>());
+  EXPECT_EQ(report["inverted_tets"], 0);
+}
+
 TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {
   // The main job's scene (150 frames): with springs alone and no inversion guard 46 of its 936
   // tetrahedra end inside out, and the report counts them; with the mass-spring volume term,

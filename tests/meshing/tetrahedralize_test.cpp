@@ -12,44 +12,14 @@
 #include "incise/mesh/quality.hpp"
 #include "incise/mesh/validate.hpp"
 #include "test_support.hpp"
+#include "test_surfaces.hpp"
 
 namespace incise {
 namespace {
 
-double enclosed_volume(const SurfaceMesh& surface) {
-  double volume = 0.0;
-  for (const Triangle& t : surface.triangles) {
-    volume += surface.points[t[0]].dot(surface.points[t[1]].cross(surface.points[t[2]])) / 6.0;
-  }
-  return volume;
-}
-
-/// The boundary of a box grid as a closed surface.
-SurfaceMesh box_surface(const Vec3& origin = Vec3::Zero(), double size = 1.0) {
-  BoxGridOptions options;
-  options.cells = {2, 2, 2};
-  options.origin = origin;
-  options.size = Vec3(size, size, size);
-  const TetMesh box = make_box_grid(options);
-  SurfaceMesh surface;
-  surface.points.assign(box.rest_positions().begin(), box.rest_positions().end());
-  for (const BoundaryFace& face : boundary_faces(box)) {
-    surface.triangles.push_back(face.vertices);
-  }
-  return surface;
-}
-
-/// Adds another surface's points and triangles to `into`.
-void append_surface(SurfaceMesh& into, const SurfaceMesh& other) {
-  const auto offset = static_cast<VertexId>(into.points.size());
-  into.points.insert(into.points.end(), other.points.begin(), other.points.end());
-  for (Triangle t : other.triangles) {
-    for (VertexId& v : t) {
-      v += offset;
-    }
-    into.triangles.push_back(t);
-  }
-}
+using test::append_surface;
+using test::box_surface;
+using test::enclosed_volume;
 
 TEST(Tetrahedralize, BoxFillsItsSurface) {
   const SurfaceMesh surface = box_surface();

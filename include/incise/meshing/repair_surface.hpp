@@ -27,22 +27,24 @@ struct SurfaceRepairOptions {
 
 struct SurfaceRepairReport {
   bool changed = false;
-  std::size_t points_merged = 0;       ///< duplicate points joined
-  std::size_t triangles_removed = 0;   ///< duplicate or degenerate triangles dropped
-  std::size_t vertices_split = 0;      ///< non-manifold vertices given one copy per fan
-  std::size_t edges_stitched = 0;      ///< border edge pairs joined
+  std::size_t points_merged = 0;      ///< duplicate points joined
+  std::size_t triangles_removed = 0;  ///< duplicate or degenerate triangles dropped
+  std::size_t vertices_split = 0;     ///< non-manifold vertices given one copy per fan
+  std::size_t edges_stitched = 0;     ///< border edge pairs joined
   std::size_t holes_filled = 0;
-  double hole_area = 0.0;              ///< surface units squared, all filled holes together
+  double hole_area = 0.0;  ///< surface units squared, all filled holes together
   double largest_hole_area = 0.0;
-  bool reoriented = false;             ///< turned to bound its volume outward
+  bool reoriented = false;  ///< turned to bound its volume outward
   bool wrapped = false;
-  double alpha = 0.0;                  ///< of the wrap (surface units)
+  double alpha = 0.0;  ///< of the wrap (surface units)
   double offset = 0.0;
   /// Largest distance from a result vertex to the input surface, and from an input vertex to
   /// the result (surface units): how far the repair moved the surface, measured at vertices.
   double result_to_input = 0.0;
   double input_to_result = 0.0;
   std::vector<std::string> notes;  ///< one line per change, for the user
+  /// Why the in-place repair stopped short of a surface (empty when it did not).
+  std::string failure;
 };
 
 /// Returns `surface` as it is when it is already closed and clean (report.changed false);
