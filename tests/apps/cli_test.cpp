@@ -233,6 +233,16 @@ TEST(Cli, AMeshWithASliverIsDescribedCutAndSimulatedNotRefused) {
   EXPECT_TRUE(described["valid"].get<bool>());
   EXPECT_EQ(described["slivers"].get<int>(), 1);
   EXPECT_EQ(described["degenerate"].get<int>(), 0);
+  // The repair, for who wants the sliver gone: collapsed away, saying so.
+  const std::string fixed = (dir / "fixed.vtu").string();
+  const CommandResult convert =
+      incise("convert " + (dir / "sliver.mesh").string() + " " + fixed + " --fix-slivers");
+  ASSERT_EQ(convert.code, 0) << convert.err;
+  EXPECT_NE(convert.err.find("1 edges collapsed, 0 flat and 0 slivers left"), std::string::npos)
+      << convert.err;
+  const auto described_fixed = nlohmann::json::parse(incise("info --json " + fixed).out);
+  EXPECT_EQ(described_fixed["slivers"].get<int>(), 0);
+  EXPECT_TRUE(described_fixed["valid"].get<bool>());
   {
     std::ofstream path(dir / "path.csv");
     path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
