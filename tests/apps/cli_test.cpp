@@ -309,14 +309,14 @@ TEST(Cli, BrokenSurfacesOfEveryKindAreMeshedAndCutApart) {
   // Unit cubes (0..1) written as OBJ files with one defect each; `incise mesh` repairs each and
   // a planar blade through x = 0.25 cuts the body in two.
   const auto dir = test::scratch_dir("cli-mesh-broken");
-  const auto cube = [](double shift) {
+  const auto cube_at = [](double x, double y, double z) {
     std::ostringstream text;
     for (int k = 0; k < 8; ++k) {
-      text << "v " << (k & 1) + shift << " " << ((k >> 1) & 1) + shift << " "
-           << ((k >> 2) & 1) + shift << "\n";
+      text << "v " << (k & 1) + x << " " << ((k >> 1) & 1) + y << " " << ((k >> 2) & 1) + z << "\n";
     }
     return text.str();
   };
+  const auto cube = [&](double shift) { return cube_at(shift, shift, shift); };
   // The cube's 12 outward triangles (1-based, offset by `base`), `skip` left out, `flip` turned.
   const auto faces = [](int base, int skip, int flip) {
     const int triangles[12][3] = {{1, 3, 4}, {1, 4, 2}, {5, 6, 8}, {5, 8, 7}, {1, 2, 6}, {1, 6, 5},
@@ -339,7 +339,8 @@ TEST(Cli, BrokenSurfacesOfEveryKindAreMeshedAndCutApart) {
       {"duplicated", cube(0) + faces(0, -1, -1) + faces(0, -1, -1)},
       {"quads_open", cube(0) + "f 1 2 4 3\nf 5 7 8 6\nf 1 5 6 2\nf 3 4 8 7\nf 1 3 7 5\n"},
       {"self_intersecting", cube(0) + cube(0.5) + faces(0, -1, -1) + faces(8, -1, -1)},
-      {"corner_touch", cube(0) + cube(1) + faces(0, -1, -1) + faces(8, -1, -1)}};
+      {"corner_touch", cube(0) + cube(1) + faces(0, -1, -1) + faces(8, -1, -1)},
+      {"edge_touch", cube(0) + cube_at(1, 1, 0) + faces(0, -1, -1) + faces(8, -1, -1)}};
   {
     std::ofstream path(dir / "path.csv");
     path << "t,tip_x,tip_y,tip_z,base_x,base_y,base_z\n"
