@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <numbers>
 
 #include "incise/core/error.hpp"
 #include "incise/mesh/validate.hpp"
@@ -98,6 +100,44 @@ TEST(RepairSurface, FlippedTrianglesAndAnInsideOutSurfaceAreTurned) {
   const SurfaceMesh turned = repaired(inside_out, Mode::kInPlace, report);
   EXPECT_TRUE(report.reoriented);
   EXPECT_NEAR(enclosed_volume(turned), 1.0, 1e-9);
+}
+
+TEST(RepairSurface, AnOpenDomeLikeAFaceScanIsCappedIntoASolid) {
+  // A scan is a sheet: a unit hemisphere of 12 rings x 32 sectors, open at its rim. Its rim
+  // is filled (a flat cap), and the solid is the half ball.
+  SurfaceMesh dome;
+  constexpr int kRings = 12;
+  constexpr int kSectors = 32;
+  dome.points.emplace_back(0, 0, 1);
+  for (int ring = 1; ring <= kRings; ++ring) {
+    const double polar = 0.5 * std::numbers::pi * ring / kRings;
+    for (int sector = 0; sector < kSectors; ++sector) {
+      const double azimuth = 2.0 * std::numbers::pi * sector / kSectors;
+      dome.points.emplace_back(std::sin(polar) * std::cos(azimuth),
+                               std::sin(polar) * std::sin(azimuth), std::cos(polar));
+    }
+  }
+  const auto at = [](int ring, int sector) {
+    return static_cast<VertexId>(1 + (ring - 1) * kSectors + sector % kSectors);
+  };
+  for (int sector = 0; sector < kSectors; ++sector) {
+    dome.triangles.push_back({0, at(1, sector), at(1, sector + 1)});
+  }
+  for (int ring = 1; ring < kRings; ++ring) {
+    for (int sector = 0; sector < kSectors; ++sector) {
+      dome.triangles.push_back({at(ring, sector), at(ring + 1, sector), at(ring + 1, sector + 1)});
+      dome.triangles.push_back({at(ring, sector), at(ring + 1, sector + 1), at(ring, sector + 1)});
+    }
+  }
+  SurfaceRepairReport report;
+  const SurfaceMesh solid = repaired(dome, Mode::kAuto, report);
+  EXPECT_FALSE(report.wrapped);
+  EXPECT_EQ(report.holes_filled, 1u);
+  // The cap is the rim's polygon: 32 sides on the unit circle.
+  EXPECT_NEAR(report.hole_area, 16.0 * std::sin(2.0 * std::numbers::pi / kSectors), 1e-9);
+  EXPECT_LT(report.input_to_result, 1e-12);  // the sheet itself is kept
+  EXPECT_NEAR(enclosed_volume(solid), 2.0 * std::numbers::pi / 3.0, 0.05);
+  expect_fillable(solid);
 }
 
 TEST(RepairSurface, DuplicatedPointsAndTrianglesAreMergedAndRemoved) {
