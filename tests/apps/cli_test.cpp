@@ -186,7 +186,7 @@ TEST(Cli, GenerateBox) {
   EXPECT_NE(incise("generate box --cells 0 1 1 -o " + out).code, 0);
 }
 
-TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
+TEST(Cli, MeshTheLiverSurfaceAndRepairAnOpenOne) {
   if (!have_data()) {
     GTEST_SKIP();
   }
@@ -210,10 +210,17 @@ TEST(Cli, MeshTheLiverSurfaceAndRejectAnOpenOne) {
     open_surface << line << "\n";
   }
   open_surface.close();
-  const CommandResult open =
-      incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
+  // Refused as it is (--repair none), naming the open edges; repaired by default.
+  const CommandResult open = incise("mesh " + (dir / "open.obj").string() + " -o " +
+                                    (dir / "x.vtu").string() + " --repair none");
   EXPECT_EQ(open.code, 2);
   EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
+  const CommandResult repaired =
+      incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
+  EXPECT_EQ(repaired.code, 0) << repaired.err;
+  EXPECT_NE(repaired.err.find("repair: filled 1 holes"), std::string::npos) << repaired.err;
+  EXPECT_EQ(nlohmann::json::parse(incise("info --json " + (dir / "x.vtu").string()).out)["valid"],
+            true);
 }
 
 TEST(Cli, AMeshWithASliverIsDescribedCutAndSimulatedNotRefused) {
