@@ -4,8 +4,10 @@
 
 #include <chrono>
 #include <iostream>
+#include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "incise/core/atomic_file.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/quality.hpp"
@@ -77,6 +79,9 @@ Runner add_mesh_command(CLI::App& app) {
                    "Alpha wrapping: how far outside the input the wrap lies (surface units; 0: "
                    "the bounding box diagonal / 1000)")
       ->check(CLI::NonNegativeNumber);
+  auto report_path = std::make_shared<std::string>();
+  command->add_option("--report", *report_path,
+                      "JSON report: what the repair changed, the distances, the mesh made");
   command->add_option("--timeout", options->timeout_seconds, "TetGen time limit (s)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -120,6 +125,33 @@ Runner add_mesh_command(CLI::App& app) {
         "wrote {} ({} vertices, {} tetrahedra, volume {:.6g}, min dihedral {:.1f} deg, {:.2f} s)\n",
         *output, mesh.vertex_count(), mesh.tet_count(), total_volume(mesh),
         quality.min_dihedral_deg, seconds);
+    if (!report_path->empty()) {
+      nlohmann::ordered_json json;
+      json["surface"] = *input;
+      json["output"] = *output;
+      json["repair"] = {{"changed", repaired.changed},
+                        {"points_merged", repaired.points_merged},
+                        {"triangles_removed", repaired.triangles_removed},
+                        {"vertices_split", repaired.vertices_split},
+                        {"edges_stitched", repaired.edges_stitched},
+                        {"holes_filled", repaired.holes_filled},
+                        {"hole_area", repaired.hole_area},
+                        {"largest_hole_area", repaired.largest_hole_area},
+                        {"reoriented", repaired.reoriented},
+                        {"wrapped", repaired.wrapped},
+                        {"alpha", repaired.alpha},
+                        {"offset", repaired.offset},
+                        {"result_to_input", repaired.result_to_input},
+                        {"input_to_result", repaired.input_to_result},
+                        {"notes", repaired.notes}};
+      json["vertices"] = mesh.vertex_count();
+      json["tets"] = mesh.tet_count();
+      json["volume"] = total_volume(mesh);
+      json["min_dihedral_deg"] = quality.min_dihedral_deg;
+      json["valid"] = report.ok();
+      json["seconds"] = seconds;
+      write_file_atomically(*report_path, json.dump(2) + "\n");
+    }
     if (!report.ok()) {
       std::cerr << "warning: the result does not validate:\n" << report.describe();
       return kExitError;

@@ -216,9 +216,15 @@ TEST(Cli, MeshTheLiverSurfaceAndRepairAnOpenOne) {
   EXPECT_EQ(open.code, 2);
   EXPECT_NE(open.err.find("open edges"), std::string::npos) << open.err;
   const CommandResult repaired =
-      incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string());
+      incise("mesh " + (dir / "open.obj").string() + " -o " + (dir / "x.vtu").string() +
+             " --report " + (dir / "mesh.json").string());
   EXPECT_EQ(repaired.code, 0) << repaired.err;
   EXPECT_NE(repaired.err.find("repair: filled 1 holes"), std::string::npos) << repaired.err;
+  const auto described = nlohmann::json::parse(slurp(dir / "mesh.json"));
+  EXPECT_EQ(described["repair"]["holes_filled"], 1);
+  EXPECT_GT(described["repair"]["hole_area"].get<double>(), 0.0);
+  EXPECT_FALSE(described["repair"]["wrapped"].get<bool>());
+  EXPECT_TRUE(described["valid"].get<bool>());
   EXPECT_EQ(nlohmann::json::parse(incise("info --json " + (dir / "x.vtu").string()).out)["valid"],
             true);
 }
