@@ -368,13 +368,12 @@ CaseResult run_case(const std::filesystem::path& scene_path, bool full_sweep) {
         return fail("a position is NaN or infinite");
       }
     }
-    // Elements inside out in the deformed state: refused in the mass-spring cases (whose
-    // inversion guard is on by default), counted elsewhere (the report's inverted_tets_max and each
-    // case's line): corotational FEM resists inversion only as far as its polar rotation does.
+    // Elements inside out in the deformed state: refused wherever the inversion guard is on
+    // (every case: it is on by default for both models).
     const std::size_t inverted = inverted_at(mesh, engine.positions()).size();
     result.inverted_max = std::max(result.inverted_max, inverted);
-    if (inverted > 0 && scene.model_type == ModelKind::kMassSpring) {
-      return fail(fmt::format("{} mass-spring tetrahedra inside out", inverted));
+    if (inverted > 0 && scene.inversion_guard.min_volume_ratio > 0.0) {
+      return fail(fmt::format("{} tetrahedra inside out", inverted));
     }
     const double volume_now = material_volume(mesh);
     if (std::abs(volume_now - volume) > 1e-9 * volume) {

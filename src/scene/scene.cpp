@@ -277,9 +277,6 @@ SceneDescription parse_scene(const std::string& json_text, const std::filesystem
                              {"type", "spring_damping_ratio", "prestrain", "volume_stiffness",
                               "inversion_guard", "rayleigh", "tangent", "assemble"});
     scene.model_type = model.choice<ModelKind>("type", ModelKind::kMassSpring, kModels, "model");
-    if (scene.model_type != ModelKind::kMassSpring) {
-      scene.inversion_guard.min_volume_ratio = 0.0;
-    }
     if (model.has("inversion_guard")) {
       const Json& guard = model.at("inversion_guard");
       if (guard.is_boolean()) {

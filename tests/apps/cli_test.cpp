@@ -490,18 +490,21 @@ TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {
   EXPECT_EQ(inverted_by_info["default"], 0);
 }
 
-TEST(Cli, SoakMassSpringCutsEndEveryFrameRightSideOut) {
-  // Soak cases whose subdivision slivers turned inside out with the volume term alone (seeds
-  // 41, 51 and 64 of 2026-11-27: up to 5, 6 and 20 tetrahedra): the soak now refuses any
-  // mass-spring tetrahedron inside out after a frame, and none is.
+TEST(Cli, SoakCutsEndEveryFrameRightSideOut) {
+  // Soak cases that ended frames with tetrahedra inside out before the inversion guard (seeds
+  // of 2026-11-27): mass-spring grids 41, 51 and 64 (up to 5, 6 and 20 subdivision slivers,
+  // with the volume term alone) and corotational FEM on the collapsing cylinder, seed 46 (up
+  // to 1,024). The soak refuses any tetrahedron inside out after a frame, and none is.
   const auto dir = test::scratch_dir("cli-soak-right-side-out");
-  for (const int seed : {41, 51, 64}) {
+  for (const int seed : {41, 51, 64, 46}) {
     const auto out = dir / std::to_string(seed);
     const CommandResult run = incise("soak --seed " + std::to_string(seed) + " --cuts 1 --out " +
                                      out.string() + " --data " + test::data_dir().string());
     EXPECT_EQ(run.code, 0) << run.out << run.err;
-    EXPECT_NE(run.out.find("subdivision + mass-spring"), std::string::npos) << run.out;
-    EXPECT_NE(run.out.find(" grid"), std::string::npos) << run.out;
+    EXPECT_NE(run.out.find(seed == 46 ? "cylinder.msh (perturbed), subdivision + corotational-fem"
+                                      : "subdivision + mass-spring"),
+              std::string::npos)
+        << run.out;
     const auto report = nlohmann::json::parse(slurp(out / "soak.json"));
     EXPECT_EQ(report["inverted_tets_max"], 0) << seed;
   }

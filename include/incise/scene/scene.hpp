@@ -127,8 +127,8 @@ struct SceneDescription {
   MassSpringParameters mass_spring;
   CorotationalFemParameters fem;
   DampingParameters damping;
-  /// model.inversion_guard: the share of its rest volume no tetrahedron ends a step below (0:
-  /// off); on (0.05) by default for mass-spring, off for corotational FEM.
+  /// model.inversion_guard: a tetrahedron below half this share of its rest volume after a step
+  /// is pushed back to it (0: off); on (0.05) by default for both models.
   InversionGuardParameters inversion_guard;
   IntegratorSpec integrator;
   std::vector<RegionSpec> fixed;
