@@ -15,6 +15,7 @@
 
 #include "incise/core/error.hpp"
 #include "incise/mesh/boundary.hpp"
+#include "incise/mesh/used_points.hpp"
 #include "readers.hpp"
 
 namespace incise {
@@ -163,28 +164,6 @@ MeshFormat format_from_content(std::string_view bytes) {
   return MeshFormat::kUnknown;
 }
 
-/// The points some tetrahedron uses, numbered afresh in order (kInvalidId for the rest: a
-/// cut's leftovers, which carry no mass and would stretch every point array's range), and how
-/// many there are. Reading drops the others, and so does every writer.
-struct UsedPoints {
-  std::vector<VertexId> index;
-  std::size_t count = 0;
-};
-UsedPoints used_points(std::span<const Tet> tets, std::size_t point_count) {
-  UsedPoints used{std::vector<VertexId>(point_count, kInvalidId), 0};
-  for (const Tet& tet : tets) {
-    for (VertexId v : tet) {
-      used.index[static_cast<std::size_t>(v)] = 0;
-    }
-  }
-  for (VertexId& index : used.index) {
-    if (index != kInvalidId) {
-      index = static_cast<VertexId>(used.count++);
-    }
-  }
-  return used;
-}
-
 }  // namespace
 
 MeshFormat detect_format(const std::filesystem::path& path) {
@@ -248,20 +227,9 @@ TetMeshReadResult read_tet_mesh(const std::filesystem::path& path, const ReadOpt
                                            " triangles: tetrahedralise it with `incise mesh`)"));
   }
   // Drop points no tetrahedron uses: they would carry no mass.
-  const std::vector<VertexId> remap = used_points(raw.tets, raw.points.size()).index;
-  std::vector<Vec3> points;
-  points.reserve(raw.points.size());
-  for (std::size_t v = 0; v < raw.points.size(); ++v) {
-    if (remap[v] != kInvalidId) {
-      points.push_back(raw.points[v]);
-    }
-  }
+  std::vector<Vec3> points = raw.points;
+  const std::vector<VertexId> remap = drop_unused_points(points, raw.tets);
   const std::size_t dropped = raw.points.size() - points.size();
-  for (Tet& tet : raw.tets) {
-    for (VertexId& v : tet) {
-      v = remap[v];
-    }
-  }
   if (dropped > 0) {
     raw.notes.push_back("dropped " + std::to_string(dropped) + " points that no tetrahedron uses");
   }

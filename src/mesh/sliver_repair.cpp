@@ -9,6 +9,7 @@
 
 #include "incise/core/error.hpp"
 #include "incise/mesh/predicates.hpp"
+#include "incise/mesh/used_points.hpp"
 
 namespace incise {
 
@@ -147,20 +148,11 @@ SliverRepairResult fix_slivers(TetMesh& mesh, const ValidationOptions& options) 
   result.flat_after = flat.size();
   result.slivers_after = slivers.size();
   // Drop the vertices the collapses left without tetrahedra.
-  std::vector<VertexId> renumbered(mesh.vertex_count(), kInvalidId);
-  std::vector<Vec3> points;
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    if (!mesh.vertex_tets(static_cast<VertexId>(v)).empty()) {
-      renumbered[v] = static_cast<VertexId>(points.size());
-      points.push_back(mesh.rest_position(static_cast<VertexId>(v)));
-    }
-  }
+  std::vector<Vec3> points(mesh.rest_positions().begin(), mesh.rest_positions().end());
   std::vector<Tet> tets(mesh.tets().begin(), mesh.tets().end());
+  (void)drop_unused_points(points, tets);
   std::vector<int> labels(mesh.tet_count());
   for (std::size_t t = 0; t < tets.size(); ++t) {
-    for (VertexId& v : tets[t]) {
-      v = renumbered[static_cast<std::size_t>(v)];
-    }
     labels[t] = mesh.tet_label(static_cast<TetId>(t));
   }
   mesh = TetMesh(std::move(points), std::move(tets), std::move(labels));

@@ -22,6 +22,7 @@
 #include <cmath>
 #include <iterator>
 
+#include "cgal_surface.hpp"
 #include "incise/core/error.hpp"
 #include "incise/meshing/tetrahedralize.hpp"
 
@@ -30,53 +31,15 @@ namespace incise {
 namespace {
 
 namespace PMP = CGAL::Polygon_mesh_processing;
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
-using Point = Kernel::Point_3;
-using CgalMesh = CGAL::Surface_mesh<Point>;
-using Soup = std::vector<std::array<std::size_t, 3>>;
-
-std::vector<Point> points_of(const SurfaceMesh& surface) {
-  std::vector<Point> points;
-  points.reserve(surface.points.size());
-  for (const Vec3& p : surface.points) {
-    points.emplace_back(p.x(), p.y(), p.z());
-  }
-  return points;
-}
-
-Soup triangles_of(const SurfaceMesh& surface) {
-  Soup soup;
-  soup.reserve(surface.triangles.size());
-  for (const Triangle& t : surface.triangles) {
-    soup.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
-                    static_cast<std::size_t>(t[2])});
-  }
-  return soup;
-}
+using cgal_surface::CgalMesh;
+using cgal_surface::Kernel;
+using cgal_surface::Point;
+using cgal_surface::points_of;
+using cgal_surface::Soup;
+using cgal_surface::triangles_of;
 
 SurfaceMesh surface_of(CgalMesh mesh) {
-  mesh.collect_garbage();
-  SurfaceMesh surface;
-  surface.points.reserve(mesh.number_of_vertices());
-  for (const auto vertex : mesh.vertices()) {
-    const Point& p = mesh.point(vertex);
-    surface.points.emplace_back(p.x(), p.y(), p.z());
-  }
-  for (const auto face : mesh.faces()) {
-    Triangle triangle{};
-    int k = 0;
-    for (const auto vertex : CGAL::vertices_around_face(mesh.halfedge(face), mesh)) {
-      if (k < 3) {
-        triangle[static_cast<std::size_t>(k)] = static_cast<VertexId>(vertex.idx());
-      }
-      ++k;
-    }
-    if (k != 3) {
-      throw InternalError("surface repair produced a face that is not a triangle");
-    }
-    surface.triangles.push_back(triangle);
-  }
-  return surface;
+  return cgal_surface::from_cgal_mesh(std::move(mesh), "surface repair");
 }
 
 double diagonal_of(const SurfaceMesh& surface) {

@@ -20,6 +20,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "cgal_surface.hpp"
 #include "incise/core/child_process.hpp"
 #include "incise/core/error.hpp"
 #include "incise/mesh/boundary.hpp"
@@ -57,28 +58,9 @@ std::string SurfaceCheckReport::describe() const {
 
 namespace {
 
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
-
-using CgalMesh = CGAL::Surface_mesh<Kernel::Point_3>;
-
-/// A clean (closed, manifold, oriented) triangle surface as a CGAL halfedge mesh; faces keep
-/// the triangles' order, so face index == triangle index.
-CgalMesh to_cgal_mesh(const SurfaceMesh& surface) {
-  std::vector<Kernel::Point_3> points;
-  points.reserve(surface.points.size());
-  for (const Vec3& p : surface.points) {
-    points.emplace_back(p.x(), p.y(), p.z());
-  }
-  std::vector<std::vector<std::size_t>> polygons;
-  polygons.reserve(surface.triangles.size());
-  for (const Triangle& t : surface.triangles) {
-    polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
-                        static_cast<std::size_t>(t[2])});
-  }
-  CgalMesh mesh;
-  CGAL::Polygon_mesh_processing::polygon_soup_to_polygon_mesh(points, polygons, mesh);
-  return mesh;
-}
+using cgal_surface::CgalMesh;
+using cgal_surface::Kernel;
+using cgal_surface::to_cgal_mesh;
 
 bool collinear(const Vec3& a, const Vec3& b, const Vec3& c) {
   return CGAL::collinear(Kernel::Point_3(a.x(), a.y(), a.z()), Kernel::Point_3(b.x(), b.y(), b.z()),
@@ -324,28 +306,7 @@ SurfaceMesh remesh_surface(const SurfaceMesh& surface, double edge_length) {
   CGAL::Polygon_mesh_processing::isotropic_remeshing(
       faces(mesh), edge_length, mesh,
       CGAL::parameters::number_of_iterations(5).number_of_relaxation_steps(3));
-  mesh.collect_garbage();
-  SurfaceMesh result;
-  result.points.reserve(mesh.number_of_vertices());
-  for (const auto vertex : mesh.vertices()) {
-    const auto& p = mesh.point(vertex);
-    result.points.emplace_back(p.x(), p.y(), p.z());
-  }
-  for (const auto face : mesh.faces()) {
-    Triangle triangle{};
-    int k = 0;
-    for (const auto vertex : CGAL::vertices_around_face(mesh.halfedge(face), mesh)) {
-      if (k < 3) {
-        triangle[k] = static_cast<VertexId>(vertex.idx());
-      }
-      ++k;
-    }
-    if (k != 3) {
-      throw InternalError("remeshing produced a non-triangular face");
-    }
-    result.triangles.push_back(triangle);
-  }
-  return result;
+  return cgal_surface::from_cgal_mesh(std::move(mesh), "remeshing");
 }
 
 TetrahedralizeResult tetrahedralize(const SurfaceMesh& input,

@@ -29,6 +29,21 @@ double floor_of(const TetMesh& mesh, const Tet& tet, double ratio) {
                                mesh.rest_position(tet[2]), mesh.rest_position(tet[3]));
 }
 
+/// The tetrahedra around `vertices` (each once, in id order) for which `failing` holds.
+template <typename Failing>
+std::vector<TetId> failing_around(const TetMesh& mesh, std::span<const VertexId> vertices,
+                                  const Failing& failing) {
+  std::vector<TetId> around;
+  for (VertexId vertex : vertices) {
+    const std::span<const TetId> star = mesh.vertex_tets(vertex);
+    around.insert(around.end(), star.begin(), star.end());
+  }
+  std::sort(around.begin(), around.end());
+  around.erase(std::unique(around.begin(), around.end()), around.end());
+  std::erase_if(around, [&](TetId t) { return !failing(t); });
+  return around;
+}
+
 /// The fallback when projection does not settle (a fan of tetrahedra wound the wrong way round
 /// an edge: no local push unwinds it): the free corners of each tetrahedron inside out are
 /// moved halfway back to where the step started, their velocities halved, until none is
@@ -46,7 +61,6 @@ std::size_t back_to_the_start(const TetMesh& mesh, const std::function<bool(Vert
     }
   }
   std::vector<VertexId> moved;
-  std::vector<TetId> next;
   while (!inside_out.empty()) {
     moved.clear();
     for (TetId t : inside_out) {
@@ -62,7 +76,6 @@ std::size_t back_to_the_start(const TetMesh& mesh, const std::function<bool(Vert
     if (moved.empty()) {
       break;  // only fixed corners (or new ones) left to move: counted by the caller
     }
-    next.clear();
     for (VertexId corner : moved) {
       const auto i = static_cast<std::size_t>(corner);
       if (++halvings[i] > kHalvings) {
@@ -72,18 +85,9 @@ std::size_t back_to_the_start(const TetMesh& mesh, const std::function<bool(Vert
         x[i] = start[i] + 0.5 * (x[i] - start[i]);
         v[i] *= 0.5;
       }
-      for (TetId around : mesh.vertex_tets(corner)) {
-        next.push_back(around);
-      }
     }
-    std::sort(next.begin(), next.end());
-    next.erase(std::unique(next.begin(), next.end()), next.end());
-    inside_out.clear();
-    for (TetId t : next) {
-      if (!(volume_of(corners_at(mesh.tet(t), x)) > 0.0)) {
-        inside_out.push_back(t);
-      }
-    }
+    inside_out = failing_around(
+        mesh, moved, [&](TetId t) { return !(volume_of(corners_at(mesh.tet(t), x)) > 0.0); });
   }
   std::size_t count = 0;
   for (std::uint8_t h : halvings) {
@@ -128,10 +132,10 @@ InversionGuardOutcome keep_right_side_out(const TetMesh& mesh, std::span<const d
   }
   std::vector<std::uint8_t> counted(tets, 0);
   std::vector<std::uint8_t> seen = below;  // every tetrahedron ever pending
-  std::vector<TetId> next;
+  std::vector<VertexId> moved;
   std::array<double, 4> weight{};
   for (int pass = 0; pass < parameters.max_passes && !pending.empty(); ++pass) {
-    next.clear();
+    moved.clear();
     for (TetId t : pending) {
       const Tet& tet = mesh.tet(t);
       const std::array<Vec3, 4> p = corners_at(tet, x);
@@ -170,21 +174,14 @@ InversionGuardOutcome keep_right_side_out(const TetMesh& mesh, std::span<const d
         v[vertex] -= mu * weight[k] * gradient[k];
       }
       // Its neighbours may have been pushed below theirs.
-      for (VertexId corner : tet) {
-        for (TetId around : mesh.vertex_tets(corner)) {
-          next.push_back(around);
-        }
-      }
+      moved.insert(moved.end(), tet.begin(), tet.end());
     }
-    std::sort(next.begin(), next.end());
-    next.erase(std::unique(next.begin(), next.end()), next.end());
-    pending.clear();
-    for (TetId t : next) {
+    pending = failing_around(mesh, moved, [&](TetId t) {
       const Tet& tet = mesh.tet(t);
-      if (volume_of(corners_at(tet, x)) < 0.5 * floor_of(mesh, tet, ratio)) {
-        pending.push_back(t);
-        seen[t] = 1;
-      }
+      return volume_of(corners_at(tet, x)) < 0.5 * floor_of(mesh, tet, ratio);
+    });
+    for (TetId t : pending) {
+      seen[t] = 1;
     }
   }
   if (!pending.empty() && !start.empty()) {
