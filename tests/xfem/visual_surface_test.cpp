@@ -11,6 +11,7 @@
 #include <map>
 #include <random>
 
+#include "../meshing/test_surfaces.hpp"
 #include "blade_walks.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
@@ -303,14 +304,7 @@ TEST(VisualSurface, ASelfIntersectingSurfaceWhereTheCutPassesKeepsItsLastGoodPic
   SurfaceMesh surface = inner_box();
   const SurfaceMesh second =
       box_surface({4, 4, 4}, Vec3(0.012, 0.012, 0.012), Vec3(0.038, 0.010, 0.005));
-  const auto offset = static_cast<VertexId>(surface.points.size());
-  surface.points.insert(surface.points.end(), second.points.begin(), second.points.end());
-  for (Triangle t : second.triangles) {
-    for (VertexId& v : t) {
-      v += offset;
-    }
-    surface.triangles.push_back(t);
-  }
+  test::append_surface(surface, second);
   VisualSurface visual(mesh, surface.points, surface.triangles);
   XfemCutter cutter(mesh);
   const double x = 0.0437;  // through both boxes
