@@ -31,6 +31,11 @@ packages=(
   libpng-dev libegl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
   # the interactive viewer: a GLFW window with Dear ImGui panels; Xvfb runs it in CI
   libglfw3-dev libimgui-dev xvfb xauth
+  # the Python module (import incise): pybind11 on Debian's Python 3 with numpy; pytest runs
+  # its tests; pandas, Dask's distributed scheduler, matplotlib and scipy serve the sweep and
+  # the examples
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-pandas python3-dask
+  python3-distributed python3-matplotlib python3-scipy
   # the device protocol (incise serve / incise device): OpenIGTLink, as 3D Slicer speaks it
   libopenigtlink-dev
 )

@@ -10,7 +10,7 @@
 #include "commands.hpp"
 #include "incise/io/mesh_io.hpp"
 #include "incise/mesh/boundary.hpp"
-#include "incise/mesh/quality.hpp"
+#include "incise/mesh/summary.hpp"
 #include "incise/mesh/validate.hpp"
 
 namespace incise::app {
@@ -39,34 +39,9 @@ Runner add_info_command(CLI::App& app) {
               : validate(mesh);
     const std::vector<TetId> inverted_in_positions =
         frame ? inverted_at(mesh, mesh.rest_positions()) : std::vector<TetId>{};
-    const QualitySummary quality = summarize_quality(mesh);
-    const SurfaceEdgeCheck boundary = check_boundary(mesh);
-    const auto faces = boundary_faces(mesh);
-    int components = 0;
-    (void)tet_components(mesh, &components);
-    const auto [low, high] = bounding_box(mesh);
-    double smallest = 0.0;
-    double largest = 0.0;
-    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-      const double v = signed_volume(mesh, static_cast<TetId>(t));
-      smallest = t == 0 ? v : std::min(smallest, v);
-      largest = t == 0 ? v : std::max(largest, v);
-    }
-    // The material's volume, in all and by region label (m^3 if the file is in metres): XFEM
-    // virtual elements count by their fraction (the two elements of a split tetrahedron hold
-    // it once between them).
-    double volume = 0.0;
-    std::size_t virtual_elements = 0;
-    std::map<int, std::pair<std::size_t, double>> regions;
-    for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-      const double fraction = mesh.material_fraction(static_cast<TetId>(t));
-      const double material = fraction * signed_volume(mesh, static_cast<TetId>(t));
-      volume += material;
-      virtual_elements += fraction < 1.0 ? 1 : 0;
-      auto& [count, region_volume] = regions[mesh.tet_label(static_cast<TetId>(t))];
-      ++count;
-      region_volume += material;
-    }
+    const MeshSummary summary = summarize(mesh);
+    const QualitySummary& quality = summary.quality;
+    const auto& [low, high] = summary.bounds;
     // Slivers (positive but tiny volume) are listed, but a mesh with them is valid to use.
     const bool valid = report.usable();
 
@@ -77,10 +52,10 @@ Runner add_info_command(CLI::App& app) {
       out["vertices"] = mesh.vertex_count();
       out["tets"] = mesh.tet_count();
       out["edges"] = mesh.edge_count();
-      out["volume"] = volume;
-      out["virtual_elements"] = virtual_elements;
-      out["min_tet_volume"] = smallest;
-      out["max_tet_volume"] = largest;
+      out["volume"] = summary.volume;
+      out["virtual_elements"] = summary.virtual_elements;
+      out["min_tet_volume"] = summary.min_tet_volume;
+      out["max_tet_volume"] = summary.max_tet_volume;
       out["bounding_box"] = {{"min", {low.x(), low.y(), low.z()}},
                              {"max", {high.x(), high.y(), high.z()}}};
       out["inverted"] = report.inverted_tets.size();
@@ -91,14 +66,14 @@ Runner add_info_command(CLI::App& app) {
       out["duplicate_tets"] = report.duplicate_tets.size();
       out["nonfinite_vertices"] = report.nonfinite_vertices.size();
       out["dropped_vertices"] = read.dropped_vertices;
-      out["components"] = components;
+      out["components"] = summary.components;
       out["regions"] = nlohmann::ordered_json::array();
-      for (const auto& [label, region] : regions) {
+      for (const auto& [label, region] : summary.regions) {
         out["regions"].push_back(
-            {{"label", label}, {"tets", region.first}, {"volume", region.second}});
+            {{"label", label}, {"tets", region.tets}, {"volume", region.volume}});
       }
-      out["boundary_triangles"] = faces.size();
-      out["watertight"] = boundary.watertight();
+      out["boundary_triangles"] = summary.boundary_triangles;
+      out["watertight"] = summary.watertight;
       out["quality"] = {{"min_dihedral_deg", quality.min_dihedral_deg},
                         {"mean_min_dihedral_deg", quality.mean_min_dihedral_deg},
                         {"max_aspect_ratio", quality.max_aspect_ratio},
@@ -126,15 +101,16 @@ Runner add_info_command(CLI::App& app) {
                              mesh.tet_count(), mesh.edge_count());
     std::cout << fmt::format("  bounding box [{:.6g}, {:.6g}, {:.6g}] - [{:.6g}, {:.6g}, {:.6g}]\n",
                              low.x(), low.y(), low.z(), high.x(), high.y(), high.z());
-    std::cout << fmt::format("  volume {:.9g}   tet volume min {:.4g} max {:.4g}\n", volume,
-                             smallest, largest);
+    std::cout << fmt::format("  volume {:.9g}   tet volume min {:.4g} max {:.4g}\n", summary.volume,
+                             summary.min_tet_volume, summary.max_tet_volume);
     std::cout << fmt::format("  components {}   boundary triangles {}   watertight {}\n",
-                             components, faces.size(), boundary.watertight() ? "yes" : "no");
-    if (regions.size() > 1 || regions.begin()->first != 0) {
+                             summary.components, summary.boundary_triangles,
+                             summary.watertight ? "yes" : "no");
+    if (summary.regions.size() > 1 || summary.regions.begin()->first != 0) {
       std::cout << "  regions:";
-      for (const auto& [label, region] : regions) {
-        std::cout << fmt::format("  {}: {} tets, volume {:.6g}", label, region.first,
-                                 region.second);
+      for (const auto& [label, region] : summary.regions) {
+        std::cout << fmt::format("  {}: {} tets, volume {:.6g}", label, region.tets,
+                                 region.volume);
       }
       std::cout << "\n";
     }

@@ -39,6 +39,10 @@ std::uint32_t checksum(std::string_view bytes) {
 }  // namespace
 
 void Engine::save_checkpoint(const std::filesystem::path& path) const {
+  write_file_atomically(path, save_state());
+}
+
+std::string Engine::save_state() const {
   const Parts& p = *parts_;
   StateWriter out;
   out.tag("scene");
@@ -72,8 +76,7 @@ void Engine::save_checkpoint(const std::filesystem::path& path) const {
     p.xfem->save_state(out);
   }
   out.tag("end");
-
-  write_file_atomically(path, checkpoint_with_state(out.bytes()));
+  return checkpoint_with_state(out.bytes());
 }
 
 std::string Engine::checkpoint_with_state(std::string_view state) {
@@ -91,13 +94,16 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
   }
   const std::string file((std::istreambuf_iterator<char>(stream)),
                          std::istreambuf_iterator<char>());
-  const std::string name = path.string();
+  return restore_state(file, path.string());
+}
+
+std::unique_ptr<Engine> Engine::restore_state(std::string_view file, const std::string& name) {
   const std::size_t header =
       kMagic.size() + sizeof(std::uint32_t) + sizeof(std::uint64_t) + sizeof(std::uint32_t);
-  if (file.size() < header || std::string_view(file).substr(0, kMagic.size()) != kMagic) {
+  if (file.size() < header || file.substr(0, kMagic.size()) != kMagic) {
     throw InputError(name, 0, "not an incise checkpoint (no INCISE-CHECKPOINT header)");
   }
-  StateReader head(std::string_view(file).substr(kMagic.size(), header - kMagic.size()), name);
+  StateReader head(file.substr(kMagic.size(), header - kMagic.size()), name);
   const auto version = head.value<std::uint32_t>("format version");
   const auto size = head.value<std::uint64_t>("payload size");
   const auto crc = head.value<std::uint32_t>("checksum");
@@ -111,7 +117,7 @@ std::unique_ptr<Engine> Engine::resume(const std::filesystem::path& path) {
                      "checkpoint truncated or padded: " + std::to_string(file.size() - header) +
                          " bytes of state, the header says " + std::to_string(size));
   }
-  const std::string_view payload = std::string_view(file).substr(header);
+  const std::string_view payload = file.substr(header);
   if (checksum(payload) != crc) {
     throw InputError(name, 0, "checkpoint corrupted: its checksum does not match");
   }

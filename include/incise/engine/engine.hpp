@@ -90,6 +90,12 @@ class Engine {
   /// part's state restored. A missing, truncated, corrupted or foreign file is an InputError
   /// naming it; nothing is half-restored.
   [[nodiscard]] static std::unique_ptr<Engine> resume(const std::filesystem::path& path);
+  /// The same state as bytes in memory (what save_checkpoint writes), e.g. to reset an episode.
+  [[nodiscard]] std::string save_state() const;
+  /// An engine continuing from save_state()'s bytes (as resume() from a file); `name` names
+  /// them in errors. Bad bytes are an InputError; nothing is half-restored.
+  [[nodiscard]] static std::unique_ptr<Engine> restore_state(std::string_view bytes,
+                                                             const std::string& name);
   /// A checkpoint file holding `state` (the bytes after the header) under a valid header: its
   /// format version, size and checksum. For fuzzing the state itself, which the checksum
   /// otherwise shields from random changes.

@@ -1,0 +1,54 @@
+"""incise: interactive cutting and deformation of 3-D soft tissue, from Python.
+
+Three lines::
+
+    import incise
+    sim = incise.Simulation("scenes/default.json")   # a path, a dict of scene keys, or None
+    frames = sim.step(10)                             # Frame records; sim.positions is (n, 3)
+
+What is here (units are SI throughout: m, s, kg, N, Pa, kg/m^3):
+
+- ``Mesh``: read, write, generate (``Mesh.box``), validate, ``info()``; arrays in and out;
+  ``to_meshio`` / ``from_meshio``.
+- ``Simulation``: step, blade poses (``set_blade`` / ``lift_blade``), ``push``, arrays that
+  never go stale, ``save_state`` / ``restore`` for episodes, ``checkpoint`` / ``Simulation.resume``
+  for files, ``render`` for pictures.
+- ``plan``: surgical planning from CT (a plan file or dict), the skin before and after.
+- ``sweep``: a table of scene variants through Dask, one row per variant (pandas).
+- ``CutAlongLineEnv``: a reinforcement-learning task with the Gymnasium API.
+
+Errors are ``incise.InputError`` (bad input; also a ValueError), ``incise.Diverged`` and
+``incise.Error`` with the command line's messages.
+"""
+
+from ._incise import (  # noqa: F401  (the compiled core)
+    Diverged,
+    Error,
+    Frame,
+    InputError,
+    Mesh,
+    Simulation,
+    read_surface,
+)
+from .meshes import from_meshio, to_meshio  # noqa: F401
+from .planning import plan  # noqa: F401
+from .sweep import sweep  # noqa: F401
+from .environment import CutAlongLineEnv  # noqa: F401
+
+Mesh.to_meshio = to_meshio
+Mesh.from_meshio = staticmethod(from_meshio)
+
+__all__ = [
+    "CutAlongLineEnv",
+    "Diverged",
+    "Error",
+    "Frame",
+    "InputError",
+    "Mesh",
+    "Simulation",
+    "from_meshio",
+    "plan",
+    "read_surface",
+    "sweep",
+    "to_meshio",
+]

@@ -1,0 +1,2 @@
+class CutAlongLineEnv:
+    pass

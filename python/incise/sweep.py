@@ -1,0 +1,2 @@
+def sweep(*a, **k):
+    raise NotImplementedError
