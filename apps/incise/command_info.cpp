@@ -109,8 +109,7 @@ Runner add_info_command(CLI::App& app) {
     if (summary.regions.size() > 1 || summary.regions.begin()->first != 0) {
       std::cout << "  regions:";
       for (const auto& [label, region] : summary.regions) {
-        std::cout << fmt::format("  {}: {} tets, volume {:.6g}", label, region.tets,
-                                 region.volume);
+        std::cout << fmt::format("  {}: {} tets, volume {:.6g}", label, region.tets, region.volume);
       }
       std::cout << "\n";
     }

@@ -39,11 +39,11 @@ py::array_t<std::int64_t> whole_numbers(const py::array& array, const std::strin
     return py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(array);
   }
   if (kind == 'f') {
-    const auto floats = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
+    const auto floats =
+        py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
     const double* data = floats.data();
     for (py::ssize_t i = 0; i < floats.size(); ++i) {
-      if (!std::isfinite(data[i]) || data[i] != std::floor(data[i]) ||
-          std::abs(data[i]) > 2e9) {
+      if (!std::isfinite(data[i]) || data[i] != std::floor(data[i]) || std::abs(data[i]) > 2e9) {
         throw InputError(what + ": entry " + std::to_string(i) + " (" + std::to_string(data[i]) +
                          ") is not a whole number");
       }
@@ -58,9 +58,10 @@ py::array_t<std::int64_t> whole_numbers(const py::array& array, const std::strin
 
 py::array points_view(std::span<const Vec3> points, py::handle owner) {
   static_assert(sizeof(Vec3) == 3 * sizeof(double));
-  py::array array(py::dtype::of<double>(), {static_cast<py::ssize_t>(points.size()), py::ssize_t{3}},
-                  {static_cast<py::ssize_t>(sizeof(Vec3)), static_cast<py::ssize_t>(sizeof(double))},
-                  points.empty() ? nullptr : points.front().data(), owner);
+  py::array array(
+      py::dtype::of<double>(), {static_cast<py::ssize_t>(points.size()), py::ssize_t{3}},
+      {static_cast<py::ssize_t>(sizeof(Vec3)), static_cast<py::ssize_t>(sizeof(double))},
+      points.empty() ? nullptr : points.front().data(), owner);
   array.attr("flags").attr("writeable") = false;
   return array;
 }
@@ -73,7 +74,8 @@ std::vector<Vec3> points_from(const py::handle& value, const std::string& what) 
     throw InputError(what + ": numbers are needed, not dtype " +
                      std::string(py::str(array.dtype())));
   }
-  const auto doubles = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
+  const auto doubles =
+      py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
   std::vector<Vec3> points(static_cast<std::size_t>(doubles.shape(0)));
   const double* data = doubles.data();
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -90,7 +92,8 @@ Vec3 point_from(const py::handle& value, const std::string& what) {
   if (array.size() != 3 || (array.ndim() != 1 && array.ndim() != 2)) {
     throw InputError(what + ": 3 coordinates are needed, not shape " + shape_of(array));
   }
-  const auto doubles = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
+  const auto doubles =
+      py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
   const Vec3 point(doubles.data()[0], doubles.data()[1], doubles.data()[2]);
   if (!point.allFinite()) {
     throw InputError(what + ": a coordinate is not finite (NaN or infinite)");
@@ -100,7 +103,7 @@ Vec3 point_from(const py::handle& value, const std::string& what) {
 
 template <std::size_t k>
 std::vector<std::array<std::int32_t, k>> ids_from(const py::handle& value, std::size_t id_count,
-                                                 const std::string& what) {
+                                                  const std::string& what) {
   const py::array array = as_array(value, what);
   require_shape(array, static_cast<py::ssize_t>(k), what);
   const auto ids = whole_numbers(array, what);
@@ -121,9 +124,9 @@ std::vector<std::array<std::int32_t, k>> ids_from(const py::handle& value, std::
 }
 
 template std::vector<std::array<std::int32_t, 4>> ids_from<4>(const py::handle&, std::size_t,
-                                                             const std::string&);
+                                                              const std::string&);
 template std::vector<std::array<std::int32_t, 3>> ids_from<3>(const py::handle&, std::size_t,
-                                                             const std::string&);
+                                                              const std::string&);
 
 std::vector<int> labels_from(const py::handle& value, std::size_t count, const std::string& what) {
   const py::array array = as_array(value, what);

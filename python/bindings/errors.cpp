@@ -18,14 +18,17 @@ PyObject* diverged_type = nullptr;
 
 }  // namespace
 
-py::handle diverged_error() { return diverged_type; }
+py::handle diverged_error() {
+  return diverged_type;
+}
 
 void bind_errors(py::module_& module) {
   error_type = PyErr_NewExceptionWithDoc("incise.Error",
                                          "Anything incise refuses or fails at; the message "
                                          "says what, and where (file, line, key, element).",
                                          PyExc_RuntimeError, nullptr);
-  const py::tuple input_bases = py::make_tuple(py::handle(error_type), py::handle(PyExc_ValueError));
+  const py::tuple input_bases =
+      py::make_tuple(py::handle(error_type), py::handle(PyExc_ValueError));
   input_error_type = PyErr_NewExceptionWithDoc(
       "incise.InputError",
       "Bad input: a file, a scene or plan key, an array. The message names the file, the line, "

@@ -75,10 +75,11 @@ py::dict info_dict(const TetMesh& mesh) {
   out["degenerate"] = report.degenerate_tets.size();
   out["slivers"] = report.sliver_tets.size();
   out["valid"] = report.usable();
-  out["quality"] = py::dict(py::arg("min_dihedral_deg") = summary.quality.min_dihedral_deg,
-                            py::arg("mean_min_dihedral_deg") = summary.quality.mean_min_dihedral_deg,
-                            py::arg("max_aspect_ratio") = summary.quality.max_aspect_ratio,
-                            py::arg("mean_aspect_ratio") = summary.quality.mean_aspect_ratio);
+  out["quality"] =
+      py::dict(py::arg("min_dihedral_deg") = summary.quality.min_dihedral_deg,
+               py::arg("mean_min_dihedral_deg") = summary.quality.mean_min_dihedral_deg,
+               py::arg("max_aspect_ratio") = summary.quality.max_aspect_ratio,
+               py::arg("mean_aspect_ratio") = summary.quality.mean_aspect_ratio);
   return out;
 }
 
@@ -103,8 +104,8 @@ std::shared_ptr<TetMesh> mesh_from_arrays(const py::handle& vertices, const py::
       }
     }
   }
-  auto mesh = std::make_shared<TetMesh>(std::move(points), std::move(elements),
-                                        std::move(region_labels));
+  auto mesh =
+      std::make_shared<TetMesh>(std::move(points), std::move(elements), std::move(region_labels));
   if (check) {
     const ValidationReport report = validate(*mesh);
     if (!report.usable()) {
@@ -128,8 +129,9 @@ void bind_mesh(py::module_& module) {
         const auto points = std::make_shared<std::vector<Vec3>>(std::move(surface.points));
         const auto triangles =
             std::make_shared<std::vector<Triangle>>(std::move(surface.triangles));
-        return py::make_tuple(points_view(*points, keeper(points)),
-                              ids_view<3>(std::span<const Triangle>(*triangles), keeper(triangles)));
+        return py::make_tuple(
+            points_view(*points, keeper(points)),
+            ids_view<3>(std::span<const Triangle>(*triangles), keeper(triangles)));
       },
       py::arg("path"),
       "Reads a triangle surface (OBJ, STL, PLY, OFF, VTK polydata): (points (n, 3) float64, "
@@ -213,7 +215,8 @@ void bind_mesh(py::module_& module) {
           "boundary",
           [](const TetMesh& mesh) {
             const std::vector<BoundaryFace> faces = boundary_faces(mesh);
-            py::array_t<std::int32_t> triangles({static_cast<py::ssize_t>(faces.size()), py::ssize_t{3}});
+            py::array_t<std::int32_t> triangles(
+                {static_cast<py::ssize_t>(faces.size()), py::ssize_t{3}});
             auto out = triangles.mutable_unchecked<2>();
             for (std::size_t f = 0; f < faces.size(); ++f) {
               for (int k = 0; k < 3; ++k) {
@@ -225,8 +228,9 @@ void bind_mesh(py::module_& module) {
           "(k, 3) int32: the boundary triangles, outward, as vertex ids.")
       .def_property_readonly("vertex_count", &TetMesh::vertex_count)
       .def_property_readonly("tet_count", &TetMesh::tet_count)
-      .def_property_readonly("volume", [](const TetMesh& mesh) { return total_volume(mesh); },
-                             "Rest volume (the mesh's unit cubed; m^3 for a mesh in metres).")
+      .def_property_readonly(
+          "volume", [](const TetMesh& mesh) { return total_volume(mesh); },
+          "Rest volume (the mesh's unit cubed; m^3 for a mesh in metres).")
       .def("__repr__", [](const TetMesh& mesh) {
         return "<incise.Mesh " + std::to_string(mesh.vertex_count()) + " vertices, " +
                std::to_string(mesh.tet_count()) + " tetrahedra>";

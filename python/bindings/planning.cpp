@@ -51,8 +51,9 @@ void bind_planning(py::module_& module) {
         out["report_path"] = summary.report;
         py::array_t<std::int32_t> triangles(
             {static_cast<py::ssize_t>(summary.skin_triangles.size()), py::ssize_t{3}});
-        std::copy_n(summary.skin_triangles.empty() ? nullptr : summary.skin_triangles.front().data(),
-                    3 * summary.skin_triangles.size(), triangles.mutable_data());
+        std::copy_n(
+            summary.skin_triangles.empty() ? nullptr : summary.skin_triangles.front().data(),
+            3 * summary.skin_triangles.size(), triangles.mutable_data());
         out["skin_triangles"] = triangles;
         const auto before = std::make_shared<std::vector<Vec3>>(std::move(summary.skin_before));
         const auto after = std::make_shared<std::vector<Vec3>>(std::move(summary.skin_after));

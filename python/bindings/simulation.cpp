@@ -76,7 +76,8 @@ PoseFrame pose_frame(const std::string& name) {
   throw InputError("frame: \"" + name + "\" is neither \"rest\" nor \"world\"");
 }
 
-SceneDescription scene_from(const py::object& scene, const std::optional<std::filesystem::path>& file) {
+SceneDescription scene_from(const py::object& scene,
+                            const std::optional<std::filesystem::path>& file) {
   if (scene.is_none()) {
     return default_scene();
   }
@@ -247,8 +248,8 @@ class Simulation {
       options.camera = *camera_;
       image = renderer_->render(scene.input(), options);
     }
-    py::array_t<std::uint8_t> pixels({static_cast<py::ssize_t>(height),
-                                      static_cast<py::ssize_t>(width), py::ssize_t{3}});
+    py::array_t<std::uint8_t> pixels(
+        {static_cast<py::ssize_t>(height), static_cast<py::ssize_t>(width), py::ssize_t{3}});
     auto out = pixels.mutable_unchecked<3>();
     for (int y = 0; y < height; ++y) {
       for (int x = 0; x < width; ++x) {
@@ -349,19 +350,17 @@ void bind_simulation(py::module_& module) {
       .def_property_readonly(
           "rx_parts",
           [](const FrameRecord& r) {
-            return py::dict(py::arg("refresh") = r.rx_parts.refresh,
-                            py::arg("forces") = r.rx_parts.forces,
-                            py::arg("preconditioner") = r.rx_parts.preconditioner,
-                            py::arg("start") = r.rx_parts.start,
-                            py::arg("products") = r.rx_parts.products,
-                            py::arg("vector_updates") = r.rx_parts.vector_updates);
+            return py::dict(
+                py::arg("refresh") = r.rx_parts.refresh, py::arg("forces") = r.rx_parts.forces,
+                py::arg("preconditioner") = r.rx_parts.preconditioner,
+                py::arg("start") = r.rx_parts.start, py::arg("products") = r.rx_parts.products,
+                py::arg("vector_updates") = r.rx_parts.vector_updates);
           },
           "where rx went (s): implicit schemes only")
       .def("as_dict", &frame_dict, "The record as a dict (a row for pandas).")
       .def("__repr__", [](const FrameRecord& r) {
         return "<incise.Frame " + std::to_string(r.frame) + " t=" + std::to_string(r.time) +
-               " s, rx=" + std::to_string(1e3 * r.rx) + " ms" + (r.edited ? ", edited" : "") +
-               ">";
+               " s, rx=" + std::to_string(1e3 * r.rx) + " ms" + (r.edited ? ", edited" : "") + ">";
       });
 
   py::class_<Simulation>(
@@ -429,9 +428,8 @@ void bind_simulation(py::module_& module) {
       .def_property_readonly(
           "inverted_tets",
           [](Simulation& s) {
-            return s.read<std::size_t>([](const Engine& e) {
-              return inverted_at(e.mesh(), e.positions()).size();
-            });
+            return s.read<std::size_t>(
+                [](const Engine& e) { return inverted_at(e.mesh(), e.positions()).size(); });
           },
           "tetrahedra inside out in the current positions")
       .def_property_readonly(
@@ -443,8 +441,7 @@ void bind_simulation(py::module_& module) {
       .def_property_readonly(
           "warnings",
           [](Simulation& s) {
-            return s.read<std::vector<std::string>>(
-                [](const Engine& e) { return e.warnings(); });
+            return s.read<std::vector<std::string>>([](const Engine& e) { return e.warnings(); });
           },
           "warnings about the scene (e.g. a step beyond the stability limit)")
       .def_property_readonly(
@@ -455,9 +452,9 @@ void bind_simulation(py::module_& module) {
               if (!blade) {
                 return py::none();
               }
-              return py::make_tuple(py::make_tuple(blade->tip.x(), blade->tip.y(), blade->tip.z()),
-                                    py::make_tuple(blade->base.x(), blade->base.y(),
-                                                   blade->base.z()));
+              return py::make_tuple(
+                  py::make_tuple(blade->tip.x(), blade->tip.y(), blade->tip.z()),
+                  py::make_tuple(blade->base.x(), blade->base.y(), blade->base.z()));
             });
           },
           "the blade at the end of the last frame in the rest frame, (tip, base) in m, or None")
@@ -468,8 +465,7 @@ void bind_simulation(py::module_& module) {
            "with a cutter in the scene (`tool.cutter`). Replaces the scene's scripted path.")
       .def("lift_blade", &Simulation::lift_blade,
            "The blade leaves the body: the next set_blade starts a new stroke.")
-      .def("push", &Simulation::push, py::arg("triangle"), py::arg("barycentric"),
-           py::arg("force"),
+      .def("push", &Simulation::push, py::arg("triangle"), py::arg("barycentric"), py::arg("force"),
            "Pushes with `force` (N, 3 floats) during the next step at a point of a collision "
            "(or visual) surface triangle given by barycentric coordinates.")
       .def("save_state", &Simulation::save_state,

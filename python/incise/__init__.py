@@ -13,6 +13,7 @@ What is here (units are SI throughout: m, s, kg, N, Pa, kg/m^3):
 - ``Simulation``: step, blade poses (``set_blade`` / ``lift_blade``), ``push``, arrays that
   never go stale, ``save_state`` / ``restore`` for episodes, ``checkpoint`` / ``Simulation.resume``
   for files, ``render`` for pictures.
+- ``cut``: a mesh cut along a blade path without physics, with the ``incise cut`` report.
 - ``plan``: surgical planning from CT (a plan file or dict), the skin before and after.
 - ``sweep``: a table of scene variants through Dask, one row per variant (pandas).
 - ``CutAlongLineEnv``: a reinforcement-learning task with the Gymnasium API.
@@ -28,8 +29,10 @@ from ._incise import (  # noqa: F401  (the compiled core)
     InputError,
     Mesh,
     Simulation,
+    read_blade_path,
     read_surface,
 )
+from .cutting import cut  # noqa: F401
 from .meshes import from_meshio, to_meshio  # noqa: F401
 from .planning import plan  # noqa: F401
 from .sweep import sweep  # noqa: F401
@@ -46,8 +49,10 @@ __all__ = [
     "InputError",
     "Mesh",
     "Simulation",
+    "cut",
     "from_meshio",
     "plan",
+    "read_blade_path",
     "read_surface",
     "sweep",
     "to_meshio",

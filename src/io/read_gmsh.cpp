@@ -398,8 +398,12 @@ struct GmshReader {
         type = source.integer("element type");
         in_block = source.count("elements in block", kMaxCount);
       }
+      // A file with volume physical groups labels by them; a volume in none of them is region
+      // 0 (as incise writes label 0), not its entity tag. Without any: the entity tag.
       const auto physical = volume_physical.find(entity);
-      const long long label = physical != volume_physical.end() ? physical->second : entity;
+      const long long label = physical != volume_physical.end() ? physical->second
+                              : volume_physical.empty()         ? entity
+                                                                : 0;
       const int node_count = nodes_per_element(type);
       if (node_count == 0) {
         source.fail("unknown Gmsh element type " + std::to_string(type));

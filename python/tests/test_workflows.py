@@ -1,0 +1,113 @@
+"""Cutting without physics, planning, sweeps over Dask and the reinforcement-learning task."""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import incise
+
+PLANAR_BLADE = [[0.0, 0.05, -0.02, -0.02, 0.05, -0.02, 0.12],
+                [1.0, 0.05, 0.12, -0.02, 0.05, 0.12, 0.12]]
+
+
+def test_cut_separates_and_matches_the_command_line(tmp_path, incise_executable):
+    box = incise.Mesh.box(size=(0.1, 0.1, 0.1), cells=(5, 5, 5))
+    cut, report = incise.cut(box, PLANAR_BLADE, unit="m")
+    assert report["components"] == 2 and report["valid"] and report["watertight"]
+    assert cut.info()["components"] == 2
+    assert cut.volume == pytest.approx(box.volume, rel=1e-9)
+    # The same cut by `incise cut`: the same report, the same tetrahedra.
+    box.write(tmp_path / "box.vtu")
+    lines = ["t,tip_x,tip_y,tip_z,base_x,base_y,base_z"] + [",".join(map(repr, p)) for p in PLANAR_BLADE]
+    (tmp_path / "blade.csv").write_text("\n".join(lines) + "\n")
+    subprocess.run([incise_executable, "cut", str(tmp_path / "box.vtu"), "--blade",
+                    str(tmp_path / "blade.csv"), "-o", str(tmp_path / "cut.vtu"), "--report",
+                    str(tmp_path / "r.json"), "--unit", "m"], check=True, capture_output=True)
+    command_line = json.loads((tmp_path / "r.json").read_text())
+    for key in ("tets_out", "vertices_out", "components", "cut_faces", "edges_split", "cut_area"):
+        assert report[key] == command_line[key], key
+    assert np.array_equal(incise.Mesh.read(tmp_path / "cut.vtu").tets, cut.tets)
+
+
+def test_plan_from_the_example_ct(source_dir, tmp_path):
+    stages = []
+    result = incise.plan(source_dir / "scenes" / "plan_headsq.json", out_dir=tmp_path,
+                         progress=lambda stage, fraction: stages.append((stage, fraction)))
+    assert result["skin_before"].shape == result["skin_after"].shape
+    assert result["skin_triangles"].max() < len(result["skin_before"])
+    moved = np.linalg.norm(result["skin_after"] - result["skin_before"], axis=1).max()
+    assert moved * 1e3 == pytest.approx(result["max_displacement_mm"], rel=1e-6)
+    assert result["report"]["stages"] if "stages" in result["report"] else result["report"]
+    points, triangles = result["bone_after"]
+    assert len(points) > 0 and len(triangles) > 0
+    assert stages and stages[-1][1] == pytest.approx(1.0)
+
+
+SAG_SCENE = {
+    "mesh": {"box": {"cells": [3, 3, 3], "size": [0.1, 0.1, 0.1]}},
+    "material": {"young_modulus": 3000, "poisson_ratio": 0.45, "density": 1000},
+    "model": {"type": "corotational-fem"},
+    "integrator": {"type": "backward-euler", "dt": 0.01},
+    "fixed": [{"box": [[-1, -1, -1], [1, 1, 0.0001]]}],
+    "gravity": [0, 0, -9.81],
+    "frames": 15,
+}
+
+
+def test_a_sweep_on_a_local_cluster_equals_running_the_variants_here():
+    variants = {"material.young_modulus": [2000.0, 4000.0], "integrator.dt": [0.01, 0.02]}
+    distributed = incise.sweep(SAG_SCENE, variants, workers=2, progress=False)
+    here = incise.sweep(SAG_SCENE, variants, workers=0, progress=False)
+    assert len(distributed) == 4 and distributed["error"].isna().all()
+    state = ["material.young_modulus", "integrator.dt", "frames", "time", "vertices", "tets",
+             "kinetic_energy", "max_displacement", "inverted_tets"]
+    assert distributed[state].equals(here[state])
+    # Stiffer tissue sags less.
+    soft = distributed[(distributed["material.young_modulus"] == 2000.0) & (distributed["integrator.dt"] == 0.01)]
+    stiff = distributed[(distributed["material.young_modulus"] == 4000.0) & (distributed["integrator.dt"] == 0.01)]
+    assert float(soft["max_displacement"].iloc[0]) > float(stiff["max_displacement"].iloc[0])
+    # And each row is what a Simulation of that variant gives.
+    sim = incise.Simulation(dict(SAG_SCENE, integrator={"type": "backward-euler", "dt": 0.02},
+                                 material={"young_modulus": 4000.0, "poisson_ratio": 0.45,
+                                           "density": 1000}))
+    last = sim.step(15)[-1]
+    row = here[(here["material.young_modulus"] == 4000.0) & (here["integrator.dt"] == 0.02)]
+    assert float(row["max_displacement"].iloc[0]) == last.max_displacement
+
+
+def test_a_failed_variant_is_a_row_not_the_end_of_the_sweep():
+    table = incise.sweep(SAG_SCENE, [{"integrator.dt": 0.01}, {"integrator.dtt": 0.01},
+                                     {"material.young_modulus": -5.0}], workers=0, progress=False)
+    assert table["error"].iloc[0] is None
+    assert "dtt" in table["error"].iloc[1]
+    assert "InputError" in table["error"].iloc[2]
+
+
+def test_the_environment_is_deterministic_for_a_seed():
+    env = incise.CutAlongLineEnv(max_steps=12)
+
+    def episode(seed):
+        obs, info = env.reset(seed=seed)
+        actions = np.random.default_rng(seed).uniform(-1, 1, size=(12, 2))
+        actions[:, 1] = 1.0  # forward through the block
+        observations, rewards = [obs], []
+        for action in actions:
+            obs, reward, terminated, truncated, info = env.step(action)
+            observations.append(obs)
+            rewards.append(reward)
+            if terminated or truncated:
+                break
+        return np.array(observations), rewards, info
+
+    first = episode(3)
+    other = episode(4)
+    again = episode(3)
+    assert np.array_equal(first[0], again[0]) and first[1] == again[1]
+    assert first[2]["target_x"] != other[2]["target_x"]
+    assert first[2]["tets"] > 576  # the blade cut the block
+    assert env.observation_space.contains(first[0][-1])
+    assert env.action_space.contains(env.action_space.sample(np.random.default_rng(0)))
+    picture = env.render()
+    assert picture.shape == (env.height, env.width, 3)
