@@ -43,4 +43,9 @@ cmake -S tests/consumer -B "$prefix/consumer" -G Ninja -DCMAKE_BUILD_TYPE=Releas
   -DCMAKE_PREFIX_PATH="$prefix/install" >/dev/null
 cmake --build "$prefix/consumer" >/dev/null
 "$prefix/consumer/consumer"
+
+echo "== installed Python module: import incise from the prefix's dist-packages"
+site=$(/usr/bin/python3 -c 'import sys; print("lib/python%d.%d/dist-packages" % sys.version_info[:2])')
+(cd "$prefix" && PYTHONPATH="$prefix/install/$site" /usr/bin/python3 -c \
+  'import incise; s = incise.Simulation(); s.step(3); print("import incise:", incise.__file__, s.positions.shape)')
 echo "all checks passed"
