@@ -16,6 +16,7 @@
 
 #include "command_options.hpp"
 #include "commands.hpp"
+#include "incise/batch/visual_report.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/engine/engine.hpp"
@@ -23,7 +24,6 @@
 #include "incise/solve/integrators.hpp"
 #include "incise/view/render_sink.hpp"
 #include "incise/view/session_recording.hpp"
-#include "visual_report.hpp"
 #ifdef INCISE_HAVE_GL
 #include "incise/render/offscreen.hpp"
 #endif

@@ -22,6 +22,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "incise/batch/visual_report.hpp"
 #include "incise/core/error.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/haptics/haptic_loop.hpp"
@@ -30,7 +31,6 @@
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/validate.hpp"
 #include "incise/xfem/visual_surface.hpp"
-#include "visual_report.hpp"
 
 namespace incise::app {
 namespace {

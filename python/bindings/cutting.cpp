@@ -1,5 +1,5 @@
 // incise.cut's compiled half: a mesh cut along a blade path without physics, as `incise cut`
-// does (the same cutter, checks and report).
+// does (the same cutters, checks, outputs and report).
 
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
@@ -8,11 +8,35 @@
 
 #include "arrays.hpp"
 #include "bindings.hpp"
+#include "incise/batch/xfem_path_cut.hpp"
 #include "incise/core/error.hpp"
 #include "incise/cut/blade.hpp"
 #include "incise/cut/path_cut.hpp"
 
 namespace incise::python {
+namespace {
+
+/// An (n, 7) array of poses (t in s, tip x y z, base x y z), checked: finite, in time order.
+std::vector<BladePose> blade_path_from(const py::handle& poses) {
+  const auto rows = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(poses);
+  if (!rows || rows.ndim() != 2 || rows.shape(1) != 7 || rows.shape(0) < 1) {
+    throw InputError("blade: an (n, 7) array of poses (t, tip x y z, base x y z) is needed");
+  }
+  std::vector<BladePose> path(static_cast<std::size_t>(rows.shape(0)));
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    const double* row = rows.data() + 7 * i;
+    path[i] = {row[0], Vec3(row[1], row[2], row[3]), Vec3(row[4], row[5], row[6])};
+    if (!std::isfinite(row[0]) || !path[i].tip.allFinite() || !path[i].base.allFinite()) {
+      throw InputError("blade: pose " + std::to_string(i) + " is not finite");
+    }
+    if (i > 0 && !(row[0] >= path[i - 1].time)) {
+      throw InputError("blade: pose " + std::to_string(i) + " goes back in time");
+    }
+  }
+  return path;
+}
+
+}  // namespace
 
 void bind_cutting(py::module_& module) {
   module.def(
@@ -39,22 +63,7 @@ void bind_cutting(py::module_& module) {
       [](const TetMesh& mesh, const py::handle& poses, double snap, const std::string& split,
          bool merge_blade_points, const std::string& mesh_name, const std::string& blade_name,
          const std::string& unit_name) {
-        const auto rows =
-            py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(poses);
-        if (!rows || rows.ndim() != 2 || rows.shape(1) != 7 || rows.shape(0) < 1) {
-          throw InputError("blade: an (n, 7) array of poses (t, tip x y z, base x y z) is needed");
-        }
-        std::vector<BladePose> path(static_cast<std::size_t>(rows.shape(0)));
-        for (std::size_t i = 0; i < path.size(); ++i) {
-          const double* row = rows.data() + 7 * i;
-          path[i] = {row[0], Vec3(row[1], row[2], row[3]), Vec3(row[4], row[5], row[6])};
-          if (!std::isfinite(row[0]) || !path[i].tip.allFinite() || !path[i].base.allFinite()) {
-            throw InputError("blade: pose " + std::to_string(i) + " is not finite");
-          }
-          if (i > 0 && !(row[0] >= path[i - 1].time)) {
-            throw InputError("blade: pose " + std::to_string(i) + " goes back in time");
-          }
-        }
+        const std::vector<BladePose> path = blade_path_from(poses);
         if (!(snap >= 0.001 && snap <= 0.49)) {
           throw InputError("snap: must lie in [0.001, 0.49]");
         }
@@ -76,6 +85,38 @@ void bind_cutting(py::module_& module) {
       py::arg("mesh"), py::arg("poses"), py::arg("snap"), py::arg("split"),
       py::arg("merge_blade_points"), py::arg("mesh_name"), py::arg("blade_name"),
       py::arg("unit_name"));
+  module.def(
+      "_cut_xfem",
+      [](const TetMesh& mesh, const py::handle& poses, const py::object& visual,
+         const std::filesystem::path& output, const std::filesystem::path& visual_out,
+         std::optional<double> length_unit_m, const std::string& mesh_name,
+         const std::string& blade_name) {
+        XfemPathCutRequest request;
+        request.output = output;
+        request.visual_out = visual_out;
+        request.length_unit_m = length_unit_m;
+        request.mesh_name = mesh_name;
+        request.blade_name = blade_name;
+        if (!visual.is_none()) {
+          const auto pair = visual.cast<py::tuple>();
+          if (pair.size() != 2) {
+            throw InputError("visual: (points, triangles) or a surface file is needed");
+          }
+          SurfaceMesh surface;
+          surface.points = points_from(pair[0], "visual points");
+          surface.triangles = ids_from<3>(pair[1], surface.points.size(), "visual triangles");
+          request.visual = std::move(surface);
+        }
+        const std::vector<BladePose> path = blade_path_from(poses);
+        XfemPathCutResult result;
+        {
+          py::gil_scoped_release release;
+          result = cut_xfem_along_path(mesh, path, request);
+        }
+        return result.report_json;
+      },
+      py::arg("mesh"), py::arg("poses"), py::arg("visual"), py::arg("output"),
+      py::arg("visual_out"), py::arg("length_unit_m"), py::arg("mesh_name"), py::arg("blade_name"));
 }
 
 }  // namespace incise::python

@@ -211,6 +211,13 @@ void bind_mesh(py::module_& module) {
             return values_view<int>(self.cast<const TetMesh&>().tet_labels(), self);
           },
           "(m,) int32 region label per tetrahedron, read-only, no copy.")
+      .def_property_readonly(
+          "fractions",
+          [](const py::object& self) {
+            return values_view<double>(self.cast<const TetMesh&>().material_fractions(), self);
+          },
+          "(m,) float64 material fraction per tetrahedron: 1, or below 1 for the virtual "
+          "elements of an XFEM cut (each holds that share of its tetrahedron's material).")
       .def(
           "boundary",
           [](const TetMesh& mesh) {

@@ -99,6 +99,11 @@ def test_cut_refuses_bad_blades():
         incise.cut(BOX, [[1, 0, 0, 0, 0, 0, 1], [0, 0, 0, 0, 0, 0, 1]])
     with pytest.raises(incise.InputError, match="method"):
         incise.cut(BOX, [[0, 0, 0, 0, 0, 0, 1]], method="laser")
+    with pytest.raises(incise.InputError, match="visual triangles"):
+        incise.cut(BOX, [[0, 0, 0, 0, 0, 0, 1]], method="xfem",
+                   visual=(np.zeros((3, 3)), [[0, 1, 5]]))
+    with pytest.raises(incise.InputError, match="method='xfem' only"):
+        incise.cut(BOX, [[0, 0, 0, 0, 0, 0, 1]], visual=(np.zeros((3, 3)), [[0, 1, 2]]))
 
 
 def test_fuzzed_arrays_never_crash():

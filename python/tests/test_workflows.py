@@ -31,6 +31,38 @@ def test_cut_separates_and_matches_the_command_line(tmp_path, incise_executable)
     assert np.array_equal(incise.Mesh.read(tmp_path / "cut.vtu").tets, cut.tets)
 
 
+def test_xfem_cut_with_a_visual_surface_matches_the_command_line(tmp_path, incise_executable):
+    box = incise.Mesh.box(size=(0.1, 0.1, 0.1), cells=(4, 4, 4))
+    # The visual surface: a closed box inside the mesh, 2 cells across.
+    lo, hi = 0.02, 0.08
+    corners = np.array([[x, y, z] for z in (lo, hi) for y in (lo, hi) for x in (lo, hi)])
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    triangles = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    virtual, report = incise.cut(box, PLANAR_BLADE, method="xfem", unit="m",
+                                 visual=(corners, triangles), out_dir=tmp_path / "py")
+    assert report["components"] == 2 and report["method"] == "xfem"
+    weighted = float(np.sum(virtual.fractions * np.array(
+        [abs(np.linalg.det(virtual.vertices[t[1:]] - virtual.vertices[t[0]])) / 6 for t in virtual.tets])))
+    assert weighted == pytest.approx(box.volume, rel=1e-9)
+    points, cut_triangles = report["visual_cut"]
+    assert report["visual_surface"]["closed_manifold"] and len(cut_triangles) > len(triangles)
+    # The same cut from the command line.
+    box.write(tmp_path / "box.vtu")
+    with open(tmp_path / "visual.obj", "w") as obj:
+        obj.writelines(f"v {x} {y} {z}\n" for x, y, z in corners)
+        obj.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in triangles)
+    lines = ["t,tip_x,tip_y,tip_z,base_x,base_y,base_z"] + [",".join(map(repr, p)) for p in PLANAR_BLADE]
+    (tmp_path / "blade.csv").write_text("\n".join(lines) + "\n")
+    subprocess.run([incise_executable, "cut", str(tmp_path / "box.vtu"), "--blade",
+                    str(tmp_path / "blade.csv"), "--method", "xfem", "-o", str(tmp_path / "cut.vtu"),
+                    "--visual", str(tmp_path / "visual.obj"), "--visual-out", str(tmp_path / "v.vtp"),
+                    "--report", str(tmp_path / "r.json"), "--unit", "m"], check=True, capture_output=True)
+    command_line = json.loads((tmp_path / "r.json").read_text())
+    for key in ("tets_out", "vertices_out", "components", "elements_split", "dofs_added",
+                "volume_out", "clipped_volume", "visual_volume_out"):
+        assert report[key] == command_line[key], key
+
+
 def test_plan_from_the_example_ct(source_dir, tmp_path):
     stages = []
     result = incise.plan(source_dir / "scenes" / "plan_headsq.json", out_dir=tmp_path,

@@ -7,7 +7,7 @@
 #include "incise/mesh/boundary.hpp"
 #include "incise/xfem/visual_surface.hpp"
 
-namespace incise::app {
+namespace incise {
 
 inline nlohmann::ordered_json visual_surface_report(const VisualSurface& surface) {
   const SurfaceEdgeCheck edges = check_surface_edges(surface.triangles());
@@ -22,4 +22,4 @@ inline nlohmann::ordered_json visual_surface_report(const VisualSurface& surface
   return json;
 }
 
-}  // namespace incise::app
+}  // namespace incise
