@@ -126,3 +126,33 @@ def test_fuzzed_arrays_never_crash():
             continue
         assert mesh.tet_count == len(tets) and mesh.info()["valid"]
     assert refused > 300
+
+
+def test_fuzzed_calls_on_a_simulation_never_crash():
+    rng = np.random.default_rng(11)
+    sim = incise.Simulation()
+    state = sim.save_state()
+    values = [np.nan, np.inf, -1e300, 0.0, 1e-300, 3, "x", None, [], [1, 2], [[1, 2, 3]],
+              np.zeros((2, 3)), np.ones(3, dtype=np.int8), np.array([1, 2, 3], dtype=object)]
+    pick = lambda: values[int(rng.integers(0, len(values)))]
+    for trial in range(300):
+        call = trial % 5
+        try:
+            if call == 0:
+                sim.set_blade(pick(), pick(), frame=["rest", "world", "up"][trial % 3])
+            elif call == 1:
+                sim.push(int(rng.integers(-2, 5)), pick(), pick())
+            elif call == 2:
+                broken = bytearray(state)
+                for _ in range(int(rng.integers(1, 4))):
+                    broken[int(rng.integers(0, len(broken)))] = int(rng.integers(0, 256))
+                sim.restore(bytes(broken[: int(rng.integers(0, len(broken) + 1))]))
+            elif call == 3:
+                sim.render(int(rng.integers(-5, 40)), int(rng.integers(-5, 40)), mode=["faces", "wire", "cut", "?"][trial % 4])
+            else:
+                incise.cut(BOX, pick())
+        except (incise.Error, TypeError, ValueError, OverflowError):
+            pass
+    sim.restore(state)
+    sim.step(3)
+    assert sim.frame == 3

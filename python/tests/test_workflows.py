@@ -143,3 +143,9 @@ def test_the_environment_is_deterministic_for_a_seed():
     assert env.action_space.contains(env.action_space.sample(np.random.default_rng(0)))
     picture = env.render()
     assert picture.shape == (env.height, env.width, 3)
+    pixels = incise.CutAlongLineEnv(observation="pixels", max_steps=3)
+    obs, _ = pixels.reset(seed=1)
+    assert obs.shape == (72, 96, 3) and obs.dtype == np.uint8
+    assert pixels.observation_space.contains(obs)
+    after, *_ = pixels.step((0.0, 1.0))
+    assert not np.array_equal(after, obs)  # the blade moved in the picture
