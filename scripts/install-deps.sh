@@ -36,6 +36,8 @@ packages=(
   # the examples
   pybind11-dev python3-dev python3-numpy python3-pytest python3-pandas python3-dask
   python3-distributed python3-matplotlib python3-scipy
+  # mypy checks the package and the examples against its type stubs
+  mypy
   # the device protocol (incise serve / incise device): OpenIGTLink, as 3D Slicer speaks it
   libopenigtlink-dev
 )

@@ -38,8 +38,8 @@ from .planning import plan  # noqa: F401
 from .sweep import sweep  # noqa: F401
 from .environment import CutAlongLineEnv  # noqa: F401
 
-Mesh.to_meshio = to_meshio
-Mesh.from_meshio = staticmethod(from_meshio)
+Mesh.to_meshio = to_meshio  # type: ignore[assignment]  # declared in _incise.pyi
+Mesh.from_meshio = staticmethod(from_meshio)  # type: ignore[assignment]
 
 __all__ = [
     "CutAlongLineEnv",
