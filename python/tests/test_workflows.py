@@ -109,6 +109,20 @@ def test_a_sweep_on_a_local_cluster_equals_running_the_variants_here():
     assert float(row["max_displacement"].iloc[0]) == last.max_displacement
 
 
+def test_a_sweep_through_a_scheduler_address():
+    import distributed
+
+    # A scheduler reached by its address, as one on another machine would be.
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        table = incise.sweep(SAG_SCENE, {"integrator.dt": [0.01, 0.02]},
+                             scheduler=cluster.scheduler_address, frames=5, progress=False)
+    here = incise.sweep(SAG_SCENE, {"integrator.dt": [0.01, 0.02]}, workers=0, frames=5,
+                        progress=False)
+    assert table["error"].isna().all()
+    assert table["max_displacement"].tolist() == here["max_displacement"].tolist()
+
+
 def test_a_failed_variant_is_a_row_not_the_end_of_the_sweep():
     table = incise.sweep(SAG_SCENE, [{"integrator.dt": 0.01}, {"integrator.dtt": 0.01},
                                      {"material.young_modulus": -5.0}], workers=0, progress=False)
