@@ -121,6 +121,13 @@ def test_a_blade_set_from_python_cuts():
         sim.set_blade((0.0213, y, -0.012), (0.0213, y, 0.06))
         sim.step()
     assert len(sim.tets) > tets_before
+    # The same strokes given where the body is now (a tracked device's world frame) cut too.
+    world = incise.Simulation(scene)
+    for k in range(12):
+        y = -0.01 + k * 0.004
+        world.set_blade((0.0213, y, -0.012), (0.0213, y, 0.06), frame="world")
+        world.step()
+    assert len(world.tets) > tets_before
     assert sim.blade is not None
     sim.lift_blade()
     frame = sim.step()

@@ -77,6 +77,16 @@ def test_plan_from_the_example_ct(source_dir, tmp_path):
     assert stages and stages[-1][1] == pytest.approx(1.0)
 
 
+def test_a_plan_from_a_dict_and_its_bad_keys(source_dir, tmp_path):
+    path = source_dir / "scenes" / "plan_headsq.json"
+    plan = json.loads(path.read_text())
+    plan["moves"] = []  # nothing moved: the face stays where it was
+    result = incise.plan(plan, out_dir=tmp_path, plan_file=path)
+    assert result["max_displacement_mm"] < 0.5
+    with pytest.raises(incise.InputError, match="'isos'.*did you mean 'iso'"):
+        incise.plan(dict(plan, isos=plan["iso"]), out_dir=tmp_path, plan_file=path)
+
+
 SAG_SCENE = {
     "mesh": {"box": {"cells": [3, 3, 3], "size": [0.1, 0.1, 0.1]}},
     "material": {"young_modulus": 3000, "poisson_ratio": 0.45, "density": 1000},
@@ -90,12 +100,13 @@ SAG_SCENE = {
 
 def test_a_sweep_on_a_local_cluster_equals_running_the_variants_here():
     variants = {"material.young_modulus": [2000.0, 4000.0], "integrator.dt": [0.01, 0.02]}
-    distributed = incise.sweep(SAG_SCENE, variants, workers=2, progress=False)
+    distributed = incise.sweep(SAG_SCENE, variants, workers=2, progress=False, keep_mesh=True)
     here = incise.sweep(SAG_SCENE, variants, workers=0, progress=False)
     assert len(distributed) == 4 and distributed["error"].isna().all()
     state = ["material.young_modulus", "integrator.dt", "frames", "time", "vertices", "tets",
              "kinetic_energy", "max_displacement", "inverted_tets"]
     assert distributed[state].equals(here[state])
+    assert all(p.shape == (64, 3) for p in distributed["positions"])  # the final meshes came back
     # Stiffer tissue sags less.
     soft = distributed[(distributed["material.young_modulus"] == 2000.0) & (distributed["integrator.dt"] == 0.01)]
     stiff = distributed[(distributed["material.young_modulus"] == 4000.0) & (distributed["integrator.dt"] == 0.01)]
