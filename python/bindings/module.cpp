@@ -11,5 +11,6 @@ PYBIND11_MODULE(_incise, module) {
   incise::python::bind_mesh(module);
   incise::python::bind_simulation(module);
   incise::python::bind_cutting(module);
+  incise::python::bind_meshing(module);
   incise::python::bind_planning(module);
 }

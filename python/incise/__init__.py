@@ -13,6 +13,7 @@ What is here (units are SI throughout: m, s, kg, N, Pa, kg/m^3):
 - ``Simulation``: step, blade poses (``set_blade`` / ``lift_blade``), ``push``, arrays that
   never go stale, ``save_state`` / ``restore`` for episodes, ``checkpoint`` / ``Simulation.resume``
   for files, ``render`` for pictures.
+- ``mesh_surface``: a triangle surface (repaired if it must be) tetrahedralised, as ``incise mesh``.
 - ``cut``: a mesh cut along a blade path without physics, with the ``incise cut`` report.
 - ``plan``: surgical planning from CT (a plan file or dict), the skin before and after.
 - ``sweep``: a table of scene variants through Dask, one row per variant (pandas).
@@ -29,6 +30,7 @@ from ._incise import (  # noqa: F401  (the compiled core)
     InputError,
     Mesh,
     Simulation,
+    mesh_surface,
     read_blade_path,
     read_surface,
 )
@@ -38,6 +40,16 @@ from .planning import plan  # noqa: F401
 from .sweep import sweep  # noqa: F401
 from .environment import CutAlongLineEnv  # noqa: F401
 
+def _fix_slivers(self):
+    """A copy with the flat tetrahedra and slivers collapsed away where that keeps the boundary
+    (within a thousandth of the sliver's longest edge), as `incise convert --fix-slivers` does:
+    (mesh, report with the counts before and after and the largest boundary shift)."""
+    from ._incise import _fix_slivers as fix
+
+    return fix(self)
+
+
+Mesh.fix_slivers = _fix_slivers  # type: ignore[assignment]
 Mesh.to_meshio = to_meshio  # type: ignore[assignment]  # declared in _incise.pyi
 Mesh.from_meshio = staticmethod(from_meshio)  # type: ignore[assignment]
 
@@ -51,6 +63,7 @@ __all__ = [
     "Simulation",
     "cut",
     "from_meshio",
+    "mesh_surface",
     "plan",
     "read_blade_path",
     "read_surface",
