@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Installs dependencies, builds with warnings as errors (g++ and clang), runs the whole test
 # suite under g++ and again under clang with AddressSanitizer + UBSan (leaving out, by the
-# ci-clang test preset's filter, the long numeric tests that run 30-70 times slower there;
-# the g++ run has them), replays every fuzz corpus in both, runs the threaded parts (parallel
-# element loops, engine snapshots, haptic loop, device server) under ThreadSanitizer, checks
-# formatting, and proves the installed package works with find_package(incise).
+# ci-clang test preset's filter, the long numeric tests that run 30-70 times slower there and
+# the few that take a minute or more under it; the g++ run has them, and the Python tests,
+# since a sanitized module would need the runtime preloaded), replays every fuzz corpus in
+# both, runs the threaded parts (parallel element loops, engine snapshots, haptic loop, device
+# server) under ThreadSanitizer, checks formatting, and proves the installed package works
+# with find_package(incise) and the installed Python module with import incise.
 # Usage (as root on Debian 12): bash scripts/test.sh
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
