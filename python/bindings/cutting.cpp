@@ -17,7 +17,7 @@ namespace incise::python {
 namespace {
 
 /// An (n, 7) array of poses (t in s, tip x y z, base x y z), checked: finite, in time order.
-std::vector<BladePose> blade_path_from(const py::handle& poses) {
+std::vector<BladePose> blade_path_from(const py::object& poses) {
   const auto rows = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(poses);
   if (!rows || rows.ndim() != 2 || rows.shape(1) != 7 || rows.shape(0) < 1) {
     throw InputError("blade: an (n, 7) array of poses (t, tip x y z, base x y z) is needed");
@@ -60,7 +60,7 @@ void bind_cutting(py::module_& module) {
       "array, as `incise cut --blade` and the scenes' tool.blade_path read it.");
   module.def(
       "_cut_subdivision",
-      [](const TetMesh& mesh, const py::handle& poses, double snap, const std::string& split,
+      [](const TetMesh& mesh, const py::object& poses, double snap, const std::string& split,
          bool merge_blade_points, const std::string& mesh_name, const std::string& blade_name,
          const std::string& unit_name) {
         const std::vector<BladePose> path = blade_path_from(poses);
@@ -87,7 +87,7 @@ void bind_cutting(py::module_& module) {
       py::arg("unit_name"));
   module.def(
       "_cut_xfem",
-      [](const TetMesh& mesh, const py::handle& poses, const py::object& visual,
+      [](const TetMesh& mesh, const py::object& poses, const py::object& visual,
          const std::filesystem::path& output, const std::filesystem::path& visual_out,
          std::optional<double> length_unit_m, const std::string& mesh_name,
          const std::string& blade_name) {

@@ -83,8 +83,8 @@ py::dict info_dict(const TetMesh& mesh) {
   return out;
 }
 
-std::shared_ptr<TetMesh> mesh_from_arrays(const py::handle& vertices, const py::handle& tets,
-                                          const py::handle& labels, bool check) {
+std::shared_ptr<TetMesh> mesh_from_arrays(const py::object& vertices, const py::object& tets,
+                                          const py::object& labels, bool check) {
   std::vector<Vec3> points = points_from(vertices, "vertices");
   std::vector<Tet> elements = ids_from<4>(tets, points.size(), "tets");
   if (elements.empty()) {
@@ -160,7 +160,7 @@ void bind_mesh(py::module_& module) {
           "(default: the first integer one). Points used by no tetrahedron are dropped.")
       .def_static(
           "box",
-          [](const py::handle& size, std::array<int, 3> cells, const py::handle& origin,
+          [](const py::object& size, std::array<int, 3> cells, const py::object& origin,
              int tets_per_cell) {
             BoxGridOptions options;
             options.size = point_from(size, "size");

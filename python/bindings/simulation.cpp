@@ -163,7 +163,7 @@ class Simulation {
     return std::make_shared<TetMesh>(engine_->mesh());
   }
 
-  void set_blade(const py::handle& tip, const py::handle& base, const std::string& frame) {
+  void set_blade(const py::object& tip, const py::object& base, const std::string& frame) {
     const BladePose pose{0.0, point_from(tip, "tip"), point_from(base, "base")};
     if ((pose.tip - pose.base).norm() == 0.0) {
       throw InputError("set_blade: the tip and the base are the same point");
@@ -184,7 +184,7 @@ class Simulation {
     }
   }
 
-  void push(std::size_t triangle, const py::handle& barycentric, const py::handle& force) {
+  void push(std::size_t triangle, const py::object& barycentric, const py::object& force) {
     const Vec3 weights = point_from(barycentric, "barycentric");
     if (weights.minCoeff() < -1e-9 || std::abs(weights.sum() - 1.0) > 1e-6) {
       throw InputError("push: barycentric coordinates must be at least 0 and sum to 1");
@@ -462,7 +462,7 @@ void bind_simulation(py::module_& module) {
            py::arg("frame") = "rest",
            "Puts the blade at tip-base (m) for the next step(): in the body's rest frame "
            "('rest', default) or where the body is now ('world'). Consecutive poses sweep a cut "
-           "with a cutter in the scene (`tool.cutter`). Replaces the scene's scripted path.")
+           "with a cutter in the scene (its `cutter` key). Replaces the scene's scripted path.")
       .def("lift_blade", &Simulation::lift_blade,
            "The blade leaves the body: the next set_blade starts a new stroke.")
       .def("push", &Simulation::push, py::arg("triangle"), py::arg("barycentric"), py::arg("force"),
