@@ -1,5 +1,7 @@
 #include "arrays.hpp"
 
+#include <pybind11/stl/filesystem.h>
+
 #include <cmath>
 #include <limits>
 
@@ -144,6 +146,25 @@ std::vector<int> labels_from(const py::handle& value, std::size_t count, const s
     out[i] = static_cast<int>(label);
   }
   return out;
+}
+
+SurfaceMesh surface_from(const py::object& surface, const std::string& what) {
+  if (py::isinstance<py::str>(surface) || py::hasattr(surface, "__fspath__")) {
+    const auto path = surface.cast<std::filesystem::path>();
+    py::gil_scoped_release release;
+    return read_surface(path);
+  }
+  if (!py::isinstance<py::tuple>(surface) || py::len(surface) != 2) {
+    throw InputError(what + ": a file's path or (points, triangles) arrays are needed");
+  }
+  const auto pair = surface.cast<py::tuple>();
+  SurfaceMesh mesh;
+  mesh.points = points_from(pair[0], what + " points");
+  mesh.triangles = ids_from<3>(pair[1], mesh.points.size(), what + " triangles");
+  if (mesh.triangles.empty()) {
+    throw InputError(what + " triangles: a surface needs at least one triangle");
+  }
+  return mesh;
 }
 
 }  // namespace incise::python

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "incise/core/types.hpp"
+#include "incise/io/mesh_io.hpp"
 
 namespace incise::python {
 
@@ -56,6 +57,9 @@ template <std::size_t k>
 [[nodiscard]] std::vector<std::array<std::int32_t, k>> ids_from(const py::handle& array,
                                                                 std::size_t id_count,
                                                                 const std::string& what);
+/// A triangle surface: a file's path (read as incise mesh reads it) or (points, triangles)
+/// arrays, checked; `what` names it in errors ("surface", "visual").
+[[nodiscard]] SurfaceMesh surface_from(const py::object& surface, const std::string& what);
 /// m integers -> labels.
 [[nodiscard]] std::vector<int> labels_from(const py::handle& array, std::size_t count,
                                            const std::string& what);

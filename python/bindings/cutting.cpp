@@ -98,14 +98,7 @@ void bind_cutting(py::module_& module) {
         request.mesh_name = mesh_name;
         request.blade_name = blade_name;
         if (!visual.is_none()) {
-          const auto pair = visual.cast<py::tuple>();
-          if (pair.size() != 2) {
-            throw InputError("visual: (points, triangles) or a surface file is needed");
-          }
-          SurfaceMesh surface;
-          surface.points = points_from(pair[0], "visual points");
-          surface.triangles = ids_from<3>(pair[1], surface.points.size(), "visual triangles");
-          request.visual = std::move(surface);
+          request.visual = surface_from(visual, "visual");
         }
         const std::vector<BladePose> path = blade_path_from(poses);
         XfemPathCutResult result;

@@ -14,25 +14,6 @@
 namespace incise::python {
 namespace {
 
-SurfaceMesh surface_from(const py::object& surface) {
-  if (py::isinstance<py::str>(surface) || py::hasattr(surface, "__fspath__")) {
-    const auto path = surface.cast<std::filesystem::path>();
-    py::gil_scoped_release release;
-    return read_surface(path);
-  }
-  if (!py::isinstance<py::tuple>(surface) || py::len(surface) != 2) {
-    throw InputError("surface: a file's path or (points, triangles) arrays are needed");
-  }
-  const auto pair = surface.cast<py::tuple>();
-  SurfaceMesh mesh;
-  mesh.points = points_from(pair[0], "surface points");
-  mesh.triangles = ids_from<3>(pair[1], mesh.points.size(), "surface triangles");
-  if (mesh.triangles.empty()) {
-    throw InputError("surface triangles: a surface needs at least one triangle");
-  }
-  return mesh;
-}
-
 template <typename Mode>
 Mode choose(const std::string& key, const std::string& value,
             std::initializer_list<std::pair<const char*, Mode>> choices) {
@@ -74,7 +55,7 @@ void bind_meshing(py::module_& module) {
       [](const py::object& surface, double max_volume, double min_quality, double min_dihedral,
          bool preserve_surface, const std::string& remesh, double edge_length, bool largest_shell,
          const std::string& repair, double wrap_alpha, double wrap_offset, double timeout) {
-        SurfaceMesh input = surface_from(surface);
+        SurfaceMesh input = surface_from(surface, "surface");
         if (!(max_volume >= 0.0) || !(min_quality >= 1.1) || !(min_dihedral >= 0.0) ||
             !(min_dihedral <= 18.0) || !(edge_length >= 0.0) || !(wrap_alpha >= 0.0) ||
             !(wrap_offset >= 0.0) || !(timeout > 0.0)) {

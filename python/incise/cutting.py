@@ -59,8 +59,6 @@ def cut(mesh, blade, method="subdivision", snap=0.1, split="minimal", merge_blad
         return result, json.loads(report)
     out = pathlib.Path(out_dir if out_dir is not None else tempfile.mkdtemp(prefix="incise-cut-"))
     out.mkdir(parents=True, exist_ok=True)
-    if isinstance(visual, (str, os.PathLike)):
-        visual = read_surface(visual)
     visual_out = out / "visual.vtp" if visual is not None else pathlib.Path()
     report = json.loads(_cut_xfem(mesh, blade, visual, out / "cut.vtu", visual_out, unit_m,
                                   mesh_name, blade_name))
