@@ -3,6 +3,7 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Image_3.h>
 #include <CGAL/Labeled_mesh_domain_3.h>
+#include <CGAL/Mesh_3/initialize_triangulation_from_gray_image.h>
 #include <CGAL/Mesh_complex_3_in_triangulation_3.h>
 #include <CGAL/Mesh_criteria_3.h>
 #include <CGAL/Mesh_triangulation_3.h>
@@ -63,6 +64,9 @@ Isosurface extract_isosurface(const VolumeImage& image, double iso,
       options.facet_distance > 0.0 ? options.facet_distance : 0.5 * image.spacing.minCoeff();
   const CGAL::Image_3 cgal_image = to_cgal_image(image);
   CGAL::Random random(options.seed);
+  // The region seeding draws its ray directions from this thread's default generator, which
+  // CGAL seeds from the clock: seeded here, the surface repeats for a seed on any thread.
+  CGAL::get_default_random() = CGAL::Random(options.seed);
   namespace params = CGAL::parameters;
   // Outside the volume the image reads as just below the iso value, so tissue that reaches the
   // border closes just past the outermost voxel centres (that closure is left out below).
@@ -73,8 +77,27 @@ Isosurface extract_isosurface(const VolumeImage& image, double iso,
   // Only the surface is wanted: cells are left as coarse as the mesher allows.
   const Criteria criteria(params::facet_angle = options.facet_angle,
                           params::facet_size = facet_size, params::facet_distance = facet_distance);
-  const Complex complex = CGAL::make_mesh_3<Complex>(domain, criteria, params::no_perturb(),
-                                                     params::no_exude(), params::manifold());
+  // Seeded from every connected region of voxels above the iso value (CGAL's default seeding
+  // shoots random rays from the middle and misses bones it does not hit: a vertebra, a
+  // mandible), then refined.
+  // CGAL 5.5's seeding can meet a ray hit that coincides with a point already inserted and
+  // stop on an assertion; then the default seeding meshes what its rays find, and the result
+  // says so.
+  Complex complex;
+  try {
+    initialize_triangulation_from_gray_image(complex, domain, cgal_image, criteria,
+                                             static_cast<float>(iso), float{});
+  } catch (const CGAL::Failure_exception&) {
+    complex = Complex();
+    result.every_region_seeded = false;
+  }
+  if (result.every_region_seeded) {
+    CGAL::refine_mesh_3(complex, domain, criteria, params::no_perturb(), params::no_exude(),
+                        params::manifold());
+  } else {
+    complex = CGAL::make_mesh_3<Complex>(domain, criteria, params::no_perturb(), params::no_exude(),
+                                         params::manifold());
+  }
 
   CGAL::Surface_mesh<Kernel::Point_3> mesh;
   CGAL::facets_in_complex_3_to_triangle_mesh(complex, mesh);

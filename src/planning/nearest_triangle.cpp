@@ -35,6 +35,7 @@ NearestTriangle::NearestTriangle(std::span<const Vec3> points, std::span<const T
                                   to_point(points[static_cast<std::size_t>(t[2])]));
   }
   tree_->tree.insert(tree_->triangles.cbegin(), tree_->triangles.cend());
+  tree_->tree.build();  // built now: concurrent queries only read it
   tree_->tree.accelerate_distance_queries();
 }
 

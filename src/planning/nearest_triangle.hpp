@@ -19,7 +19,8 @@ class NearestTriangle {
     Vec3 point;
     int triangle = -1;
   };
-  /// The closest point of the surface to `query`, and its triangle.
+  /// The closest point of the surface to `query`, and its triangle. Several threads may ask at
+  /// once (the tree is built in the constructor).
   [[nodiscard]] Hit closest(const Vec3& query) const;
 
  private:

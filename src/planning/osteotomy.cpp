@@ -24,9 +24,6 @@ Vec3 centroid(const SurfaceMesh& mesh, const Triangle& t) {
          3.0;
 }
 
-/// m: how far a moved segment may reach beyond the plane that cut it (rounding).
-constexpr double kDepthTolerance = 1e-6;
-
 /// Whether the plane's disc separates the two points.
 bool separates(const CutPlane& plane, const Vec3& p, const Vec3& q) {
   const double sp = (p - plane.point).dot(plane.normal);
@@ -42,7 +39,78 @@ bool separates(const CutPlane& plane, const Vec3& p, const Vec3& q) {
 
 }  // namespace
 
-BoneSegments segment_bone(const SurfaceMesh& bone, std::span<const CutPlane> input_planes) {
+namespace {
+
+/// Pairs of triangles sharing an edge, by the edge.
+std::map<std::pair<VertexId, VertexId>, std::vector<int>> triangles_by_edge(
+    const SurfaceMesh& bone) {
+  std::map<std::pair<VertexId, VertexId>, std::vector<int>> edge_triangles;
+  for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
+    const Triangle& tri = bone.triangles[t];
+    for (std::size_t e = 0; e < 3; ++e) {
+      edge_triangles[std::minmax(tri[e], tri[(e + 1) % 3])].push_back(static_cast<int>(t));
+    }
+  }
+  return edge_triangles;
+}
+
+/// Fills count, sizes and volumes from triangle_segment (labels 0 .. count - 1), and returns
+/// how many cut edges each pair of segments shares.
+std::map<std::pair<int, int>, int> measure_segments(
+    const SurfaceMesh& bone,
+    const std::map<std::pair<VertexId, VertexId>, std::vector<int>>& edge_triangles,
+    BoneSegments& segments) {
+  segments.count = 0;
+  for (int s : segments.triangle_segment) {
+    segments.count = std::max(segments.count, s + 1);
+  }
+  const auto count = static_cast<std::size_t>(segments.count);
+  segments.sizes.assign(count, 0);
+  segments.volumes.assign(count, 0.0);
+  std::map<std::pair<int, int>, int> shared;
+  std::vector<Vec3> apex_sum(count, Vec3::Zero());
+  std::vector<int> apex_count(count, 0);
+  for (const auto& [edge, triangles] : edge_triangles) {
+    for (std::size_t i = 0; i < triangles.size(); ++i) {
+      for (std::size_t j = i + 1; j < triangles.size(); ++j) {
+        const int a = segments.triangle_segment[static_cast<std::size_t>(triangles[i])];
+        const int b = segments.triangle_segment[static_cast<std::size_t>(triangles[j])];
+        if (a == b) {
+          continue;
+        }
+        ++shared[std::minmax(a, b)];
+        const Vec3 middle = 0.5 * (bone.points[static_cast<std::size_t>(edge.first)] +
+                                   bone.points[static_cast<std::size_t>(edge.second)]);
+        for (int s : {a, b}) {
+          apex_sum[static_cast<std::size_t>(s)] += middle;
+          ++apex_count[static_cast<std::size_t>(s)];
+        }
+      }
+    }
+  }
+  // A cone from the centre of a segment's cut edges closes its cut nearly flat: the volume is
+  // that of the piece the saw leaves.
+  std::vector<Vec3> apex(count, Vec3::Zero());
+  for (std::size_t s = 0; s < count; ++s) {
+    if (apex_count[s] > 0) {
+      apex[s] = apex_sum[s] / apex_count[s];
+    }
+  }
+  for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
+    const auto s = static_cast<std::size_t>(segments.triangle_segment[t]);
+    const Vec3 a = bone.points[static_cast<std::size_t>(bone.triangles[t][0])] - apex[s];
+    const Vec3 b = bone.points[static_cast<std::size_t>(bone.triangles[t][1])] - apex[s];
+    const Vec3 c = bone.points[static_cast<std::size_t>(bone.triangles[t][2])] - apex[s];
+    ++segments.sizes[s];
+    segments.volumes[s] += a.dot(b.cross(c)) / 6.0;
+  }
+  return shared;
+}
+
+}  // namespace
+
+BoneSegments segment_bone(const SurfaceMesh& bone, std::span<const CutPlane> input_planes,
+                          double least_volume) {
   std::vector<CutPlane> planes(input_planes.begin(), input_planes.end());
   for (CutPlane& plane : planes) {
     if (!(plane.normal.norm() > 0.0) || !plane.normal.allFinite() || !plane.point.allFinite()) {
@@ -55,15 +123,7 @@ BoneSegments segment_bone(const SurfaceMesh& bone, std::span<const CutPlane> inp
   for (std::size_t t = 0; t < count; ++t) {
     centroids[t] = centroid(bone, bone.triangles[t]);
   }
-  std::map<std::pair<VertexId, VertexId>, std::vector<int>> edge_triangles;
-  for (std::size_t t = 0; t < count; ++t) {
-    const Triangle& tri = bone.triangles[t];
-    for (int e = 0; e < 3; ++e) {
-      edge_triangles[std::minmax(tri[static_cast<std::size_t>(e)],
-                                 tri[static_cast<std::size_t>((e + 1) % 3)])]
-          .push_back(static_cast<int>(t));
-    }
-  }
+  const auto edge_triangles = triangles_by_edge(bone);
   DisjointSets sets(count);
   for (const auto& [edge, triangles] : edge_triangles) {
     for (std::size_t i = 0; i < triangles.size(); ++i) {
@@ -83,13 +143,49 @@ BoneSegments segment_bone(const SurfaceMesh& bone, std::span<const CutPlane> inp
   std::map<VertexId, int> segment_of_root;
   for (std::size_t t = 0; t < count; ++t) {
     const VertexId root = sets.find(static_cast<VertexId>(t));
-    const auto [it, added] = segment_of_root.emplace(root, segments.count);
-    if (added) {
-      ++segments.count;
-      segments.sizes.push_back(0);
-    }
+    const auto [it, added] =
+        segment_of_root.emplace(root, static_cast<int>(segment_of_root.size()));
     segments.triangle_segment[t] = it->second;
-    ++segments.sizes[static_cast<std::size_t>(it->second)];
+  }
+  auto shared = measure_segments(bone, edge_triangles, segments);
+  // Fragments join a neighbour, smallest first, until every segment that has a neighbour
+  // encloses the least volume.
+  for (;;) {
+    int smallest = -1;
+    for (int s = 0; s < segments.count; ++s) {
+      const bool has_neighbour = std::any_of(shared.begin(), shared.end(), [&](const auto& item) {
+        return item.first.first == s || item.first.second == s;
+      });
+      if (has_neighbour && std::abs(segments.volumes[static_cast<std::size_t>(s)]) < least_volume &&
+          (smallest < 0 || std::abs(segments.volumes[static_cast<std::size_t>(s)]) <
+                               std::abs(segments.volumes[static_cast<std::size_t>(smallest)]))) {
+        smallest = s;
+      }
+    }
+    if (smallest < 0) {
+      break;
+    }
+    int into = -1;
+    int most = 0;
+    for (const auto& [pair, edges] : shared) {
+      if ((pair.first == smallest || pair.second == smallest) && edges > most) {
+        into = pair.first == smallest ? pair.second : pair.first;
+        most = edges;
+      }
+    }
+    // Relabel: the fragment takes its neighbour's label and the last label fills its place.
+    const int last = segments.count - 1;
+    for (int& s : segments.triangle_segment) {
+      s = s == smallest ? into : s;
+      s = s == last ? smallest : s;
+    }
+    ++segments.merged_fragments;
+    shared = measure_segments(bone, edge_triangles, segments);
+  }
+  for (int s = 0; s < segments.count; ++s) {
+    if (std::abs(segments.volumes[static_cast<std::size_t>(s)]) < least_volume) {
+      ++segments.small_isolated;
+    }
   }
   return segments;
 }
@@ -121,8 +217,90 @@ std::vector<std::array<Vec3, 3>> moved_triangles(const SurfaceMesh& bone,
 std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
                                                      const BoneSegments& segments,
                                                      std::span<const RigidMove> segment_moves,
-                                                     std::span<const CutPlane> planes) {
+                                                     std::span<const CutPlane> input_planes,
+                                                     double tolerance) {
+  std::vector<CutPlane> planes(input_planes.begin(), input_planes.end());
+  for (CutPlane& plane : planes) {
+    plane.normal.normalize();
+  }
+  auto moved_segment = [&](int segment) {
+    const RigidMove& m = segment_moves[static_cast<std::size_t>(segment)];
+    return m.angle != 0.0 || m.translation != Vec3::Zero();
+  };
   const std::vector<std::array<Vec3, 3>> moved = moved_triangles(bone, segments, segment_moves);
+
+  // Segments that share an edge were cut apart by a plane. For each such pair and each plane
+  // with the two on opposite sides: the band about the plane that holds the triangles along
+  // their cut (they straddle it by up to an edge), widened by the tolerance.
+  struct Cut {
+    std::size_t plane = 0;
+    double half_width = 0.0;  ///< m
+    double side[2] = {0.0, 0.0};
+  };
+  std::map<std::pair<int, int>, std::vector<int>> cut_triangles;
+  for (const auto& [edge, triangles] : triangles_by_edge(bone)) {
+    for (std::size_t i = 0; i < triangles.size(); ++i) {
+      for (std::size_t j = i + 1; j < triangles.size(); ++j) {
+        const int a = segments.triangle_segment[static_cast<std::size_t>(triangles[i])];
+        const int b = segments.triangle_segment[static_cast<std::size_t>(triangles[j])];
+        if (a != b) {
+          auto& list = cut_triangles[std::minmax(a, b)];
+          list.push_back(triangles[i]);
+          list.push_back(triangles[j]);
+        }
+      }
+    }
+  }
+  std::map<std::pair<int, int>, std::vector<Cut>> cuts;
+  for (const auto& [pair, triangles] : cut_triangles) {
+    for (std::size_t p = 0; p < planes.size(); ++p) {
+      const CutPlane& plane = planes[p];
+      double side[2] = {0.0, 0.0};
+      for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
+        const int s = segments.triangle_segment[t];
+        if (s == pair.first || s == pair.second) {
+          side[s == pair.first ? 0 : 1] +=
+              (centroid(bone, bone.triangles[t]) - plane.point).dot(plane.normal);
+        }
+      }
+      if ((side[0] >= 0.0) == (side[1] >= 0.0)) {
+        continue;
+      }
+      Cut cut;
+      cut.plane = p;
+      cut.side[0] = side[0];
+      cut.side[1] = side[1];
+      for (int t : triangles) {
+        for (VertexId v : bone.triangles[static_cast<std::size_t>(t)]) {
+          cut.half_width = std::max(
+              cut.half_width,
+              std::abs((bone.points[static_cast<std::size_t>(v)] - plane.point).dot(plane.normal)));
+        }
+      }
+      cut.half_width += tolerance;
+      cuts[pair].push_back(cut);
+    }
+  }
+  // Whether two moved triangles lie within the band of a cut their segments share.
+  auto on_their_cut = [&](std::size_t ta, std::size_t tb, const std::pair<int, int>& pair) {
+    const auto found = cuts.find(pair);
+    if (found == cuts.end()) {
+      return false;
+    }
+    for (const Cut& cut : found->second) {
+      const CutPlane& plane = planes[cut.plane];
+      auto within = [&](const std::array<Vec3, 3>& corners) {
+        return std::all_of(corners.begin(), corners.end(), [&](const Vec3& x) {
+          return std::abs((x - plane.point).dot(plane.normal)) <= cut.half_width;
+        });
+      };
+      if (within(moved[ta]) && within(moved[tb])) {
+        return true;
+      }
+    }
+    return false;
+  };
+
   using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
   std::vector<Box> boxes;
   boxes.reserve(moved.size());
@@ -141,14 +319,7 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
     const auto tb = static_cast<std::size_t>(b.info());
     const int sa = segments.triangle_segment[ta];
     const int sb = segments.triangle_segment[tb];
-    if (sa == sb) {
-      return;
-    }
-    auto moves = [&](int segment) {
-      const RigidMove& m = segment_moves[static_cast<std::size_t>(segment)];
-      return m.angle != 0.0 || m.translation != Vec3::Zero();
-    };
-    if (!moves(sa) && !moves(sb)) {
+    if (sa == sb || (!moved_segment(sa) && !moved_segment(sb))) {
       return;
     }
     for (VertexId u : bone.triangles[ta]) {
@@ -161,37 +332,22 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
     auto corner = [&](std::size_t t, int c) -> const Vec3& {
       return bone.points[static_cast<std::size_t>(bone.triangles[t][static_cast<std::size_t>(c)])];
     };
+    const auto pair = std::minmax(sa, sb);
     // Crossings the bone had before any move (scanned surfaces self-intersect here and there)
-    // are not the move's doing.
+    // are not the move's doing; crossings on the cut the two share are contact.
     if (triangles_intersect(moved[ta][0], moved[ta][1], moved[ta][2], moved[tb][0], moved[tb][1],
                             moved[tb][2]) &&
         !triangles_intersect(corner(ta, 0), corner(ta, 1), corner(ta, 2), corner(tb, 0),
-                             corner(tb, 1), corner(tb, 2))) {
-      ++crossings[std::minmax(sa, sb)];
+                             corner(tb, 1), corner(tb, 2)) &&
+        !on_their_cut(ta, tb, pair)) {
+      ++crossings[pair];
     }
   });
-  // Segments that share an edge were cut apart by a plane; one moved into the other's side of
-  // it overlaps it even where no surfaces cross (a cap pushed into a closed bone).
-  std::set<std::pair<int, int>> neighbours;
-  {
-    std::map<std::pair<VertexId, VertexId>, int> first_segment;
-    for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
-      for (int e = 0; e < 3; ++e) {
-        const auto key = std::minmax(bone.triangles[t][static_cast<std::size_t>(e)],
-                                     bone.triangles[t][static_cast<std::size_t>((e + 1) % 3)]);
-        const int s = segments.triangle_segment[t];
-        const auto [it, added] = first_segment.emplace(key, s);
-        if (!added && it->second != s) {
-          neighbours.insert(std::minmax(it->second, s));
-        }
-      }
-    }
+
+  std::set<std::pair<int, int>> candidates;
+  for (const auto& [pair, list] : cuts) {
+    candidates.insert(pair);
   }
-  auto moved_segment = [&](int segment) {
-    const RigidMove& m = segment_moves[static_cast<std::size_t>(segment)];
-    return m.angle != 0.0 || m.translation != Vec3::Zero();
-  };
-  std::set<std::pair<int, int>> candidates = neighbours;
   for (const auto& [pair, count] : crossings) {
     candidates.insert(pair);
   }
@@ -205,22 +361,9 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
     item.second = pair.second;
     const auto crossing = crossings.find(pair);
     item.crossing_triangle_pairs = crossing == crossings.end() ? 0 : crossing->second;
-    for (const CutPlane& raw : planes) {
-      CutPlane plane = raw;
-      plane.normal.normalize();
-      double side[2] = {0.0, 0.0};
-      int counted[2] = {0, 0};
-      for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
-        const int s = segments.triangle_segment[t];
-        const int which = s == pair.first ? 0 : (s == pair.second ? 1 : -1);
-        if (which >= 0) {
-          side[which] += (centroid(bone, bone.triangles[t]) - plane.point).dot(plane.normal);
-          ++counted[which];
-        }
-      }
-      if (counted[0] == 0 || counted[1] == 0 || (side[0] >= 0.0) == (side[1] >= 0.0)) {
-        continue;
-      }
+    const auto pair_cuts = cuts.find(pair);
+    for (const Cut& cut : pair_cuts == cuts.end() ? std::vector<Cut>{} : pair_cuts->second) {
+      const CutPlane& plane = planes[cut.plane];
       // Triangles on the cut straddle it by up to an edge before any move: the depth is what
       // the move added beyond that.
       for (int which = 0; which < 2; ++which) {
@@ -228,7 +371,7 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
         if (!moved_segment(segment)) {
           continue;
         }
-        const double sign = side[which] >= 0.0 ? 1.0 : -1.0;
+        const double sign = cut.side[which] >= 0.0 ? 1.0 : -1.0;
         double before = 0.0;
         double after = 0.0;
         for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
@@ -251,7 +394,7 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
         item.depth = std::max(item.depth, after - before);
       }
     }
-    if (item.crossing_triangle_pairs > 0 || item.depth > kDepthTolerance) {
+    if (item.crossing_triangle_pairs > 0 || item.depth > tolerance) {
       found.push_back(item);
     }
   }

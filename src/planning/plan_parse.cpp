@@ -94,6 +94,8 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
                           "max_edge",
                           "equilibrium",
                           "osteotomies",
+                          "min_segment_volume",
+                          "contact_tolerance",
                           "moves",
                           "instruments",
                           "cuts",
@@ -150,6 +152,13 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
       context.fail("decimation", "needs 'max_error' (mm)");
     }
     plan.decimation_max_error = decimation.positive("max_error", 1.0) * kMillimetre;
+  }
+  if (top.has("min_segment_volume")) {
+    plan.min_segment_volume =
+        top.positive("min_segment_volume", 1.0) * kMillimetre * kMillimetre * kMillimetre;
+  }
+  if (top.has("contact_tolerance")) {
+    plan.contact_tolerance = top.positive("contact_tolerance", 1.0) * kMillimetre;
   }
   if (top.has("skin_edge_length")) {
     plan.skin_edge_length = top.positive("skin_edge_length", 1.0) * kMillimetre;

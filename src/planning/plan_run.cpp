@@ -17,6 +17,7 @@
 #include "incise/planning/plan.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/planning/tissue_energy.hpp"
+#include "plan_surfaces.hpp"
 #include "tissue_output.hpp"
 
 namespace incise::planning {
@@ -87,73 +88,37 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
                      {"young_modulus", "Pa"}, {"density", "kg/m^3"},  {"mass", "kg"},
                      {"gravity", "m/s^2"},    {"time", "s"}};
 
-  // Surfaces: read, or extracted from the CT.
+  // Surfaces: meshed from the CT within the plan's bound, or read and decimated to it. The
+  // bone comes first, so a move that will be refused is refused before the skin is prepared.
   auto stage = Clock::now();
+  PreparedSurface skin;
+  PreparedSurface bone;
   SurfaceMesh skin_input;
-  SurfaceMesh bone_input;
   if (!plan.image.empty()) {
-    report_progress("reading the CT volume", 0.0);
-    const imaging::VolumeImage image = imaging::read_volume(plan.image);
-    seconds["image"] = seconds_since(stage);
-    report_progress("extracting skin and bone isosurfaces", 0.02);
-    stage = Clock::now();
-    imaging::Isosurface skin_surface = imaging::extract_isosurface(
-        image, plan.skin_iso, plan.isosurface, plan.file.string() + ": plan key 'iso.skin'");
-    imaging::Isosurface bone_surface = imaging::extract_isosurface(
-        image, plan.bone_iso, plan.isosurface, plan.file.string() + ": plan key 'iso.bone'");
-    seconds["isosurface"] = seconds_since(stage);
-    const auto [low, high] = imaging::value_range(image);
-    report["image"] = {
-        {"file", plan.image.string()},
-        {"read", image.description},
-        {"size", image.size},
-        {"spacing", {image.spacing.x(), image.spacing.y(), image.spacing.z()}},
-        {"origin", {image.origin.x(), image.origin.y(), image.origin.z()}},
-        {"value_range", {low, high}},
-        {"iso", {{"skin", plan.skin_iso}, {"bone", plan.bone_iso}}},
-        {"isosurface_triangles",
-         {{"skin", skin_surface.surface.triangles.size()},
-          {"bone", bone_surface.surface.triangles.size()}}},
-        {"scan_border_triangles_left_out",
-         {{"skin", skin_surface.border_triangles}, {"bone", bone_surface.border_triangles}}}};
-    skin_input = in_metres(std::move(skin_surface.surface));
-    bone_input = in_metres(std::move(bone_surface.surface));
+    PlanSurfaces surfaces = surfaces_from_image(plan, progress);
+    seconds["image"] = surfaces.seconds_image;
+    seconds["isosurface"] = surfaces.seconds_isosurface;
+    seconds["surface_check"] = surfaces.seconds_check;
+    report["image"] = std::move(surfaces.report);
+    report["decimation"] =
+        "none: the mesher meets the bound itself (isosurface_criteria.facet_distance)";
+    skin.surface = std::move(surfaces.skin);
+    skin.triangles_full = skin.surface.triangles.size();
+    bone.surface = std::move(surfaces.bone);
+    bone.triangles_full = bone.surface.triangles.size();
   } else {
     report_progress("reading surfaces", 0.0);
     skin_input = in_metres(read_surface(plan.skin));
-    bone_input = in_metres(read_surface(plan.bone));
+    report_progress("decimating the bone", 0.05);
+    bone = prepare(in_metres(read_surface(plan.bone)), plan.decimation_max_error);
+    seconds["bone_surface"] = seconds_since(stage);
   }
-  report_progress("decimating surfaces", 0.05);
-  PreparedSurface skin = prepare(skin_input, plan.decimation_max_error);
-  report["skin_triangles_decimated"] = skin.surface.triangles.size();
-  if (plan.skin_edge_length) {
-    report_progress("remeshing the skin", 0.05);
-    try {
-      skin.surface = remesh_surface(skin.surface, *plan.skin_edge_length);
-    } catch (const InputError& error) {
-      throw InputError(plan.file.string(), 0,
-                       std::string("plan key 'skin_edge_length': ") + error.what());
-    }
-  }
-  report_progress("reading and decimating surfaces", 0.1);
-  const PreparedSurface bone = prepare(bone_input, plan.decimation_max_error);
-  seconds["surfaces"] = seconds_since(stage);
-  report["skin_triangles_full"] = skin.triangles_full;
-  report["skin_triangles"] = skin.surface.triangles.size();
-  report["skin_edge_length"] = plan.skin_edge_length ? *plan.skin_edge_length / kMillimetre : 0.0;
-  report["bone_triangles_full"] = bone.triangles_full;
-  report["bone_triangles"] = bone.surface.triangles.size();
-  report["decimation_max_error"] =
-      plan.decimation_max_error ? *plan.decimation_max_error / kMillimetre : 0.0;
-  report["hausdorff_skin"] = {{"decimated_to_input", skin.hausdorff_to_input / kMillimetre},
-                              {"input_to_decimated", skin.hausdorff_from_input / kMillimetre}};
-  report["hausdorff_bone"] = {{"decimated_to_input", bone.hausdorff_to_input / kMillimetre},
-                              {"input_to_decimated", bone.hausdorff_from_input / kMillimetre}};
 
   // Bone segments and their moves, checked before anything is built.
   report_progress("cutting bone", 0.2);
   stage = Clock::now();
-  const BoneSegments segments = segment_bone(bone.surface, plan.osteotomies);
+  const BoneSegments segments =
+      segment_bone(bone.surface, plan.osteotomies, plan.min_segment_volume);
   std::vector<RigidMove> segment_moves(static_cast<std::size_t>(segments.count));
   std::vector<int> moved_segments;
   for (std::size_t m = 0; m < plan.moves.size(); ++m) {
@@ -168,22 +133,72 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
     segment_moves[static_cast<std::size_t>(segment)] = move;
     moved_segments.push_back(segment);
   }
-  const std::vector<Interpenetration> overlaps =
-      find_interpenetrations(bone.surface, segments, segment_moves, plan.osteotomies);
+  const std::vector<Interpenetration> overlaps = find_interpenetrations(
+      bone.surface, segments, segment_moves, plan.osteotomies, plan.contact_tolerance);
   if (!overlaps.empty()) {
     std::string list;
     for (const Interpenetration& o : overlaps) {
-      list += fmt::format("{}segments {} and {} ({} crossing triangle pairs, {:.2f} mm deep)",
-                          list.empty() ? "" : "; ", o.first, o.second, o.crossing_triangle_pairs,
-                          o.depth / kMillimetre);
+      list += fmt::format(
+          "{}segments {} and {} ({} crossing triangle pairs away from their cut, {:.2f} mm "
+          "beyond it)",
+          list.empty() ? "" : "; ", o.first, o.second, o.crossing_triangle_pairs,
+          o.depth / kMillimetre);
     }
     throw InputError(plan.file.string(), 0,
-                     "plan key 'moves': the moved bone segments interpenetrate: " + list);
+                     fmt::format("plan key 'moves': the moved bone segments interpenetrate "
+                                 "(contact_tolerance {} mm): {}",
+                                 plan.contact_tolerance / kMillimetre, list));
   }
   seconds["bone"] = seconds_since(stage);
+
+  stage = Clock::now();
+  if (plan.image.empty()) {
+    report_progress("decimating the skin", 0.15);
+    skin = prepare(skin_input, plan.decimation_max_error);
+  }
+  report["skin_triangles_decimated"] = skin.surface.triangles.size();
+  if (plan.skin_edge_length) {
+    report_progress("remeshing the skin", 0.2);
+    try {
+      skin.surface = remesh_surface(skin.surface, *plan.skin_edge_length);
+    } catch (const InputError& error) {
+      throw InputError(plan.file.string(), 0,
+                       std::string("plan key 'skin_edge_length': ") + error.what());
+    }
+  }
+  seconds["skin_surface"] = seconds_since(stage);
+  report["skin_triangles_full"] = skin.triangles_full;
+  report["skin_triangles"] = skin.surface.triangles.size();
+  report["skin_edge_length"] = plan.skin_edge_length ? *plan.skin_edge_length / kMillimetre : 0.0;
+  report["bone_triangles_full"] = bone.triangles_full;
+  report["bone_triangles"] = bone.surface.triangles.size();
+  if (plan.image.empty()) {
+    report["decimation_max_error"] =
+        plan.decimation_max_error ? *plan.decimation_max_error / kMillimetre : 0.0;
+    report["hausdorff_skin"] = {{"decimated_to_input", skin.hausdorff_to_input / kMillimetre},
+                                {"input_to_decimated", skin.hausdorff_from_input / kMillimetre}};
+    report["hausdorff_bone"] = {{"decimated_to_input", bone.hausdorff_to_input / kMillimetre},
+                                {"input_to_decimated", bone.hausdorff_from_input / kMillimetre}};
+  }
   report["segments"] = segments.count;
   report["segment_triangles"] = segments.sizes;
   report["moved_segments"] = moved_segments;
+  {
+    nlohmann::json list = nlohmann::json::array();
+    for (int s = 0; s < segments.count; ++s) {
+      const auto index = static_cast<std::size_t>(s);
+      list.push_back({{"segment", s},
+                      {"triangles", segments.sizes[index]},
+                      {"volume_mm3", segments.volumes[index] / std::pow(kMillimetre, 3)},
+                      {"moved", std::find(moved_segments.begin(), moved_segments.end(), s) !=
+                                    moved_segments.end()}});
+    }
+    report["segment_list"] = list;
+    report["merged_fragments"] = segments.merged_fragments;
+    report["small_isolated_segments"] = segments.small_isolated;
+    report["min_segment_volume_mm3"] = plan.min_segment_volume / std::pow(kMillimetre, 3);
+    report["contact_tolerance"] = plan.contact_tolerance / kMillimetre;
+  }
 
   // The layered tissue.
   report_progress("building the layered tissue", 0.3);

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <random>
 #include <sstream>
 
@@ -431,6 +432,55 @@ TEST(Osteotomy, PlanesMakeSegmentsAndMovesIntoEachOtherAreRefused) {
   EXPECT_EQ(segment_bone(bone, small).count, 1);
 }
 
+TEST(Osteotomy, SlidingAlongTheCutOrHingingItOpenIsContactNotInterpenetration) {
+  const SurfaceMesh bone = sphere(0.04, 4);
+  const std::vector<CutPlane> planes = {{Vec3(0, 0, 0.01), Vec3(0, 0, 1)}};
+  const BoneSegments segments = segment_bone(bone, planes);
+  ASSERT_EQ(segments.count, 2);
+  const int cap = nearest_segment(bone, segments, Vec3(0, 0, 0.05));
+  std::vector<RigidMove> moves(2);
+  const double tolerance = 5e-4;  // m
+  // Slid 5 mm along its own cut: the cut lines touch, on the cut, and nowhere else.
+  moves[static_cast<std::size_t>(cap)].translation = Vec3(0.005, 0, 0);
+  EXPECT_TRUE(find_interpenetrations(bone, segments, moves, planes, tolerance).empty());
+  // Hinged open about an axis on the cut: accepted; closed into the bowl: refused.
+  RigidMove& hinge = moves[static_cast<std::size_t>(cap)];
+  hinge.translation = Vec3::Zero();
+  hinge.center = Vec3(std::sqrt(0.04 * 0.04 - 0.01 * 0.01), 0, 0.01);  // on the cut's rim
+  hinge.axis = Vec3(0, 1, 0);
+  hinge.angle = 0.2;  // rad: lifts the far side of the cap off the cut
+  EXPECT_TRUE(find_interpenetrations(bone, segments, moves, planes, tolerance).empty());
+  hinge.angle = -0.2;  // pushes the far side into the bowl
+  const std::vector<Interpenetration> closed =
+      find_interpenetrations(bone, segments, moves, planes, tolerance);
+  ASSERT_EQ(closed.size(), 1u);
+  EXPECT_GT(closed[0].depth, 0.005);
+}
+
+TEST(Osteotomy, FragmentsJoinTheirNeighbourAndSegmentsHaveVolumes) {
+  const double radius = 0.04;  // m
+  const SurfaceMesh bone = sphere(radius, 4);
+  // Two planes 1.5 mm apart leave a sliver ring between them.
+  const std::vector<CutPlane> planes = {{Vec3(0, 0, 0.01), Vec3(0, 0, 1)},
+                                        {Vec3(0, 0, 0.0115), Vec3(0, 0, 1)}};
+  const BoneSegments raw = segment_bone(bone, planes);
+  ASSERT_GT(raw.count, 3) << "the ring between the planes falls apart into slivers";
+  const BoneSegments joined = segment_bone(bone, planes, 1e-6);
+  EXPECT_EQ(joined.count, 2);
+  EXPECT_EQ(joined.merged_fragments, raw.count - 2);
+  // The volumes add up to the ball's (the polyhedron's), the cap's to a spherical cap's.
+  const double whole = 4.0 / 3.0 * std::numbers::pi * std::pow(radius, 3);
+  double sum = 0.0;
+  for (double v : joined.volumes) {
+    sum += v;
+  }
+  EXPECT_NEAR(sum, whole, 0.02 * whole);
+  const int cap = nearest_segment(bone, joined, Vec3(0, 0, 0.05));
+  const double h = radius - 0.0115;
+  const double cap_volume = std::numbers::pi * h * h * (3 * radius - h) / 3.0;
+  EXPECT_NEAR(joined.volumes[static_cast<std::size_t>(cap)], cap_volume, 0.1 * cap_volume);
+}
+
 std::filesystem::path write_head(const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
   const Head head;
@@ -599,7 +649,7 @@ TEST(Plan, RunsFromSurfacesToAPrediction) {
       ADD_FAILURE() << "interpenetrating segments were accepted";
     } catch (const InputError& error) {
       EXPECT_NE(std::string(error.what()).find("interpenetrate"), std::string::npos);
-      EXPECT_NE(std::string(error.what()).find("mm deep"), std::string::npos);
+      EXPECT_NE(std::string(error.what()).find("mm beyond it"), std::string::npos);
     }
   }
   std::filesystem::remove_all(dir);

@@ -28,9 +28,15 @@ struct Isosurface {
   SurfaceMesh surface;               ///< mm, patient space
   std::size_t border_triangles = 0;  ///< left out at the scan border
   std::size_t voxels_inside = 0;     ///< voxels whose value exceeds the iso value
+  /// Every connected region above the iso value was seeded; false: CGAL's region seeding
+  /// failed and its default seeding (random rays from the middle, which can miss a small
+  /// region) made the surface.
+  bool every_region_seeded = true;
 };
 
-/// The surface where the image crosses `iso` (inside: values above it). Throws InputError,
+/// The surface where the image crosses `iso` (inside: values above it); every connected region
+/// above it is seeded, so no bone is missed. CGAL's seeding prints three progress lines to
+/// std::cout (run_plan sends them nowhere). Throws InputError,
 /// naming `what`, when no voxel (or every voxel) exceeds the iso value.
 [[nodiscard]] Isosurface extract_isosurface(const VolumeImage& image, double iso,
                                             const IsosurfaceOptions& options,

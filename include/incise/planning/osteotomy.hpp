@@ -4,7 +4,13 @@
 //
 // A cut plane separates two triangles that share an edge when their centroids lie on
 // opposite sides of it and both lie within its radius of its point (measured in the plane):
-// a disc-shaped saw cut. Segments are the connected pieces that remain.
+// a disc-shaped saw cut. Segments are the connected pieces that remain; pieces enclosing less
+// than a least volume (the slivers a disc's rim or a jagged cut line leave) join the segment
+// they share the most cut edges with.
+//
+// Moved segments are checked against each other: surfaces that come to cross away from the cut
+// they share, or a segment reaching beyond that cut deeper than a tolerance, interpenetrate.
+// Segments sliding along their cut, or hinged open about it, only touch there: contact.
 
 #include <limits>
 #include <span>
@@ -27,10 +33,17 @@ struct BoneSegments {
   int count = 0;
   /// Triangles per segment.
   std::vector<int> sizes;
+  /// Volume each segment encloses (length^3 in the surface's units), its cut closed flat
+  /// (the surface closed by a cone from the centre of its cut edges).
+  std::vector<double> volumes;
+  int merged_fragments = 0;  ///< pieces below the least volume joined to a neighbour
+  int small_isolated = 0;    ///< pieces below it with no neighbour: kept, reported
 };
 
-/// Segments the bone; throws InputError for a plane with a zero normal.
-[[nodiscard]] BoneSegments segment_bone(const SurfaceMesh& bone, std::span<const CutPlane> planes);
+/// Segments the bone; pieces enclosing less than `least_volume` join the neighbour they share
+/// the most cut edges with. Throws InputError for a plane with a zero normal.
+[[nodiscard]] BoneSegments segment_bone(const SurfaceMesh& bone, std::span<const CutPlane> planes,
+                                        double least_volume = 0.0);
 
 /// A rigid motion x -> R (x - center) + center + translation.
 struct RigidMove {
@@ -49,9 +62,11 @@ struct RigidMove {
 struct Interpenetration {
   int first = 0;
   int second = 0;
+  /// Pairs of triangles that cross away from a cut the two segments share (contact on the cut
+  /// is not counted).
   int crossing_triangle_pairs = 0;
-  double depth = 0.0;  ///< m: largest distance a vertex of one lies inside the other's side
-                       ///< of the plane that separated them (0 when no plane did)
+  double depth = 0.0;  ///< m: how much further than before a moved one reaches into the
+                       ///< other's side of the plane that separated them (0 when none did)
 };
 
 /// Positions of every bone vertex per segment after the moves: vertices on a cut belong to
@@ -61,12 +76,14 @@ struct Interpenetration {
     std::span<const RigidMove> segment_moves);
 
 /// Pairs of segments, at least one of them moved, whose moved triangles cross where they did
-/// not before the move (exact predicates; triangles that share a vertex are not compared), or
-/// of which a moved one reaches further than before (1 um) beyond a plane that separates them
-/// (a cap pushed into a closed bone crosses no surface).
-/// `segment_moves` holds one move per segment (identity for those that stay).
+/// not before the move (exact predicates; triangles that share a vertex are not compared)
+/// outside the band about a cut the two share (the band holds the triangles along the cut,
+/// which straddle it by up to an edge, plus `tolerance`), or of which a moved one reaches
+/// further than before, by more than `tolerance` (m), beyond a plane that separates them (a cap
+/// pushed into a closed bone crosses no surface). `segment_moves` holds one move per segment
+/// (identity for those that stay).
 [[nodiscard]] std::vector<Interpenetration> find_interpenetrations(
     const SurfaceMesh& bone, const BoneSegments& segments, std::span<const RigidMove> segment_moves,
-    std::span<const CutPlane> planes);
+    std::span<const CutPlane> planes, double tolerance = 1e-6);
 
 }  // namespace incise::planning

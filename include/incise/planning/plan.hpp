@@ -44,6 +44,12 @@ struct PlanDescription {
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< m/s^2
   bool equilibrium = true;               ///< initialise the equilibrium first
   std::vector<CutPlane> osteotomies;
+  /// m^3: bone pieces enclosing less are not segments: a CT's specks are left out, and an
+  /// osteotomy's fragments join the segment they share the most cut edges with.
+  double min_segment_volume = 5e-7;
+  /// m: moved segments may overlap this deep at their cut (the saw's kerf, surfaces meshed
+  /// to within half a millimetre) before a move is refused as interpenetration.
+  double contact_tolerance = 5e-4;
   std::vector<RigidMove> moves;
   std::vector<Instrument> instruments;
   std::vector<CutPlane> cuts;  ///< soft-tissue cuts (discs)

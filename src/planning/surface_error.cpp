@@ -1,0 +1,203 @@
+#include "incise/planning/surface_error.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <random>
+
+#include "incise/imaging/trilinear.hpp"
+#include "incise/mesh/disjoint_sets.hpp"
+#include "nearest_triangle.hpp"
+
+namespace incise::planning {
+
+namespace {
+
+OneSidedDistance summarize(std::vector<double> distances) {
+  OneSidedDistance result;
+  result.samples = distances.size();
+  if (distances.empty()) {
+    return result;
+  }
+  std::sort(distances.begin(), distances.end());
+  result.max = distances.back();
+  result.p99 =
+      distances[static_cast<std::size_t>(0.99 * static_cast<double>(distances.size() - 1))];
+  result.mean = std::accumulate(distances.begin(), distances.end(), 0.0) /
+                static_cast<double>(distances.size());
+  return result;
+}
+
+}  // namespace
+
+SurfaceComponents surface_components(const SurfaceMesh& surface) {
+  const std::size_t count = surface.triangles.size();
+  std::map<std::pair<VertexId, VertexId>, int> first_with_edge;
+  DisjointSets sets(count);
+  for (std::size_t t = 0; t < count; ++t) {
+    for (std::size_t e = 0; e < 3; ++e) {
+      const auto key = std::minmax(surface.triangles[t][e], surface.triangles[t][(e + 1) % 3]);
+      const auto [it, added] = first_with_edge.emplace(key, static_cast<int>(t));
+      if (!added) {
+        sets.join(static_cast<VertexId>(t), it->second);
+      }
+    }
+  }
+  SurfaceComponents result;
+  result.triangle_component.assign(count, -1);
+  std::map<VertexId, int> component_of_root;
+  for (std::size_t t = 0; t < count; ++t) {
+    const auto [it, added] = component_of_root.emplace(sets.find(static_cast<VertexId>(t)),
+                                                       static_cast<int>(result.components.size()));
+    if (added) {
+      result.components.emplace_back();
+    }
+    result.triangle_component[t] = it->second;
+    SurfaceComponent& component = result.components[static_cast<std::size_t>(it->second)];
+    const Vec3& a = surface.points[static_cast<std::size_t>(surface.triangles[t][0])];
+    const Vec3& b = surface.points[static_cast<std::size_t>(surface.triangles[t][1])];
+    const Vec3& c = surface.points[static_cast<std::size_t>(surface.triangles[t][2])];
+    ++component.triangles;
+    component.area += 0.5 * (b - a).cross(c - a).norm();
+    component.volume += a.dot(b.cross(c)) / 6.0;
+  }
+  return result;
+}
+
+SurfaceMesh select_triangles(const SurfaceMesh& surface, std::span<const char> keep_triangle) {
+  SurfaceMesh result;
+  std::vector<VertexId> renumber(surface.points.size(), kInvalidId);
+  for (std::size_t t = 0; t < surface.triangles.size(); ++t) {
+    if (keep_triangle[t] == 0) {
+      continue;
+    }
+    Triangle out{};
+    for (std::size_t c = 0; c < 3; ++c) {
+      const auto v = static_cast<std::size_t>(surface.triangles[t][c]);
+      if (renumber[v] == kInvalidId) {
+        renumber[v] = static_cast<VertexId>(result.points.size());
+        result.points.push_back(surface.points[v]);
+      }
+      out[c] = renumber[v];
+    }
+    result.triangles.push_back(out);
+  }
+  return result;
+}
+
+namespace {
+
+/// Whether a grid-frame point lies within one voxel of the scan's border, where the surface
+/// closes against the volume's edge (not anatomy).
+bool near_scan_border(const imaging::VolumeImage& image, const Vec3& grid_mm) {
+  for (Eigen::Index axis = 0; axis < 3; ++axis) {
+    const double last =
+        static_cast<double>(image.size[static_cast<std::size_t>(axis)] - 1) * image.spacing[axis];
+    if (grid_mm[axis] < image.spacing[axis] || grid_mm[axis] > last - image.spacing[axis]) {
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image, double iso,
+                                               const SurfaceMesh& surface,
+                                               std::span<const char> keep_triangle,
+                                               std::size_t samples, std::uint64_t seed) {
+  IsosurfaceDistance result;
+  // The surface in the grid's frame, where the image is sampled.
+  std::vector<Vec3> grid_points(surface.points.size());
+  for (std::size_t i = 0; i < grid_points.size(); ++i) {
+    grid_points[i] = image.direction.transpose() * (surface.points[i] - image.origin);
+  }
+
+  // Isosurface to model.
+  const imaging::IsoCrossings crossings = imaging::iso_crossings(image, iso, samples, seed);
+  result.isosurface_crossings = crossings.total;
+  {
+    const NearestTriangle nearest(grid_points, surface.triangles);
+    std::vector<double> distance(crossings.points.size(), -1.0);
+    tbb::parallel_for(std::size_t{0}, crossings.points.size(), [&](std::size_t i) {
+      if (near_scan_border(image, crossings.points[i])) {
+        distance[i] = -2.0;
+        return;
+      }
+      const NearestTriangle::Hit hit = nearest.closest(crossings.points[i]);
+      if (keep_triangle[static_cast<std::size_t>(hit.triangle)] != 0) {
+        distance[i] = (hit.point - crossings.points[i]).norm();
+      }
+    });
+    const auto left_out =
+        static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -1.0));
+    const auto at_border =
+        static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -2.0));
+    std::erase_if(distance, [](double d) { return d < 0.0; });
+    result.isosurface_to_model = summarize(std::move(distance));
+    result.isosurface_to_model.left_out = left_out;
+    result.isosurface_to_model.at_scan_border = at_border;
+  }
+
+  // Model to isosurface: points uniform by area over the kept triangles.
+  std::vector<double> cumulative;
+  std::vector<std::size_t> kept;
+  double total_area = 0.0;
+  for (std::size_t t = 0; t < surface.triangles.size(); ++t) {
+    if (keep_triangle[t] == 0) {
+      continue;
+    }
+    const Triangle& tri = surface.triangles[t];
+    const Vec3& a = grid_points[static_cast<std::size_t>(tri[0])];
+    total_area += 0.5 * (grid_points[static_cast<std::size_t>(tri[1])] - a)
+                            .cross(grid_points[static_cast<std::size_t>(tri[2])] - a)
+                            .norm();
+    cumulative.push_back(total_area);
+    kept.push_back(t);
+  }
+  if (!kept.empty() && total_area > 0.0) {
+    std::mt19937_64 random(seed);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    std::vector<Vec3> starts(samples);
+    for (Vec3& start : starts) {
+      const double at = uniform(random) * total_area;
+      const auto index = static_cast<std::size_t>(std::min<std::ptrdiff_t>(
+          std::upper_bound(cumulative.begin(), cumulative.end(), at) - cumulative.begin(),
+          static_cast<std::ptrdiff_t>(kept.size()) - 1));
+      const Triangle& tri = surface.triangles[kept[index]];
+      const double r1 = std::sqrt(uniform(random));
+      const double r2 = uniform(random);
+      start = (1.0 - r1) * grid_points[static_cast<std::size_t>(tri[0])] +
+              r1 * (1.0 - r2) * grid_points[static_cast<std::size_t>(tri[1])] +
+              r1 * r2 * grid_points[static_cast<std::size_t>(tri[2])];
+    }
+    std::vector<double> distance(samples, -1.0);
+    tbb::parallel_for(std::size_t{0}, samples, [&](std::size_t i) {
+      if (near_scan_border(image, starts[i])) {
+        distance[i] = -2.0;
+        return;
+      }
+      Vec3 on = starts[i];
+      if (imaging::project_to_isosurface(image, iso, on)) {
+        distance[i] = (on - starts[i]).norm();
+      }
+    });
+    const auto unresolved =
+        static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -1.0));
+    const auto at_border =
+        static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -2.0));
+    std::erase_if(distance, [](double d) { return d < 0.0; });
+    result.model_to_isosurface = summarize(std::move(distance));
+    result.model_to_isosurface.unresolved = unresolved;
+    result.model_to_isosurface.at_scan_border = at_border;
+  }
+  const std::size_t fewest = std::max<std::size_t>(
+      1, std::min(result.model_to_isosurface.samples, result.isosurface_to_model.samples));
+  result.beyond_max_fraction = std::log(100.0) / static_cast<double>(fewest);
+  return result;
+}
+
+}  // namespace incise::planning
