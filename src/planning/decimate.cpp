@@ -16,7 +16,7 @@
 #include <map>
 
 #include "incise/core/error.hpp"
-#include "incise/mesh/disjoint_sets.hpp"
+#include "incise/planning/surface_error.hpp"
 
 namespace incise::planning {
 
@@ -73,49 +73,16 @@ SurfaceMesh from_cgal(const Mesh& mesh) {
 }  // namespace
 
 SurfaceMesh largest_component(const SurfaceMesh& surface) {
-  const std::size_t count = surface.triangles.size();
-  std::map<std::pair<VertexId, VertexId>, int> first_with_edge;
-  DisjointSets sets(count);
-  for (std::size_t t = 0; t < count; ++t) {
-    for (int e = 0; e < 3; ++e) {
-      const auto key = std::minmax(surface.triangles[t][static_cast<std::size_t>(e)],
-                                   surface.triangles[t][static_cast<std::size_t>((e + 1) % 3)]);
-      const auto [it, added] = first_with_edge.emplace(key, static_cast<int>(t));
-      if (!added) {
-        sets.join(static_cast<VertexId>(t), it->second);
-      }
+  const SurfaceComponents parts = surface_components(surface);
+  std::size_t best = 0;
+  for (std::size_t c = 1; c < parts.components.size(); ++c) {
+    if (parts.components[c].triangles > parts.components[best].triangles) {
+      best = c;
     }
   }
-  std::map<VertexId, std::size_t> sizes;
-  for (std::size_t t = 0; t < count; ++t) {
-    ++sizes[sets.find(static_cast<VertexId>(t))];
-  }
-  VertexId best = 0;
-  std::size_t best_size = 0;
-  for (const auto& [root, size] : sizes) {
-    if (size > best_size) {
-      best = root;
-      best_size = size;
-    }
-  }
-  SurfaceMesh result;
-  std::vector<VertexId> renumber(surface.points.size(), kInvalidId);
-  for (std::size_t t = 0; t < count; ++t) {
-    if (sets.find(static_cast<VertexId>(t)) != best) {
-      continue;
-    }
-    Triangle out{};
-    for (int c = 0; c < 3; ++c) {
-      const auto v = static_cast<std::size_t>(surface.triangles[t][static_cast<std::size_t>(c)]);
-      if (renumber[v] == kInvalidId) {
-        renumber[v] = static_cast<VertexId>(result.points.size());
-        result.points.push_back(surface.points[v]);
-      }
-      out[static_cast<std::size_t>(c)] = renumber[v];
-    }
-    result.triangles.push_back(out);
-  }
-  return result;
+  std::vector<char> keep_component(parts.components.size(), 0);
+  keep_component[best] = 1;
+  return select_triangles(surface, triangles_of(parts, keep_component));
 }
 
 DecimationResult decimate_surface(const SurfaceMesh& input, double max_error) {

@@ -3,13 +3,12 @@
 
 #include <fmt/format.h>
 
-#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "incise/core/error.hpp"
-#include "incise/imaging/read_volume.hpp"
+#include "incise/core/timing.hpp"
 #include "incise/meshing/tetrahedralize.hpp"
 #include "incise/planning/decimate.hpp"
 #include "incise/planning/equilibrium.hpp"
@@ -24,19 +23,7 @@ namespace incise::planning {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 constexpr double kMillimetre = 1e-3;  // m
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-SurfaceMesh in_metres(SurfaceMesh surface) {
-  for (Vec3& p : surface.points) {
-    p *= kMillimetre;
-  }
-  return surface;
-}
 
 struct PreparedSurface {
   SurfaceMesh surface;

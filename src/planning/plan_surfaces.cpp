@@ -3,11 +3,12 @@
 #include <fmt/format.h>
 #include <tbb/parallel_invoke.h>
 
-#include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <sstream>
 
+#include "incise/core/timing.hpp"
 #include "incise/imaging/read_volume.hpp"
 #include "incise/planning/surface_error.hpp"
 
@@ -15,22 +16,10 @@ namespace incise::planning {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 constexpr double kMillimetre = 1e-3;  // m
 /// Samples each way when a surface is measured against the isosurface: the largest distance
 /// then holds for all but ln(100)/n = 0.005 % of the surface with 99 % confidence.
 constexpr std::size_t kDistanceSamples = 100000;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-SurfaceMesh in_metres(SurfaceMesh surface) {
-  for (Vec3& p : surface.points) {
-    p *= kMillimetre;
-  }
-  return surface;
-}
 
 struct Kept {
   std::vector<char> keep;  ///< per triangle
@@ -47,12 +36,11 @@ Kept keep_body(const SurfaceComponents& parts) {
     }
   }
   Kept kept;
-  kept.keep.resize(parts.triangle_component.size());
-  std::size_t left_out_triangles = 0;
-  for (std::size_t t = 0; t < kept.keep.size(); ++t) {
-    kept.keep[t] = static_cast<std::size_t>(parts.triangle_component[t]) == best ? 1 : 0;
-    left_out_triangles += kept.keep[t] == 0 ? 1 : 0;
-  }
+  std::vector<char> keep_component(parts.components.size(), 0);
+  keep_component[best] = 1;
+  kept.keep = triangles_of(parts, keep_component);
+  const auto left_out_triangles =
+      static_cast<std::size_t>(std::count(kept.keep.begin(), kept.keep.end(), 0));
   kept.report = {{"kept", 1},
                  {"kept_volume_mm3", parts.components[best].volume},
                  {"left_out", parts.components.size() - 1},
@@ -84,12 +72,9 @@ Kept keep_bones(const SurfaceComponents& parts, double least_volume) {
       volumes.push_back(volume);
     }
   }
-  kept.keep.resize(parts.triangle_component.size());
-  std::size_t left_out_triangles = 0;
-  for (std::size_t t = 0; t < kept.keep.size(); ++t) {
-    kept.keep[t] = keep_component[static_cast<std::size_t>(parts.triangle_component[t])];
-    left_out_triangles += kept.keep[t] == 0 ? 1 : 0;
-  }
+  kept.keep = triangles_of(parts, keep_component);
+  const auto left_out_triangles =
+      static_cast<std::size_t>(std::count(kept.keep.begin(), kept.keep.end(), 0));
   kept.report = {{"kept", kept_count},
                  {"kept_volumes_mm3", volumes},
                  {"left_out_cavities", cavities},
@@ -132,6 +117,13 @@ nlohmann::json distance_report(const IsosurfaceDistance& d, double bound) {
 }
 
 }  // namespace
+
+SurfaceMesh in_metres(SurfaceMesh surface) {
+  for (Vec3& p : surface.points) {
+    p *= kMillimetre;
+  }
+  return surface;
+}
 
 imaging::IsosurfaceOptions isosurface_criteria(const PlanDescription& plan, const Vec3& spacing) {
   imaging::IsosurfaceOptions options = plan.isosurface;

@@ -19,6 +19,9 @@ struct PlanSurfaces {
   double seconds_check = 0.0;
 };
 
+/// A surface in millimetres (plans, CTs, surface files) in metres.
+[[nodiscard]] SurfaceMesh in_metres(SurfaceMesh surface);
+
 /// mm: the isosurface criteria a plan gets when it does not set them: triangles up to the
 /// model's layer thickness (never under two voxels) and within the plan's surface bound
 /// (decimation.max_error; 0.5 mm, never under half a voxel, when it has none).

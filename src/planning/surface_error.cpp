@@ -67,6 +67,15 @@ SurfaceComponents surface_components(const SurfaceMesh& surface) {
   return result;
 }
 
+std::vector<char> triangles_of(const SurfaceComponents& parts,
+                               std::span<const char> keep_component) {
+  std::vector<char> keep(parts.triangle_component.size());
+  for (std::size_t t = 0; t < keep.size(); ++t) {
+    keep[t] = keep_component[static_cast<std::size_t>(parts.triangle_component[t])];
+  }
+  return keep;
+}
+
 SurfaceMesh select_triangles(const SurfaceMesh& surface, std::span<const char> keep_triangle) {
   SurfaceMesh result;
   std::vector<VertexId> renumber(surface.points.size(), kInvalidId);

@@ -23,7 +23,8 @@ struct DecimationResult {
 /// simplify.
 [[nodiscard]] DecimationResult decimate_surface(const SurfaceMesh& surface, double max_error);
 
-/// The largest connected component (by triangles; triangles joined through shared edges).
+/// The largest connected component (by triangles; triangles joined through shared edges; of
+/// equal ones, the first in triangle order).
 [[nodiscard]] SurfaceMesh largest_component(const SurfaceMesh& surface);
 
 }  // namespace incise::planning

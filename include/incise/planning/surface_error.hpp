@@ -37,6 +37,10 @@ struct SurfaceComponents {
 /// Components of triangles joined through shared edges.
 [[nodiscard]] SurfaceComponents surface_components(const SurfaceMesh& surface);
 
+/// Per triangle: whether its component is kept (keep_component, one flag per component).
+[[nodiscard]] std::vector<char> triangles_of(const SurfaceComponents& parts,
+                                             std::span<const char> keep_component);
+
 /// The triangles of the chosen components, renumbered.
 [[nodiscard]] SurfaceMesh select_triangles(const SurfaceMesh& surface,
                                            std::span<const char> keep_triangle);
