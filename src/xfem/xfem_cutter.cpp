@@ -1,22 +1,16 @@
 #include "incise/xfem/xfem_cutter.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <unordered_set>
 
 #include "incise/core/error.hpp"
+#include "incise/core/timing.hpp"
 #include "incise/mesh/boundary.hpp"
 #include "incise/mesh/predicates.hpp"
 
 namespace incise {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// A corner's side: unknown, a (the swept surface's negative side) or b (positive).
 enum Side : std::int8_t { kUnknown = 0, kSideA = -1, kSideB = 1 };
