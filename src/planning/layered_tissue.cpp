@@ -103,7 +103,8 @@ void set_skin_membrane(const LayeredTissue& tissue, double thickness,
 
 /// See set_tet_rest_shapes; `orient` (at build) orders each tetrahedron's corners positively
 /// instead of refusing a negative one.
-void set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest, bool orient) {
+std::size_t set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest, bool orient) {
+  std::size_t slivers = 0;
   for (std::size_t p = 0; p < tissue.prisms.size(); ++p) {
     Prism& prism = tissue.prisms[p];
     double size = 0.0;
@@ -127,16 +128,47 @@ void set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest, bool
         tet.rest = TetRestShape{};
         continue;
       }
+      if (!(volume > 0.0) &&
+          std::abs(tet_quality(tet_corners(prism, tet, tissue.rest))) < kSliverQuality) {
+        tet.rest = TetRestShape{};  // see LayeredTissue::sliver_tets
+        ++slivers;
+        continue;
+      }
       if (!(volume > 0.0)) {
+        const Corners scanned = tet_corners(prism, tet, tissue.rest);
+        const Vec3 centre = 250.0 * (scanned[0] + scanned[1] + scanned[2] + scanned[3]);  // mm
         throw InputError(fmt::format(
             "the tissue's rest shape would invert a tetrahedron of prism {} (layer {}, points {} "
-            "{} {} {} {} {}): lower the load (gravity, skin pre-strain) or stiffen the layers",
+            "{} {} {} {} {}, at ({:.1f}, {:.1f}, {:.1f}) mm, scanned volume {:.3g} mm^3, "
+            "rest shift up to {:.2f} mm): lower the load (gravity, skin pre-strain) or stiffen "
+            "the layers",
             p, prism.layer, prism.points[0], prism.points[1], prism.points[2], prism.points[3],
-            prism.points[4], prism.points[5]));
+            prism.points[4], prism.points[5], centre.x(), centre.y(), centre.z(),
+            1e9 *
+                (scanned[1] - scanned[0])
+                    .dot((scanned[2] - scanned[0]).cross(scanned[3] - scanned[0])) /
+                6.0,
+            1e3 * std::max({(c[0] - scanned[0]).norm(), (c[1] - scanned[1]).norm(),
+                            (c[2] - scanned[2]).norm(), (c[3] - scanned[3]).norm()})));
       }
       tet.rest = tet_rest_shape(tet_corners(prism, tet, rest), static_cast<std::int64_t>(p));
     }
   }
+  tissue.sliver_tets += slivers;
+  return slivers;
+}
+
+/// Whether the bone side of a skin triangle (`ends`, its columns' bone ends) has turned over
+/// against the skin side (`tops`), or collapsed to under a hundredth of its area: the prisms
+/// of the column's last layer are then inside out or flat.
+bool folded(const Triangle& t, std::span<const Vec3> tops, std::span<const Vec3> ends) {
+  const auto at = [&](std::span<const Vec3> x, std::size_t i) -> const Vec3& {
+    return x[static_cast<std::size_t>(t[i])];
+  };
+  const Vec3 skin_normal = (at(tops, 1) - at(tops, 0)).cross(at(tops, 2) - at(tops, 0));
+  const Vec3 bone_normal = (at(ends, 1) - at(ends, 0)).cross(at(ends, 2) - at(ends, 0));
+  return !(skin_normal.dot(bone_normal) > 0.1 * skin_normal.norm() * bone_normal.norm()) ||
+         !(bone_normal.norm() > 0.01 * skin_normal.norm());
 }
 
 }  // namespace
@@ -219,23 +251,34 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
 
   // Columns: from each skin vertex to its nearest bone point, split evenly into layers.
   const NearestTriangle nearest(bone.points, bone.triangles);
-  for (int c = 0; c < tissue.columns; ++c) {
-    const Vec3& top = skin.points[static_cast<std::size_t>(
-        tissue.column_skin_vertex[static_cast<std::size_t>(c)])];
-    const NearestTriangle::Hit hit = nearest.closest(top);
-    tissue.column_bone_triangle[static_cast<std::size_t>(c)] = hit.triangle;
-    const double thickness = (hit.point - top).norm();
-    PointKind column_kind = PointKind::kSoft;
-    if (thickness > options.max_thickness || on_border[static_cast<std::size_t>(c)] != 0) {
-      column_kind = PointKind::kBoundary;
+  const auto columns = static_cast<std::size_t>(tissue.columns);
+  std::vector<Vec3> tops(columns);
+  std::vector<Vec3> ends(columns);
+  std::vector<PointKind> column_kinds(columns, PointKind::kSoft);
+  for (std::size_t c = 0; c < columns; ++c) {
+    tops[c] = skin.points[static_cast<std::size_t>(tissue.column_skin_vertex[c])];
+    const NearestTriangle::Hit hit = nearest.closest(tops[c]);
+    ends[c] = hit.point;
+    tissue.column_bone_triangle[c] = hit.triangle;
+    const double thickness = (hit.point - tops[c]).norm();
+    if (thickness > options.max_thickness || on_border[c] != 0) {
+      column_kinds[c] = PointKind::kBoundary;
     } else if (thickness < options.min_thickness) {
-      column_kind = PointKind::kBone;
+      column_kinds[c] = PointKind::kBone;
     }
+  }
+  for (const Triangle& t : tissue.skin_triangles) {
+    const bool soft = std::any_of(t.begin(), t.end(), [&](int c) {
+      return column_kinds[static_cast<std::size_t>(c)] == PointKind::kSoft;
+    });
+    tissue.folded_triangles += soft && folded(t, tops, ends) ? 1 : 0;
+  }
+  for (std::size_t c = 0; c < columns; ++c) {
     for (int k = 0; k <= layers; ++k) {
-      const auto p = static_cast<std::size_t>(tissue.point(c, k));
-      tissue.rest[p] = top + (static_cast<double>(k) / layers) * (hit.point - top);
+      const auto p = static_cast<std::size_t>(tissue.point(static_cast<int>(c), k));
+      tissue.rest[p] = tops[c] + (static_cast<double>(k) / layers) * (ends[c] - tops[c]);
       tissue.kind[p] =
-          k == layers && column_kind == PointKind::kSoft ? PointKind::kBone : column_kind;
+          k == layers && column_kinds[c] == PointKind::kSoft ? PointKind::kBone : column_kinds[c];
     }
   }
 
@@ -363,9 +406,21 @@ LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& b
     });
   });
   if (continuum) {
-    set_tet_rest_shapes(tissue, tissue.rest, true);
+    (void)set_tet_rest_shapes(tissue, tissue.rest, true);
   }
   return tissue;
+}
+
+double tet_quality(const Corners& c) {
+  const double volume = (c[1] - c[0]).dot((c[2] - c[0]).cross(c[3] - c[0])) / 6.0;
+  double squares = 0.0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    for (std::size_t j = i + 1; j < 4; ++j) {
+      squares += (c[i] - c[j]).squaredNorm();
+    }
+  }
+  const double rms = std::sqrt(squares / 6.0);
+  return rms > 0.0 ? 6.0 * std::sqrt(2.0) * volume / (rms * rms * rms) : 0.0;
 }
 
 Corners tet_corners(const Prism& prism, const PrismTet& tet, std::span<const Vec3> x) {
@@ -376,8 +431,8 @@ Corners tet_corners(const Prism& prism, const PrismTet& tet, std::span<const Vec
   return corners;
 }
 
-void set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest) {
-  set_tet_rest_shapes(tissue, rest, false);
+std::size_t set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest) {
+  return set_tet_rest_shapes(tissue, rest, false);
 }
 
 }  // namespace incise::planning

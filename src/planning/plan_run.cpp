@@ -370,6 +370,7 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
   report["boundary_points"] = tissue.count(PointKind::kBoundary);
   report["instrument_points"] = held;
   report["skin_triangles_left_out"] = tissue.skin_triangles_dropped;
+  report["folded_skin_triangles"] = tissue.folded_triangles;
   report["elasticity"] =
       tissue.elasticity == TissueElasticity::kContinuum ? "continuum" : "springs";
   report["springs"] = tissue.springs.size();
@@ -382,6 +383,7 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
       }
     }
     report["tetrahedra"] = tetrahedra;
+    report["sliver_tetrahedra_left_empty"] = tissue.sliver_tets;
     report["skin_thickness"] = plan.tissue.skin_thickness / kMillimetre;
   }
   report["skin_prestrain"] = tissue.skin_prestrain;

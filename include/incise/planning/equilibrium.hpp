@@ -31,6 +31,6 @@ struct EquilibriumReport {
 /// InputError when one would invert. A residual above the tolerance (N) after max_iterations is
 /// reported, not thrown.
 EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
-                                         double tolerance = 1e-9, int max_iterations = 30);
+                                         double tolerance = 1e-9, int max_iterations = 60);
 
 }  // namespace incise::planning

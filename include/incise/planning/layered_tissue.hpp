@@ -107,7 +107,18 @@ struct LayeredTissue {
   std::vector<Triangle> skin_triangles;    ///< over columns
   std::vector<int> column_skin_vertex;     ///< the input skin vertex of each column
   std::size_t skin_triangles_dropped = 0;  ///< longer than max_edge
-  std::vector<int> column_bone_triangle;   ///< nearest bone triangle of each column
+  /// Continuum elasticity: slivers (quality below kSliverQuality at the scan) that the
+  /// equilibrium's rest shift would turn inside out, left empty instead: a flat tetrahedron of
+  /// a folded column carries next to no volume, and a shift of a fraction of its height
+  /// inverts it. The prism's other tetrahedra and its volume term still hold the column.
+  std::size_t sliver_tets = 0;
+  std::vector<int> column_bone_triangle;  ///< the bone triangle each column ends on
+  /// Skin triangles with a soft column whose bone side (the columns' nearest bone points) is
+  /// turned over against the skin side or collapsed to under a hundredth of its area: where
+  /// the bone is concave under the skin or ends in a rim (the skull's base above the neck), the
+  /// nearest points fold. Their last layer's tetrahedra are slivers or overlap their
+  /// neighbours (each is still at rest in the scanned state).
+  std::size_t folded_triangles = 0;
   SpringLaw law;
   TissueElasticity elasticity = TissueElasticity::kSprings;
   double volume_weight = 0.0;  ///< Pa
@@ -121,6 +132,13 @@ struct LayeredTissue {
   [[nodiscard]] std::size_t count(PointKind k) const;
 };
 
+/// Below this quality (tet_quality) a prism's tetrahedron is a sliver and left empty.
+inline constexpr double kSliverQuality = 1e-2;
+
+/// 6 sqrt(2) V / l^3 with l the root mean square of the six edges: 1 for a regular
+/// tetrahedron, 0 for a flat one, negative for an inverted one. Pure.
+[[nodiscard]] double tet_quality(const Corners& corners);
+
 /// Builds the model; throws InputError on an empty surface or bad options.
 [[nodiscard]] LayeredTissue build_layered_tissue(const SurfaceMesh& skin, const SurfaceMesh& bone,
                                                  const LayeredTissueOptions& options);
@@ -130,7 +148,9 @@ struct LayeredTissue {
 
 /// Continuum elasticity: the tetrahedra's rest shapes from the given rest positions of every
 /// point (the equilibrium initialisation moves the soft points' ones). Tetrahedra of no volume
-/// are left empty; throws InputError naming the prism if one would be inverted.
-void set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest);
+/// are left empty, and so are slivers the rest positions would invert (returns how many, also
+/// added to sliver_tets); throws InputError naming the prism and where it is if any other
+/// tetrahedron would be inverted.
+std::size_t set_tet_rest_shapes(LayeredTissue& tissue, std::span<const Vec3> rest);
 
 }  // namespace incise::planning
