@@ -199,6 +199,10 @@ def test_a_segment_slid_along_its_osteotomy_on_a_ct_is_predicted(source_dir, tmp
     assert components["skin"]["kept"] == 1
     distance = report["image"]["surface_distance_mm"]["skin"]
     assert distance["model_to_isosurface"]["p99"] <= distance["bound"] * 1.5
+    # The closed airway's wall is counted apart, not as the model's error (before, such walls
+    # put the isosurface-to-model p99 at 8.6 mm on the 256 x 256 x 113 phantom).
+    assert distance["isosurface_to_model"]["samples_on_enclosed_cavities"] > 0
+    assert distance["isosurface_to_model"]["p99"] <= distance["bound"] * 3
     # The same move pushed 3 mm into the skull through the cut is refused before building.
     plan["moves"][0]["translate"] = [0, 0, 3]
     with pytest.raises(incise.InputError, match="interpenetrate"):

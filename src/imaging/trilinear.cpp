@@ -1,12 +1,14 @@
 #include "incise/imaging/trilinear.hpp"
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace incise::imaging {
 
@@ -118,8 +120,127 @@ bool project_to_isosurface(const VolumeImage& image, double iso, Vec3& grid_mm, 
   return false;
 }
 
+std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso) {
+  // Runs of voxels at most iso along i, joined (union-find) with the runs they overlap in the
+  // rows beside them (j - 1 and k - 1): the regions are unions of runs. A flood fill voxel by
+  // voxel took 3.7-4.6 s on a 512 x 512 x 300 CT (random access over 78M voxels, one
+  // thread); runs are found slice by slice in parallel, and a head has a few per row.
+  const auto [nx, ny, nz] = image.size;
+  struct Run {
+    std::uint32_t begin = 0;  // i of the first voxel
+    std::uint32_t end = 0;    // one past the last
+  };
+  std::vector<std::vector<Run>> slice_runs(nz);
+  std::vector<std::vector<std::size_t>> slice_rows(nz);  // per slice: each row's first run
+  tbb::parallel_for(std::size_t{0}, nz, [&](std::size_t k) {
+    std::vector<Run>& runs = slice_runs[k];
+    std::vector<std::size_t>& rows = slice_rows[k];
+    rows.reserve(ny + 1);
+    for (std::size_t j = 0; j < ny; ++j) {
+      rows.push_back(runs.size());
+      const float* row = &image.values[nx * (j + ny * k)];
+      std::size_t i = 0;
+      while (i < nx) {
+        while (i < nx && row[i] > iso) {
+          ++i;
+        }
+        if (i == nx) {
+          break;
+        }
+        const std::size_t begin = i;
+        while (i < nx && !(row[i] > iso)) {
+          ++i;
+        }
+        runs.push_back({static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(i)});
+      }
+    }
+    rows.push_back(runs.size());
+  });
+  std::vector<std::size_t> first_of_slice(nz + 1, 0);
+  for (std::size_t k = 0; k < nz; ++k) {
+    first_of_slice[k + 1] = first_of_slice[k] + slice_runs[k].size();
+  }
+  std::vector<std::size_t> parent(first_of_slice[nz]);
+  for (std::size_t r = 0; r < parent.size(); ++r) {
+    parent[r] = r;
+  }
+  auto find = [&](std::size_t r) {
+    while (parent[r] != r) {
+      parent[r] = parent[parent[r]];
+      r = parent[r];
+    }
+    return r;
+  };
+  // Joins the overlapping runs of two rows (first ids a0, b0; both sorted along i).
+  auto join_rows = [&](const std::vector<Run>& a_runs, std::size_t a_begin, std::size_t a_end,
+                       std::size_t a0, const std::vector<Run>& b_runs, std::size_t b_begin,
+                       std::size_t b_end, std::size_t b0) {
+    std::size_t x = a_begin;
+    std::size_t y = b_begin;
+    while (x < a_end && y < b_end) {
+      const Run& ra = a_runs[x];
+      const Run& rb = b_runs[y];
+      if (ra.begin < rb.end && rb.begin < ra.end) {
+        const std::size_t root_a = find(a0 + x);
+        const std::size_t root_b = find(b0 + y);
+        if (root_a != root_b) {
+          parent[std::max(root_a, root_b)] = std::min(root_a, root_b);
+        }
+      }
+      if (ra.end < rb.end) {
+        ++x;
+      } else {
+        ++y;
+      }
+    }
+  };
+  for (std::size_t k = 0; k < nz; ++k) {
+    const std::vector<std::size_t>& rows = slice_rows[k];
+    for (std::size_t j = 0; j < ny; ++j) {
+      if (j > 0) {
+        join_rows(slice_runs[k], rows[j], rows[j + 1], first_of_slice[k], slice_runs[k],
+                  rows[j - 1], rows[j], first_of_slice[k]);
+      }
+      if (k > 0) {
+        const std::vector<std::size_t>& below = slice_rows[k - 1];
+        join_rows(slice_runs[k], rows[j], rows[j + 1], first_of_slice[k], slice_runs[k - 1],
+                  below[j], below[j + 1], first_of_slice[k - 1]);
+      }
+    }
+  }
+  // A region is outside when one of its runs touches the scan's border.
+  std::vector<std::uint8_t> root_outside(parent.size(), 0);
+  for (std::size_t k = 0; k < nz; ++k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      const bool border_row = j == 0 || k == 0 || j + 1 == ny || k + 1 == nz;
+      for (std::size_t r = slice_rows[k][j]; r < slice_rows[k][j + 1]; ++r) {
+        const Run& run = slice_runs[k][r];
+        if (border_row || run.begin == 0 || run.end == nx) {
+          root_outside[find(first_of_slice[k] + r)] = 1;
+        }
+      }
+    }
+  }
+  for (std::size_t r = 0; r < parent.size(); ++r) {
+    parent[r] = find(r);  // flat, so the parallel fill below only reads
+  }
+  std::vector<std::uint8_t> outside(image.values.size(), 0);
+  tbb::parallel_for(std::size_t{0}, nz, [&](std::size_t k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t r = slice_rows[k][j]; r < slice_rows[k][j + 1]; ++r) {
+        if (root_outside[parent[first_of_slice[k] + r]] != 0) {
+          const Run& run = slice_runs[k][r];
+          std::fill_n(outside.begin() + static_cast<std::ptrdiff_t>(nx * (j + ny * k) + run.begin),
+                      run.end - run.begin, std::uint8_t{1});
+        }
+      }
+    }
+  });
+  return outside;
+}
+
 IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wanted,
-                           std::uint64_t seed) {
+                           std::uint64_t seed, const std::vector<std::uint8_t>* outside) {
   IsoCrossings result;
   const std::size_t nz = image.size[2];
   result.total = tbb::parallel_reduce(
@@ -141,20 +262,33 @@ IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wan
           ? std::numeric_limits<std::uint64_t>::max()
           : static_cast<std::uint64_t>(
                 fraction * static_cast<double>(std::numeric_limits<std::uint64_t>::max()));
-  result.points = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, nz), std::vector<Vec3>{},
-      [&](const tbb::blocked_range<std::size_t>& r, std::vector<Vec3> points) {
+  // The edge's voxel at most iso: the crossing's own (edge / 3) or its neighbour along the axis.
+  const std::array<std::size_t, 3> step{1, image.size[0], image.size[0] * image.size[1]};
+  auto low_voxel = [&](std::uint64_t edge) {
+    const auto here = static_cast<std::size_t>(edge / 3);
+    return image.values[here] > iso ? here + step[static_cast<std::size_t>(edge % 3)] : here;
+  };
+  using Found = std::pair<std::vector<Vec3>, std::vector<std::uint8_t>>;
+  Found found = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, nz), Found{},
+      [&](const tbb::blocked_range<std::size_t>& r, Found part) {
         for_each_crossing(image, iso, r.begin(), r.end(), [&](std::uint64_t edge, const Vec3& p) {
           if (mix(edge ^ mix(seed)) <= threshold) {
-            points.push_back(p);
+            part.first.push_back(p);
+            if (outside != nullptr) {
+              part.second.push_back((*outside)[low_voxel(edge)] == 0 ? 1 : 0);
+            }
           }
         });
-        return points;
+        return part;
       },
-      [](std::vector<Vec3> a, std::vector<Vec3> b) {
-        a.insert(a.end(), b.begin(), b.end());
+      [](Found a, Found b) {
+        a.first.insert(a.first.end(), b.first.begin(), b.first.end());
+        a.second.insert(a.second.end(), b.second.begin(), b.second.end());
         return a;
       });
+  result.points = std::move(found.first);
+  result.enclosed = std::move(found.second);
   return result;
 }
 

@@ -96,6 +96,7 @@ nlohmann::json distance_report(const IsosurfaceDistance& d, double bound) {
   to["samples_at_scan_border"] = d.model_to_isosurface.at_scan_border;
   nlohmann::json from = side(d.isosurface_to_model);
   from["samples_on_surfaces_left_out"] = d.isosurface_to_model.left_out;
+  from["samples_on_enclosed_cavities"] = d.isosurface_to_model.enclosed;
   from["samples_at_scan_border"] = d.isosurface_to_model.at_scan_border;
   return {{"bound", bound},
           {"bound_means",
@@ -111,9 +112,10 @@ nlohmann::json distance_report(const IsosurfaceDistance& d, double bound) {
                        100.0 * d.beyond_max_fraction)},
           {"left_out_of_the_comparison",
            "samples within a voxel of the scan border (the surface is open where the tissue "
-           "leaves the scanned region) and the isosurface's points nearest a component left out; "
-           "enclosed air (airways, sinuses) is part of the skin's isosurface but not of the "
-           "body's surface, so isosurface_to_model's largest distances can lie there"}};
+           "leaves the scanned region); the isosurface's points on the walls of enclosed "
+           "regions (below the iso value and cut off from the scan's border: airways, sinuses, "
+           "marrow), which the model's outer surface does not represent; and those nearest a "
+           "component left out"}};
 }
 
 }  // namespace

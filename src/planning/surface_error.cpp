@@ -126,7 +126,12 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
   }
 
   // Isosurface to model.
-  const imaging::IsoCrossings crossings = imaging::iso_crossings(image, iso, samples, seed);
+  // Crossings around enclosed regions (airways, sinuses, marrow) are counted apart: the model
+  // is the body's (or the bones') outer surface, and the nearest model point to a cavity's wall
+  // says nothing about the model's accuracy.
+  const std::vector<std::uint8_t> outside = imaging::outside_of(image, iso);
+  const imaging::IsoCrossings crossings =
+      imaging::iso_crossings(image, iso, samples, seed, &outside);
   result.isosurface_crossings = crossings.total;
   {
     const NearestTriangle nearest(grid_points, surface.triangles);
@@ -134,6 +139,10 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
     tbb::parallel_for(std::size_t{0}, crossings.points.size(), [&](std::size_t i) {
       if (near_scan_border(image, crossings.points[i])) {
         distance[i] = -2.0;
+        return;
+      }
+      if (crossings.enclosed[i] != 0) {
+        distance[i] = -3.0;
         return;
       }
       const NearestTriangle::Hit hit = nearest.closest(crossings.points[i]);
@@ -145,9 +154,12 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
         static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -1.0));
     const auto at_border =
         static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -2.0));
+    const auto enclosed =
+        static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -3.0));
     std::erase_if(distance, [](double d) { return d < 0.0; });
     result.isosurface_to_model = summarize(std::move(distance));
     result.isosurface_to_model.left_out = left_out;
+    result.isosurface_to_model.enclosed = enclosed;
     result.isosurface_to_model.at_scan_border = at_border;
   }
 

@@ -12,6 +12,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <queue>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,7 @@
 #include "incise/core/error.hpp"
 #include "incise/imaging/isosurface.hpp"
 #include "incise/imaging/read_volume.hpp"
+#include "incise/imaging/trilinear.hpp"
 
 namespace {
 
@@ -400,6 +403,111 @@ TEST(Isosurface, TissueLeavingTheScanLeavesTheSurfaceOpen) {
     EXPECT_NE(std::string(error.what()).find("iso.bone"), std::string::npos);
     EXPECT_NE(std::string(error.what()).find("0 to 1000"), std::string::npos) << error.what();
   }
+}
+
+/// The voxels at most `iso` that reach the border through such voxels, found voxel by voxel
+/// (breadth first): the reference for outside_of, which joins runs.
+std::vector<std::uint8_t> outside_by_flood_fill(const VolumeImage& image, double iso) {
+  const auto [nx, ny, nz] = image.size;
+  std::vector<std::uint8_t> outside(image.values.size(), 0);
+  std::queue<std::array<std::size_t, 3>> queue;
+  auto reach = [&](std::size_t i, std::size_t j, std::size_t k) {
+    const std::size_t v = i + nx * (j + ny * k);
+    if (outside[v] == 0 && image.values[v] <= iso) {
+      outside[v] = 1;
+      queue.push({i, j, k});
+    }
+  };
+  for (std::size_t k = 0; k < nz; ++k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t i = 0; i < nx; ++i) {
+        if (i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1) {
+          reach(i, j, k);
+        }
+      }
+    }
+  }
+  while (!queue.empty()) {
+    const auto [i, j, k] = queue.front();
+    queue.pop();
+    if (i > 0) {
+      reach(i - 1, j, k);
+    }
+    if (i + 1 < nx) {
+      reach(i + 1, j, k);
+    }
+    if (j > 0) {
+      reach(i, j - 1, k);
+    }
+    if (j + 1 < ny) {
+      reach(i, j + 1, k);
+    }
+    if (k > 0) {
+      reach(i, j, k - 1);
+    }
+    if (k + 1 < nz) {
+      reach(i, j, k + 1);
+    }
+  }
+  return outside;
+}
+
+TEST(Trilinear, OutsideIsWhatReachesTheScanBorderAndCavitiesAreEnclosed) {
+  // Random blobs at the percolation threshold: regions that wind, branch and enclose, and
+  // some only reach the border along a long path.
+  for (const std::uint32_t seed : {1U, 2U, 3U}) {
+    VolumeImage image;
+    image.size = {37, 29, 23};
+    image.spacing = Vec3(1.0, 1.5, 2.0);
+    image.values.resize(37 * 29 * 23);
+    std::mt19937 random(seed);
+    std::uniform_real_distribution<float> uniform(0.0F, 1.0F);
+    for (float& v : image.values) {
+      v = uniform(random);
+    }
+    for (const double iso : {0.3, 0.69, 0.75}) {
+      const std::vector<std::uint8_t> expected = outside_by_flood_fill(image, iso);
+      const std::vector<std::uint8_t> found = outside_of(image, iso);
+      ASSERT_EQ(found.size(), expected.size());
+      std::size_t enclosed = 0;
+      for (std::size_t v = 0; v < found.size(); ++v) {
+        ASSERT_EQ(found[v], expected[v]) << "voxel " << v << ", seed " << seed << ", iso " << iso;
+        enclosed += image.values[v] <= iso && found[v] == 0 ? 1 : 0;
+      }
+      if (iso > 0.5) {
+        EXPECT_GT(enclosed, 0u) << "the case has enclosed voxels";
+      }
+    }
+  }
+  // The sphere-in-sphere phantom with a hollow bone: the marrow (inside radius 15) is enclosed,
+  // and the crossings on its wall say so; those on the bone's outer wall do not.
+  VolumeImage image = phantom(2.0);
+  const auto n = image.size[0];
+  for (std::size_t k = 0; k < n; ++k) {
+    for (std::size_t j = 0; j < n; ++j) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const double r =
+            (2.0 * Vec3(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)) -
+             Vec3::Constant(50.0))
+                .norm();
+        if (r < 15.0) {
+          image.values[i + n * (j + n * k)] = 500.0F;
+        }
+      }
+    }
+  }
+  const std::vector<std::uint8_t> outside = outside_of(image, 1000.0);
+  const IsoCrossings crossings = iso_crossings(image, 1000.0, 1000000, 0, &outside);
+  ASSERT_EQ(crossings.enclosed.size(), crossings.points.size());
+  std::size_t inner = 0;
+  std::size_t outer = 0;
+  for (std::size_t c = 0; c < crossings.points.size(); ++c) {
+    const double r = (crossings.points[c] - Vec3::Constant(50.0)).norm();
+    EXPECT_EQ(crossings.enclosed[c], r < 20.0 ? 1 : 0) << "r " << r;
+    (r < 20.0 ? inner : outer) += 1;
+  }
+  EXPECT_GT(inner, 100u);
+  EXPECT_GT(outer, 100u);
 }
 
 TEST(Isosurface, DirectionAndOriginPlaceThePointsInPatientSpace) {

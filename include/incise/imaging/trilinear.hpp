@@ -26,15 +26,26 @@ struct TrilinearSample {
 [[nodiscard]] bool project_to_isosurface(const VolumeImage& image, double iso, Vec3& grid_mm,
                                          int iterations = 20);
 
+/// Per voxel: 1 where the value is at most `iso` and the voxel reaches the scan's border
+/// through such voxels (6-neighbours): the air around the body for the skin's iso value, the
+/// soft tissue around the bones for the bone's. Voxels at most `iso` that are left 0 are
+/// enclosed: airways, sinuses, the marrow inside a bone.
+[[nodiscard]] std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso);
+
 struct IsoCrossings {
   std::vector<Vec3> points;  ///< mm, grid frame: a sample of the crossings
-  std::size_t total = 0;     ///< crossings on the whole grid
+  /// Per point, with an `outside` mask only: 1 when the crossing bounds an enclosed region
+  /// (its voxel at most iso is not outside).
+  std::vector<std::uint8_t> enclosed;
+  std::size_t total = 0;  ///< crossings on the whole grid
 };
 
 /// Where the field crosses `iso` on the edges between neighbouring voxel centres: about
 /// `wanted` of them (every one when there are fewer), chosen by a hash of the edge so the
-/// choice is uniform over the surface's crossings and repeats for a `seed`. Parallel.
+/// choice is uniform over the surface's crossings and repeats for a `seed`. Parallel. With
+/// `outside` (outside_of's mask for the same iso), each point says whether it is enclosed.
 [[nodiscard]] IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wanted,
-                                         std::uint64_t seed = 0);
+                                         std::uint64_t seed = 0,
+                                         const std::vector<std::uint8_t>* outside = nullptr);
 
 }  // namespace incise::imaging

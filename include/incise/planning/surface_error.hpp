@@ -52,6 +52,7 @@ struct OneSidedDistance {
   std::size_t samples = 0;         ///< measured
   std::size_t unresolved = 0;      ///< model samples the gradient could not carry to the surface
   std::size_t left_out = 0;        ///< isosurface samples nearest a component that was left out
+  std::size_t enclosed = 0;        ///< isosurface samples on an enclosed region's wall (a cavity)
   std::size_t at_scan_border = 0;  ///< within a voxel of the scan's border: not measured
 };
 
