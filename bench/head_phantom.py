@@ -14,7 +14,8 @@ usage: bench/head_phantom.py OUT_DIR [--size 512 512 300] [--spacing 0.5 0.5 0.8
 Writes OUT_DIR/head.mhd (+ head.raw) and, with --dicom, a CT series OUT_DIR/dicom/slice_NNNN.dcm
 (pydicom, Debian's python3-pydicom). The plan of the issue's benchmark is written beside it as
 OUT_DIR/plan.json: skin 500, bone 1600, three layers, a Le Fort I-like osteotomy through the
-maxilla and the maxilla advanced 5 mm along its own cut.
+maxilla and the maxilla advanced 5 mm along its own cut; with --dicom also
+OUT_DIR/plan_dicom.json, the same plan on the series, its iso values in Hounsfield units.
 """
 import argparse
 import json
@@ -189,13 +190,15 @@ def write_dicom(out_dir, volume, origin, spacing):
         ds.save_as(path, write_like_original=False)
 
 
-def write_plan(out_dir, image_name):
+def write_plan(out_dir, image_name, plan_name="plan.json", offset=0):
+    """The benchmark's plan; `offset` is added to the iso values (the DICOM series stores the
+    same numbers with RescaleIntercept -1024, so a reader gives Hounsfield units: -1024)."""
     plan = {
         "description": "incise's synthetic head CT (bench/head_phantom.py): skin at 500, bone at "
                        "1600, three layers, a Le Fort I-like osteotomy through the maxilla and "
                        "the maxilla advanced 5 mm along its own cut (toward the face, -y).",
         "image": image_name,
-        "iso": {"skin": 500, "bone": 1600},
+        "iso": {"skin": 500 + offset, "bone": 1600 + offset},
         "layers": 3,
         "decimation": {"max_error": 0.5},
         "materials": {"young_modulus": 15000, "density": 1050},
@@ -208,7 +211,9 @@ def write_plan(out_dir, image_name):
         "method": "energy",
         "solver": {"type": "newton"},
     }
-    with open(os.path.join(out_dir, "plan.json"), "w") as f:
+    if offset:
+        plan["description"] += f" Iso values in Hounsfield units (the stored numbers {offset:+d})."
+    with open(os.path.join(out_dir, plan_name), "w") as f:
         json.dump(plan, f, indent=2)
 
 
@@ -227,6 +232,8 @@ def main():
     if args.dicom:
         write_dicom(args.out_dir, volume, origin, args.spacing)
     write_plan(args.out_dir, "head.mhd")
+    if args.dicom:
+        write_plan(args.out_dir, "dicom", "plan_dicom.json", -1024)
     print(f"{args.out_dir}/head.mhd: {args.size[0]} x {args.size[1]} x {args.size[2]} voxels of "
           f"{args.spacing[0]} x {args.spacing[1]} x {args.spacing[2]} mm")
 

@@ -182,10 +182,14 @@ def test_a_segment_slid_along_its_osteotomy_on_a_ct_is_predicted(source_dir, tmp
     5 mm along its own cut. The move predicts (it was refused as interpenetration); the bones
     the default seeding missed are there; fragments are merged; segments carry volumes."""
     subprocess.run(["/usr/bin/python3", str(source_dir / "bench" / "head_phantom.py"),
-                    str(tmp_path), "--size", "128", "128", "60", "--spacing", "2", "2", "4"],
-                   check=True, capture_output=True)
-    plan = json.loads((tmp_path / "plan.json").read_text())
-    result = incise.plan(plan, out_dir=tmp_path / "out", plan_file=tmp_path / "plan.json")
+                    str(tmp_path), "--size", "128", "128", "60", "--spacing", "2", "2", "4",
+                    "--dicom"], check=True, capture_output=True)
+    # The CT as a scanner gives it: a DICOM series, read in Hounsfield units (the plan's iso
+    # values with them; the MetaImage plan below holds the stored numbers, 1024 higher).
+    dicom_plan = json.loads((tmp_path / "plan_dicom.json").read_text())
+    assert dicom_plan["iso"] == {"skin": 500 - 1024, "bone": 1600 - 1024}
+    result = incise.plan(dicom_plan, out_dir=tmp_path / "out",
+                         plan_file=tmp_path / "plan_dicom.json")
     report = result["report"]
     assert report["converged"]
     assert 3.0 < result["max_displacement_mm"] < 8.0, "the face follows the 5 mm advance"
@@ -203,7 +207,14 @@ def test_a_segment_slid_along_its_osteotomy_on_a_ct_is_predicted(source_dir, tmp
     # put the isosurface-to-model p99 at 8.6 mm on the 256 x 256 x 113 phantom).
     assert distance["isosurface_to_model"]["samples_on_enclosed_cavities"] > 0
     assert distance["isosurface_to_model"]["p99"] <= distance["bound"] * 3
+    assert report["image"]["read"].startswith("DICOM"), report["image"]["read"]
     # The same move pushed 3 mm into the skull through the cut is refused before building.
+    plan = json.loads((tmp_path / "plan.json").read_text())
     plan["moves"][0]["translate"] = [0, 0, 3]
     with pytest.raises(incise.InputError, match="interpenetrate"):
         incise.plan(plan, out_dir=tmp_path / "refused", plan_file=tmp_path / "plan.json")
+    # The stored numbers' iso values on the series (Hounsfield units) miss the bone: a clear
+    # refusal naming the key and the image's range (it was a CGAL precondition failure).
+    dicom_plan["iso"] = {"skin": 500, "bone": 1600}
+    with pytest.raises(incise.InputError, match=r"iso\.bone.*Hounsfield"):
+        incise.plan(dicom_plan, out_dir=tmp_path / "units", plan_file=tmp_path / "plan_dicom.json")

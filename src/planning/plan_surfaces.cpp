@@ -7,7 +7,9 @@
 #include <cmath>
 #include <iostream>
 #include <sstream>
+#include <string>
 
+#include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/imaging/read_volume.hpp"
 #include "incise/planning/surface_error.hpp"
@@ -85,6 +87,29 @@ Kept keep_bones(const SurfaceComponents& parts, double least_volume) {
                                       "specks are left out",
                                       least_volume)}};
   return kept;
+}
+
+/// Throws InputError naming the plan key when no component of an isosurface encloses more
+/// than `least_volume` (mm^3): the iso value misses the anatomy (on a DICOM CT read in
+/// Hounsfield units, a value meant for the stored numbers lies 1024 too high).
+void refuse_without_a_kept_component(const PlanDescription& plan, const std::string& key,
+                                     double iso, const SurfaceComponents& parts,
+                                     double least_volume, double low, double high) {
+  double largest = 0.0;
+  for (const SurfaceComponent& part : parts.components) {
+    largest = std::max(largest, part.volume);
+  }
+  if (largest > least_volume && largest > 0.0) {
+    return;
+  }
+  throw InputError(fmt::format(
+      "{}: plan key '{}' ({}): no part of the isosurface encloses {} (the largest of its {} "
+      "parts encloses {:.3g} mm^3); the image's values range from {} to {}: is the iso value "
+      "in the image's units (Hounsfield units for a DICOM CT, with its rescale applied)?",
+      plan.file.string(), key, iso,
+      least_volume > 0.0 ? fmt::format("at least {:.3g} mm^3 (min_segment_volume)", least_volume)
+                         : std::string("a volume"),
+      parts.components.size(), largest, low, high));
 }
 
 nlohmann::json distance_report(const IsosurfaceDistance& d, double bound) {
@@ -180,9 +205,15 @@ PlanSurfaces surfaces_from_image(const PlanDescription& plan, const PlanProgress
 
   report_progress("checking the surfaces against the CT", 0.1);
   stage = Clock::now();
-  const Kept skin_kept = keep_body(surface_components(skin.surface));
-  const Kept bone_kept = keep_bones(surface_components(bone.surface),
-                                    plan.min_segment_volume / std::pow(kMillimetre, 3));
+  const SurfaceComponents skin_parts = surface_components(skin.surface);
+  const SurfaceComponents bone_parts = surface_components(bone.surface);
+  const double least_bone = plan.min_segment_volume / std::pow(kMillimetre, 3);  // mm^3
+  const auto [low, high] = imaging::value_range(image);
+  refuse_without_a_kept_component(plan, "iso.skin", plan.skin_iso, skin_parts, 0.0, low, high);
+  refuse_without_a_kept_component(plan, "iso.bone", plan.bone_iso, bone_parts, least_bone, low,
+                                  high);
+  const Kept skin_kept = keep_body(skin_parts);
+  const Kept bone_kept = keep_bones(bone_parts, least_bone);
   const IsosurfaceDistance skin_distance = measure_isosurface_distance(
       image, plan.skin_iso, skin.surface, skin_kept.keep, kDistanceSamples, options.seed);
   const IsosurfaceDistance bone_distance = measure_isosurface_distance(
@@ -191,7 +222,6 @@ PlanSurfaces surfaces_from_image(const PlanDescription& plan, const PlanProgress
   result.bone = in_metres(select_triangles(bone.surface, bone_kept.keep));
   result.seconds_check = seconds_since(stage);
 
-  const auto [low, high] = imaging::value_range(image);
   result.report = {
       {"file", plan.image.string()},
       {"read", image.description},
