@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "incise/core/error.hpp"
@@ -214,6 +215,48 @@ std::vector<std::array<Vec3, 3>> moved_triangles(const SurfaceMesh& bone,
   return moved;
 }
 
+namespace {
+
+/// Where segment pq crosses the plane of triangle abc inside it (barycentric coordinates not
+/// below -1e-9), if it does. Pure.
+std::optional<Vec3> segment_meets_triangle(const Vec3& p, const Vec3& q, const Vec3& a,
+                                           const Vec3& b, const Vec3& c) {
+  const Vec3 normal = (b - a).cross(c - a);
+  const double dp = normal.dot(p - a);
+  const double dq = normal.dot(q - a);
+  if ((dp > 0.0 && dq > 0.0) || (dp < 0.0 && dq < 0.0) || dp == dq) {
+    return std::nullopt;
+  }
+  const Vec3 x = p + (dp / (dp - dq)) * (q - p);
+  const double area2 = normal.squaredNorm();
+  const double u = normal.dot((c - b).cross(x - b)) / area2;
+  const double v = normal.dot((a - c).cross(x - c)) / area2;
+  const double w = 1.0 - u - v;
+  constexpr double kSlack = -1e-9;
+  if (u < kSlack || v < kSlack || w < kSlack) {
+    return std::nullopt;
+  }
+  return x;
+}
+
+}  // namespace
+
+std::vector<Vec3> crossing_points(const std::array<Vec3, 3>& first,
+                                  const std::array<Vec3, 3>& second) {
+  std::vector<Vec3> points;
+  for (int which = 0; which < 2; ++which) {
+    const std::array<Vec3, 3>& edges = which == 0 ? first : second;
+    const std::array<Vec3, 3>& face = which == 0 ? second : first;
+    for (std::size_t e = 0; e < 3; ++e) {
+      if (const auto x =
+              segment_meets_triangle(edges[e], edges[(e + 1) % 3], face[0], face[1], face[2])) {
+        points.push_back(*x);
+      }
+    }
+  }
+  return points;
+}
+
 std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
                                                      const BoneSegments& segments,
                                                      std::span<const RigidMove> segment_moves,
@@ -295,6 +338,15 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
         });
       };
       if (within(moved[ta]) && within(moved[tb])) {
+        return true;
+      }
+      // Or where they cross lies within it: a triangle beside the cut that dips into the band
+      // meets the other segment's cut face there (on the phantom head's DICOM series, 22 such
+      // pairs refused the maxilla's 5 mm slide along its Le Fort cut).
+      const std::vector<Vec3> where = crossing_points(moved[ta], moved[tb]);
+      if (!where.empty() && std::all_of(where.begin(), where.end(), [&](const Vec3& x) {
+            return std::abs((x - plane.point).dot(plane.normal)) <= cut.half_width;
+          })) {
         return true;
       }
     }

@@ -75,10 +75,16 @@ struct Interpenetration {
     const SurfaceMesh& bone, const BoneSegments& segments,
     std::span<const RigidMove> segment_moves);
 
+/// Where two triangles cross: the points where an edge of one passes through the other (none
+/// when they do not cross; coplanar overlaps are not found). Pure.
+[[nodiscard]] std::vector<Vec3> crossing_points(const std::array<Vec3, 3>& first,
+                                                const std::array<Vec3, 3>& second);
+
 /// Pairs of segments, at least one of them moved, whose moved triangles cross where they did
 /// not before the move (exact predicates; triangles that share a vertex are not compared)
 /// outside the band about a cut the two share (the band holds the triangles along the cut,
-/// which straddle it by up to an edge, plus `tolerance`), or of which a moved one reaches
+/// which straddle it by up to an edge, plus `tolerance`; a crossing is inside when both
+/// triangles are, or where they cross is), or of which a moved one reaches
 /// further than before, by more than `tolerance` (m), beyond a plane that separates them (a cap
 /// pushed into a closed bone crosses no surface). `segment_moves` holds one move per segment
 /// (identity for those that stay).
