@@ -29,6 +29,8 @@ packages=(
   libbullet-dev
   # pictures: PNG files, OpenGL 3.3 offscreen through EGL on Mesa (llvmpipe without a GPU)
   libpng-dev libegl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
+  # labels on pictures: stb_easy_font (a built-in font, no font file)
+  libstb-dev
   # the interactive viewer: a GLFW window with Dear ImGui panels; Xvfb runs it in CI
   libglfw3-dev libimgui-dev xvfb xauth
   # the Python module (import incise): pybind11 on Debian's Python 3 with numpy; pytest runs

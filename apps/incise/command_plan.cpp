@@ -106,8 +106,8 @@ Runner add_plan_command(CLI::App& app) {
         const PlanPictures pictures =
             write_plan_pictures(summary, *render_dir, width, height, *renderer);
         std::cout << fmt::format(
-            "pictures in {}: skin_before.png, skin_after.png, skin_displacement.png (0 mm blue "
-            "to {:.3f} mm red)\n",
+            "pictures in {}: skin_before.png, skin_after.png, skin_before_after.png, "
+            "skin_displacement.png, _frontal.png, _lateral.png (0 mm blue to {:.3f} mm red)\n",
             *render_dir, pictures.largest_displacement_mm);
       }
       return summary.prediction.converged ? 0 : kExitDiverged;

@@ -829,8 +829,24 @@ TEST(Cli, PlanDrawsTheSkinBeforeAfterAndColouredByItsDisplacement) {
     GTEST_SKIP() << "no OpenGL here: " << run.err;
   }
   ASSERT_EQ(run.code, 0) << run.err;
-  for (const char* name : {"skin_before.png", "skin_after.png", "skin_displacement.png"}) {
+  for (const char* name : {"skin_before.png", "skin_after.png", "skin_displacement.png",
+                           "skin_displacement_frontal.png", "skin_displacement_lateral.png"}) {
     EXPECT_EQ(png_size(dir / "png" / name), std::make_pair(200, 150)) << name;
+  }
+  // Before and after side by side.
+  EXPECT_EQ(png_size(dir / "png" / "skin_before_after.png"), std::make_pair(400, 150));
+  // Each picture says what it shows: light text in its top left corner (a title and the view's
+  // name), where the renderer leaves only its dark background.
+  for (const char* name : {"skin_before.png", "skin_displacement_lateral.png"}) {
+    const Image labelled = read_png(dir / "png" / name);
+    std::size_t ink = 0;
+    for (int y = 0; y < 30; ++y) {
+      for (int x = 0; x < 100; ++x) {
+        const Rgba p = labelled.at(x, y);
+        ink += p.r > 200 && p.g > 200 && p.b > 200 ? 1 : 0;
+      }
+    }
+    EXPECT_GT(ink, 50U) << name;
   }
   EXPECT_NE(run.out.find("mm red"), std::string::npos) << run.out;
   // The camera faces the moved skin: red in the middle, over the lifted cap, blue towards the
@@ -846,6 +862,17 @@ TEST(Cli, PlanDrawsTheSkinBeforeAfterAndColouredByItsDisplacement) {
   }
   EXPECT_GT(red, 2000U);
   EXPECT_GT(blue, 50U);
+  // A colour bar at the right edge: red at the top (the largest displacement), blue at the
+  // bottom (0 mm), a column of the map between its labels.
+  int bar_x = -1;
+  for (int x = picture.width() - 1; x > picture.width() / 2 && bar_x < 0; --x) {
+    const Rgba top = picture.at(x, picture.height() / 4);
+    const Rgba bottom = picture.at(x, picture.height() - 35);
+    if (top.r > top.b + 60 && bottom.b > bottom.r + 60) {
+      bar_x = x;
+    }
+  }
+  EXPECT_GT(bar_x, picture.width() * 3 / 4) << "no colour bar at the right edge";
   // Picture options are checked before anything runs.
   const CommandResult bad =
       incise("plan " + (dir / "plan.json").string() + " --out " + (dir / "out2").string() +
