@@ -21,6 +21,7 @@
 #include "incise/planning/newton.hpp"
 #include "incise/planning/osteotomy.hpp"
 #include "incise/planning/plan.hpp"
+#include "incise/planning/plan_session.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/planning/tissue_energy.hpp"
 #include "tissue_support.hpp"
@@ -630,6 +631,71 @@ TEST(Plan, EveryExamplePlanParsesAndNamesExistingSurfaces) {
     }
   }
   EXPECT_GE(plans, 2);
+}
+
+TEST(PlanSession, MovesAreTriedRefusedAtContactAndPredictedWarmAndTheSavedPlanReproducesThem) {
+  const std::filesystem::path dir =
+      write_head(std::filesystem::temp_directory_path() / "incise_plan_session_test");
+  const std::string text = R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
+    "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
+    "skin_prestrain": 0.05, "volume_weight": 10000,
+    "osteotomies": [{"point": [0, 0, 10], "normal": [0, 0, 1]}]
+  })";
+  { std::ofstream(dir / "plan.json") << text; }
+  const PlanDescription plan = load_plan(dir / "plan.json");
+  PlanSession session(plan);
+  ASSERT_EQ(session.segments().count, 2);
+  const int cap = session.segment_near(Vec3(0, 0, 0.05));
+  // Nothing moved: the prediction stays at the balanced scan.
+  EXPECT_TRUE(session.predict(true).converged);
+  // Nudges a surgeon makes: up 1 mm at a time, then tilted 2 degrees about a hinge on the cut.
+  RigidMove move;
+  for (int step = 1; step <= 3; ++step) {
+    move.translation = Vec3(0, 0, 0.001 * step);
+    ASSERT_TRUE(session.try_move(cap, move).empty()) << "step " << step;
+    const MinimizeResult& warm = session.predict(true);
+    EXPECT_TRUE(warm.converged) << warm.message;
+  }
+  move.axis = Vec3(0, 1, 0);
+  move.angle = 2.0 * std::numbers::pi / 180.0;
+  move.center = Vec3(0.04, 0, 0.01);
+  ASSERT_TRUE(session.try_move(cap, move).empty());
+  const MinimizeResult warm = session.predict(true);
+  EXPECT_TRUE(warm.converged);
+  const std::vector<Vec3> warm_skin = session.skin_after();
+  // Pushed down through the cut: refused, and the last accepted move stays.
+  RigidMove through = move;
+  through.translation = Vec3(0, 0, -0.006);
+  EXPECT_FALSE(session.try_move(cap, through).empty());
+  EXPECT_EQ(session.moves()[static_cast<std::size_t>(cap)].translation, move.translation);
+  // Warm and cold predictions agree within the solver's tolerance (a fraction of a micrometre
+  // here); the warm one starts nearer (its columns follow their bone: 0.92 N against 3.3 N).
+  const MinimizeResult cold = session.predict(false);
+  EXPECT_TRUE(cold.converged);
+  EXPECT_LT(warm.initial_gradient, 0.5 * cold.initial_gradient);
+  const std::vector<Vec3> cold_skin = session.skin_after();
+  double largest_difference = 0.0;
+  double largest_displacement = 0.0;
+  const std::vector<Vec3> before = session.skin_before();
+  for (std::size_t i = 0; i < cold_skin.size(); ++i) {
+    largest_difference = std::max(largest_difference, (cold_skin[i] - warm_skin[i]).norm());
+    largest_displacement = std::max(largest_displacement, (cold_skin[i] - before[i]).norm());
+  }
+  EXPECT_GT(largest_displacement, 1e-3);  // m: the skin over the cap follows it
+  EXPECT_LT(largest_difference, 1e-5);    // m
+  // Saved with its moves, the plan runs to the cold prediction: the same skin to rounding.
+  const nlohmann::json saved = session.plan_with_moves(nlohmann::json::parse(text));
+  ASSERT_EQ(saved["moves"].size(), 1u);
+  { std::ofstream(dir / "saved.json") << saved.dump(2); }
+  const PlanSummary replayed = run_plan(load_plan(dir / "saved.json"), dir / "out");
+  ASSERT_EQ(replayed.skin_after.size(), cold_skin.size());
+  double replay_difference = 0.0;
+  for (std::size_t i = 0; i < cold_skin.size(); ++i) {
+    replay_difference = std::max(replay_difference, (replayed.skin_after[i] - cold_skin[i]).norm());
+  }
+  EXPECT_LT(replay_difference, 1e-12) << "m";
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Plan, RunsFromSurfacesToAPrediction) {
