@@ -16,6 +16,9 @@
 #ifdef INCISE_HAVE_GL
 #include "incise/render/offscreen.hpp"
 #endif
+#ifdef INCISE_HAVE_VIEWER
+#include "viewer/plan_viewer.hpp"
+#endif
 
 namespace incise::app {
 
@@ -66,13 +69,62 @@ Runner add_plan_command(CLI::App& app) {
   command->add_option("--out", *out, "Output folder (default: out/<plan name>)");
   auto render_dir = std::make_shared<std::string>();
   auto size = std::make_shared<std::string>("800x600");
-  auto* render_option = command->add_option(
+  command->add_option(
       "--render", *render_dir,
       "Draw the skin before and after, and after coloured by its displacement (0 mm blue to "
       "the largest red), offscreen to DIR/skin_*.png");
-  command->add_option("--size", *size, "Picture size WxH in pixels (default 800x600)")
-      ->needs(render_option);
-  return [plan_path, out, render_dir, size]() {
+  auto* size_option = command->add_option("--size", *size,
+                                          "Picture (or window) size WxH in pixels (default "
+                                          "800x600)");
+  auto view = std::make_shared<bool>(false);
+  auto record = std::make_shared<std::string>();
+  auto replay = std::make_shared<std::string>();
+  auto screenshot = std::make_shared<std::string>();
+  auto save = std::make_shared<std::string>();
+  auto* view_flag = command->add_flag(
+      "--view", *view,
+      "Open the plan in a window: pick bone segments and nudge them (mm, degrees), the face "
+      "predicted after each move; Save writes the plan with the moves made");
+  command->add_option("--record", *record, "With --view: record the nudges and saves (JSON)")
+      ->needs(view_flag);
+  command->add_option("--replay", *replay, "With --view: play a recording, then close")
+      ->needs(view_flag)
+      ->check(CLI::ExistingFile);
+  command->add_option("--screenshot", *screenshot, "With --view: a picture of the window at exit")
+      ->needs(view_flag);
+  command
+      ->add_option("--save", *save,
+                   "With --view: where Save writes the plan with its moves (default "
+                   "PLAN_moved.json beside the plan)")
+      ->needs(view_flag);
+  return [plan_path, out, render_dir, size, size_option, view, record, replay, screenshot, save]() {
+    if (*view) {
+#ifdef INCISE_HAVE_VIEWER
+      PlanViewerOptions options;
+      options.plan = *plan_path;
+      const auto optional_path = [](const std::string& text) {
+        return text.empty() ? std::nullopt : std::optional<std::filesystem::path>(text);
+      };
+      options.record = optional_path(*record);
+      options.replay = optional_path(*replay);
+      options.screenshot = optional_path(*screenshot);
+      options.save = optional_path(*save);
+      if (size_option->count() > 0) {
+        std::tie(options.width, options.height) = parse_size(*size);
+      }
+      try {
+        PlanViewer viewer(options);
+        return viewer.run();
+      } catch (const Error& error) {
+        std::cerr << "error: " << error.what() << "\n";
+        return kExitError;
+      }
+#else
+      std::cerr << "error: incise plan --view: this incise was built without the viewer "
+                   "(-DINCISE_WITH_VIEWER=ON needs GLFW and Dear ImGui)\n";
+      return kExitError;
+#endif
+    }
     PlanProgressBar bar;
     try {
       // Picture options are checked before the plan runs.

@@ -955,6 +955,77 @@ TEST(Cli, ViewReplaysAHandMadeCutUnderXvfbAndRunReplaysItBitForBit) {
   EXPECT_EQ(from_view, slurp(dir / "run" / "default_000116.vtu"));
 }
 
+TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
+  if (!have_xvfb()) {
+    if (std::getenv("INCISE_REQUIRE_GL") != nullptr) {
+      FAIL() << "INCISE_REQUIRE_GL is set and xvfb-run is missing (apt-get install xvfb)";
+    }
+    GTEST_SKIP() << "no xvfb-run here";
+  }
+  const auto dir = test::scratch_dir("plan-view");
+  write_sphere_obj(dir / "skin.obj", 50.0);
+  write_sphere_obj(dir / "bone.obj", 40.0);
+  std::ofstream(dir / "plan.json") << R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"}, "layers": 2,
+    "osteotomies": [{"point": [0, 0, 20], "normal": [0, 0, 1]}]
+  })";
+  // A session as a surgeon makes it: the skull's cap (segment 1) lifted 1 mm twice, tilted
+  // 3 degrees, then pushed 8 mm down into the rest of the skull, and the plan saved.
+  const std::string saved = (dir / "saved.json").string();
+  std::ofstream(dir / "session.json") << R"({"plan": "plan.json", "requests": [
+    {"nudge": {"segment": 1, "translate_mm": [0, 0, 1], "rotate_deg": [0, 0, 0]}},
+    {"nudge": {"segment": 1, "translate_mm": [0, 0, 1], "rotate_deg": [0, 0, 0]}},
+    {"nudge": {"segment": 1, "translate_mm": [0, 0, 0], "rotate_deg": [0, 3, 0]}},
+    {"nudge": {"segment": 1, "translate_mm": [0, 0, -8], "rotate_deg": [0, 0, 0]}},
+    {"save": ")" + saved + R"("}]})";
+  const auto view = [&](const std::string& name) {
+    const std::string command =
+        "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(INCISE_EXECUTABLE) + " plan " +
+        (dir / "plan.json").string() + " --view --size 800x600 --replay " +
+        (dir / "session.json").string() + " --record " + (dir / (name + ".json")).string() +
+        " --screenshot " + (dir / (name + ".png")).string() + " >" +
+        (dir / (name + ".out")).string() + " 2>&1";
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  ASSERT_EQ(view("first"), 0) << slurp(dir / "first.out");
+  ASSERT_EQ(view("second"), 0) << slurp(dir / "second.out");
+  // One prediction to start and one per nudge that moved; the same session gives the same
+  // prediction, bit for bit (the largest displacement printed to 17 digits), and records
+  // itself as it was played.
+  const std::string out = slurp(dir / "first.out");
+  EXPECT_NE(out.find("5 predictions"), std::string::npos) << out;
+  EXPECT_EQ(out, slurp(dir / "second.out"));
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "first.json"))["requests"],
+            nlohmann::json::parse(slurp(dir / "session.json"))["requests"]);
+  // The window showed the skin coloured by its displacement (red over the lifted cap) and the
+  // panel.
+  const Image picture = read_png(dir / "first.png");
+  EXPECT_EQ(picture.width(), 800);
+  std::size_t red = 0;
+  for (const Rgba& p : picture.pixels()) {
+    red += p.r > p.b + 60 ? 1 : 0;
+  }
+  EXPECT_GT(red, 500U);
+  // The push down stopped at contact: the cap stays above where it started, below 2 mm.
+  const auto plan = nlohmann::json::parse(slurp(dir / "saved.json"));
+  ASSERT_EQ(plan["moves"].size(), 1u);
+  const double lifted = plan["moves"][0]["translate"][2].get<double>();
+  EXPECT_GT(lifted, 0.0);
+  EXPECT_LT(lifted, 2.0);
+  EXPECT_DOUBLE_EQ(plan["moves"][0]["rotate"]["angle_deg"].get<double>(), 3.0);
+  // incise plan runs the saved plan to the prediction the window showed (warm-started there,
+  // from the scan here: within the solver's tolerance).
+  const CommandResult run = incise("plan " + saved + " --out " + (dir / "out").string());
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  const std::size_t at = out.find("largest skin displacement ");
+  ASSERT_NE(at, std::string::npos);
+  const double shown = std::stod(out.substr(at + 26));
+  EXPECT_GT(shown, 0.5);
+  EXPECT_NEAR(report["max_displacement"].get<double>(), shown, 1e-3);
+}
+
 TEST(Cli, ReplayRefusesABadRecordingByLine) {
   const auto dir = test::scratch_dir("bad-replay");
   std::ofstream(dir / "bad.jsonl") << "{\"incise_session\": 1}\n{\"frame\": 0}\n";

@@ -19,12 +19,11 @@
 #include "incise/render/gl_backend.hpp"
 #include "incise/solve/linear_solvers.hpp"
 #include "incise/view/frame_scene.hpp"
+#include "window.hpp"
 
 namespace incise::app {
 
 namespace {
-
-std::string glfw_error;  // the last GLFW error, for the message when a window cannot be had
 
 Viewer& viewer_of(GLFWwindow* window) {
   return *static_cast<Viewer*>(glfwGetWindowUserPointer(window));
@@ -51,26 +50,8 @@ struct Viewer::Graphics {
 };
 
 Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
-  glfwSetErrorCallback([](int, const char* description) { glfw_error = description; });
-  if (glfwInit() != GLFW_TRUE) {
-    throw Error(
-        "incise view needs a display (X11 or Wayland); without one run it under "
-        "xvfb-run, or use incise run --render for pictures. GLFW: " +
-        glfw_error);
-  }
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
-  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
-  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-  glfwWindowHint(GLFW_SAMPLES, 0);  // llvmpipe draws 4x-multisampled windows at half the rate
-  window_ = glfwCreateWindow(options_.width, options_.height, "incise", nullptr, nullptr);
-  if (window_ == nullptr) {
-    glfwTerminate();
-    throw Error("incise view cannot open an OpenGL 3.3 window: " + glfw_error);
-  }
-  glfwMakeContextCurrent(window_);
-  glfwSwapInterval(options_.exit_after >= 0 ? 0 : 1);
-  glfwSetWindowUserPointer(window_, this);
+  window_ = open_window(options_.width, options_.height, "incise", options_.exit_after >= 0 ? 0 : 1,
+                        this);
   // Installed before ImGui's, which chain to them.
   glfwSetScrollCallback(
       window_, [](GLFWwindow* window, double, double y) { viewer_of(window).on_scroll(y); });
@@ -93,12 +74,7 @@ Viewer::Viewer(ViewerOptions options) : options_(std::move(options)) {
   glfwSetFramebufferSizeCallback(
       window_, [](GLFWwindow* window, int, int) { viewer_of(window).on_input(); });
   glfwSetWindowRefreshCallback(window_, [](GLFWwindow* window) { viewer_of(window).on_input(); });
-  IMGUI_CHECKVERSION();
-  ImGui::CreateContext();
-  ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini left in the user's folder
-  ImGui::StyleColorsDark();
-  ImGui_ImplGlfw_InitForOpenGL(window_, true);
-  ImGui_ImplOpenGL3_Init("#version 330 core");
+  start_imgui(window_);
   graphics_ = std::make_unique<Graphics>();
 
   if (options_.replay) {
@@ -123,11 +99,7 @@ Viewer::~Viewer() {
   thread_.reset();  // the physics stops before its sinks and engine go
   engine_.reset();
   graphics_.reset();
-  ImGui_ImplOpenGL3_Shutdown();
-  ImGui_ImplGlfw_Shutdown();
-  ImGui::DestroyContext();
-  glfwDestroyWindow(window_);
-  glfwTerminate();
+  close_window(window_);
 }
 
 void Viewer::start_engine() {

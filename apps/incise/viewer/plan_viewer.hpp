@@ -1,0 +1,100 @@
+#pragma once
+// `incise plan PLAN.json --view`: the planning scene in a window (the seed's interactive
+// planning). The skin is drawn coloured by its predicted displacement (a colour bar in mm), or
+// the bone with the selected segment in red; a segment is picked by clicking it (bone view) or
+// from the list, and nudged by keys or buttons (mm and degrees); a nudge into another segment
+// stops at contact. The prediction runs on the worker thread (PlanWorker), warm-started from
+// the last, and the panel says "predicting..." until it is drawn. Save writes the plan with the
+// moves made, which `incise plan` then runs. A session records its nudges and saves, and a
+// recording replays to the same prediction, bit for bit.
+//
+// Keys: Tab / Shift+Tab select the next / previous segment; arrows move it along x and y,
+// Page Up / Down along z (mm); with Shift they rotate it about those axes (degrees); B shows the
+// bone or the skin; 1, 2, 3 look from the front, the side, above; S saves; P takes a picture;
+// Esc closes.
+
+#include <deque>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "incise/render/renderer.hpp"
+#include "plan_worker.hpp"
+
+struct GLFWwindow;
+
+namespace incise::app {
+
+struct PlanViewerOptions {
+  std::filesystem::path plan;
+  std::optional<std::filesystem::path> record;      ///< the session's nudges and saves (JSON)
+  std::optional<std::filesystem::path> replay;      ///< play a recording, then close
+  std::optional<std::filesystem::path> screenshot;  ///< saved at exit
+  /// Where Save writes the plan with its moves (default: PLAN_moved.json beside the plan).
+  std::optional<std::filesystem::path> save;
+  int width = 1280;
+  int height = 800;
+};
+
+class PlanViewer {
+ public:
+  explicit PlanViewer(PlanViewerOptions options);
+  ~PlanViewer();
+  PlanViewer(const PlanViewer&) = delete;
+  PlanViewer& operator=(const PlanViewer&) = delete;
+  /// Runs until the window closes (or a replay has played); returns the exit code.
+  int run();
+
+  // From GLFW callbacks, on the window's thread.
+  void on_key(int key, int mods) { keys_.push_back({key, mods}); }
+  void on_scroll(double amount) { scroll_ += amount; }
+
+ private:
+  void handle_keys();
+  void handle_mouse();
+  void draw_scene();
+  void draw_panel();
+  void nudge(const Vec3& translate_mm, const Vec3& rotate_deg);
+  void save();
+  void look_from(const Vec3& towards_camera);
+  void save_screenshot(const std::filesystem::path& path);
+  [[nodiscard]] double aspect() const;
+
+  PlanViewerOptions options_;
+  GLFWwindow* window_ = nullptr;
+  struct Graphics;
+  std::unique_ptr<Graphics> graphics_;
+  std::unique_ptr<PlanWorker> worker_;
+  PlanState state_;
+  std::uint64_t drawn_revision_ = ~std::uint64_t{0};
+  std::uint64_t surface_revision_ = 0;
+  int drawn_selection_ = -1;
+  bool drawn_bone_view_ = false;
+
+  std::vector<Triangle> soup_;   ///< the bone view's triangles (three corners each)
+  std::vector<double> scalars_;  ///< per drawn vertex
+  std::vector<std::uint8_t> exterior_;
+  RenderOptions render_;
+  bool camera_fitted_ = false;
+  bool bone_view_ = false;
+  int selected_ = 0;
+  float step_mm_ = 1.0F;
+  float step_deg_ = 1.0F;
+  std::vector<PlanRequest> recorded_;  ///< the session's requests, in order
+
+  // Mouse: a click picks a segment (bone view); a drag turns the camera.
+  bool dragging_ = false;
+  bool moved_while_pressed_ = false;
+  double last_x_ = 0.0;
+  double last_y_ = 0.0;
+  double scroll_ = 0.0;
+  struct Key {
+    int key;
+    int mods;
+  };
+  std::deque<Key> keys_;
+};
+
+}  // namespace incise::app
