@@ -125,7 +125,10 @@ std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso) {
   // rows beside them (j - 1 and k - 1): the regions are unions of runs. A flood fill voxel by
   // voxel took 3.7-4.6 s on a 512 x 512 x 300 CT (random access over 78M voxels, one
   // thread); runs are found slice by slice in parallel, and a head has a few per row.
-  const auto [nx, ny, nz] = image.size;
+  // (not a structured binding: clang 14 cannot capture those in the lambdas below)
+  const std::size_t nx = image.size[0];
+  const std::size_t ny = image.size[1];
+  const std::size_t nz = image.size[2];
   struct Run {
     std::uint32_t begin = 0;  // i of the first voxel
     std::uint32_t end = 0;    // one past the last

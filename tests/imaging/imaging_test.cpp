@@ -408,7 +408,9 @@ TEST(Isosurface, TissueLeavingTheScanLeavesTheSurfaceOpen) {
 /// The voxels at most `iso` that reach the border through such voxels, found voxel by voxel
 /// (breadth first): the reference for outside_of, which joins runs.
 std::vector<std::uint8_t> outside_by_flood_fill(const VolumeImage& image, double iso) {
-  const auto [nx, ny, nz] = image.size;
+  const std::size_t nx = image.size[0];  // (clang 14 cannot capture a structured binding)
+  const std::size_t ny = image.size[1];
+  const std::size_t nz = image.size[2];
   std::vector<std::uint8_t> outside(image.values.size(), 0);
   std::queue<std::array<std::size_t, 3>> queue;
   auto reach = [&](std::size_t i, std::size_t j, std::size_t k) {
