@@ -49,14 +49,16 @@ std::optional<SurfaceHit> pick_surface(const Ray& ray, std::span<const Triangle>
   return best;
 }
 
+Vec3 point_on_anchor_plane(const Camera& camera, const Ray& cursor, const Vec3& anchor) {
+  const Vec3 forward = -view_matrix(camera).block<1, 3>(2, 0).transpose();
+  const double along = (anchor - cursor.origin).dot(forward) / cursor.direction.dot(forward);
+  return cursor.origin + along * cursor.direction;
+}
+
 BladePose scalpel_pose(const Camera& camera, const Ray& cursor, const Vec3& anchor, double depth,
                        double handle) {
-  const Mat4 view = view_matrix(camera);
-  const Vec3 up = view.block<1, 3>(1, 0).transpose();
-  const Vec3 forward = -view.block<1, 3>(2, 0).transpose();
-  // Where the cursor's ray crosses the plane through the anchor facing the camera.
-  const double along = (anchor - cursor.origin).dot(forward) / cursor.direction.dot(forward);
-  const Vec3 point = cursor.origin + along * cursor.direction;
+  const Vec3 up = view_matrix(camera).block<1, 3>(1, 0).transpose();
+  const Vec3 point = point_on_anchor_plane(camera, cursor, anchor);
   const Vec3 lean = (cursor.direction - 0.5 * up).normalized();
   BladePose pose;
   pose.tip = point + depth * lean;

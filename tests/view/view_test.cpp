@@ -56,6 +56,25 @@ TEST(MouseScalpel, PicksTheNearestFaceAndMissesBesideTheBody) {
   EXPECT_FALSE(pick_surface({Vec3(0.5, 0.5, 5.0), Vec3(0, 0, 1)}, triangles, positions));
 }
 
+TEST(MouseScalpel, ADragFollowsTheCursorOnThePlaneThroughWhereItStarted) {
+  // What a dragged bone segment follows: the cursor's point on the plane facing the camera
+  // through the picked point. Where the drag starts it is the picked point; moved across the
+  // screen, the point stays at the picked point's depth and projects back under the cursor.
+  const Camera camera = fit_camera(unit_box(), 1.5);
+  const Vec3 anchor(0.3, 0.6, 0.7);
+  const Eigen::Vector2d at = to_screen(camera, 1.5, unit_box(), anchor);
+  const Vec3 start = point_on_anchor_plane(camera, cursor_ray(camera, 1.5, at.x(), at.y()), anchor);
+  EXPECT_NEAR((start - anchor).norm(), 0.0, 1e-9);
+  const Vec3 forward = (camera.target - camera.eye).normalized();
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{0.2, 0.1}, {-0.5, 0.4}}) {
+    const Vec3 moved = point_on_anchor_plane(camera, cursor_ray(camera, 1.5, x, y), anchor);
+    EXPECT_NEAR((moved - anchor).dot(forward), 0.0, 1e-9);  // the same depth
+    const Eigen::Vector2d back = to_screen(camera, 1.5, unit_box(), moved);
+    EXPECT_NEAR(back.x(), x, 1e-9);
+    EXPECT_NEAR(back.y(), y, 1e-9);
+  }
+}
+
 TEST(MouseScalpel, TheBladeCrossesTheAnchorPlaneUnderTheCursorWithItsDepth) {
   const Camera camera = fit_camera(unit_box(), 1.0);
   const Vec3 forward = (camera.target - camera.eye).normalized();

@@ -256,6 +256,30 @@ void PlanViewer::handle_mouse() {
     zoom(render_.camera, std::pow(0.9, scroll_));
   }
   scroll_ = 0.0;
+  const double nx = 2.0 * x / std::max(width, 1) - 1.0;
+  const double ny = 1.0 - 2.0 * y / std::max(height, 1);
+  const Ray ray = cursor_ray(render_.camera, aspect(), nx, ny);
+  if (free && left && !dragging_ && !drag_anchor_ && bone_view_ && state_.ready && !state_.busy) {
+    // A press on the selected segment takes it.
+    if (const auto hit = pick_bone(ray); hit && state_.bone_segment[hit->triangle] == selected_) {
+      drag_anchor_ = hit->point;
+      drag_offset_ = Vec3::Zero();
+    }
+  }
+  if (drag_anchor_) {
+    if (left) {
+      drag_offset_ = point_on_anchor_plane(render_.camera, ray, *drag_anchor_) - *drag_anchor_;
+    } else {
+      // Released: the drag is a nudge (mm), checked for contact and predicted.
+      if (drag_offset_.norm() > 0.0) {
+        nudge(drag_offset_ * 1e3, Vec3::Zero());
+      }
+      drag_anchor_.reset();
+    }
+    last_x_ = x;
+    last_y_ = y;
+    return;
+  }
   if (free && (left || right || middle) && !dragging_) {
     dragging_ = true;
     moved_while_pressed_ = false;
@@ -274,17 +298,9 @@ void PlanViewer::handle_mouse() {
     }
     if (!left && !right && !middle) {
       dragging_ = false;
-      if (!moved_while_pressed_ && bone_view_ && !state_.bone_corners.empty()) {
+      if (!moved_while_pressed_ && bone_view_) {
         // A click on the bone picks its segment.
-        const double nx = 2.0 * x / std::max(width, 1) - 1.0;
-        const double ny = 1.0 - 2.0 * y / std::max(height, 1);
-        std::vector<Triangle> soup(state_.bone_corners.size() / 3);
-        for (std::size_t t = 0; t < soup.size(); ++t) {
-          const auto first = static_cast<VertexId>(3 * t);
-          soup[t] = {first, first + 1, first + 2};
-        }
-        if (const auto hit = pick_surface(cursor_ray(render_.camera, aspect(), nx, ny), soup,
-                                          state_.bone_corners)) {
+        if (const auto hit = pick_bone(ray)) {
           selected_ = state_.bone_segment[hit->triangle];
         }
       }
@@ -292,6 +308,15 @@ void PlanViewer::handle_mouse() {
   }
   last_x_ = x;
   last_y_ = y;
+}
+
+std::optional<SurfaceHit> PlanViewer::pick_bone(const Ray& ray) {
+  soup_.resize(state_.bone_corners.size() / 3);
+  for (std::size_t t = 0; t < soup_.size(); ++t) {
+    const auto first = static_cast<VertexId>(3 * t);
+    soup_[t] = {first, first + 1, first + 2};
+  }
+  return pick_surface(ray, soup_, state_.bone_corners);
 }
 
 void PlanViewer::draw_scene() {
@@ -341,6 +366,18 @@ void PlanViewer::draw_scene() {
     input.triangles = soup;
     input.rest_positions = state_.bone_corners;
     input.positions = state_.bone_corners;
+    if (drag_anchor_) {
+      // The segment being dragged, where the cursor has taken it (checked on release).
+      dragged_ = state_.bone_corners;
+      for (std::size_t t = 0; t < soup.size(); ++t) {
+        if (state_.bone_segment[t] == selected_) {
+          for (std::size_t c = 0; c < 3; ++c) {
+            dragged_[3 * t + c] += drag_offset_;
+          }
+        }
+      }
+      input.positions = dragged_;
+    }
     render_.scalar_range = {0.0, 1.0};
   } else {
     scalars.resize(state_.skin_after.size());

@@ -8,6 +8,7 @@
 // moves made, which `incise plan` then runs. A session records its nudges and saves, and a
 // recording replays to the same prediction, bit for bit.
 //
+// Mouse (bone view): drag the selected segment to move it; click another to select it.
 // Keys: Tab / Shift+Tab select the next / previous segment; arrows move it along x and y,
 // Page Up / Down along z (mm); with Shift they rotate it about those axes (degrees); B shows the
 // bone or the skin; 1, 2, 3 look from the front, the side, above; S saves; P takes a picture;
@@ -21,6 +22,7 @@
 #include <vector>
 
 #include "incise/render/renderer.hpp"
+#include "incise/view/mouse_scalpel.hpp"
 #include "plan_worker.hpp"
 
 struct GLFWwindow;
@@ -55,6 +57,8 @@ class PlanViewer {
   void handle_keys();
   void handle_mouse();
   void draw_scene();
+  /// The bone triangle under the cursor's ray (bone view), if any.
+  std::optional<SurfaceHit> pick_bone(const Ray& ray);
   void draw_panel();
   void nudge(const Vec3& translate_mm, const Vec3& rotate_deg);
   void save();
@@ -76,6 +80,7 @@ class PlanViewer {
   std::vector<Triangle> soup_;   ///< the bone view's triangles (three corners each)
   std::vector<double> scalars_;  ///< per drawn vertex
   std::vector<std::uint8_t> exterior_;
+  std::vector<Vec3> dragged_;  ///< m: the bone's corners with a dragged segment moved
   RenderOptions render_;
   bool camera_fitted_ = false;
   bool bone_view_ = false;
@@ -84,7 +89,11 @@ class PlanViewer {
   float step_deg_ = 1.0F;
   std::vector<PlanRequest> recorded_;  ///< the session's requests, in order
 
-  // Mouse: a click picks a segment (bone view); a drag turns the camera.
+  // Mouse: in the bone view a press on the selected segment drags it (on the plane facing the
+  // camera through where it was pressed; released, the drag is a nudge), a click on another
+  // picks it; elsewhere a drag turns the camera.
+  std::optional<Vec3> drag_anchor_;  ///< m, where the segment was pressed
+  Vec3 drag_offset_ = Vec3::Zero();  ///< m, how far it has been dragged
   bool dragging_ = false;
   bool moved_while_pressed_ = false;
   double last_x_ = 0.0;

@@ -34,6 +34,11 @@ struct SurfaceHit {
                                                      std::span<const Triangle> triangles,
                                                      std::span<const Vec3> positions);
 
+/// Where the cursor's ray crosses the plane through `anchor` facing the camera: the point a
+/// drag that started at `anchor` has reached (a picked bone segment follows it). Pure.
+[[nodiscard]] Vec3 point_on_anchor_plane(const Camera& camera, const Ray& cursor,
+                                         const Vec3& anchor);
+
 /// The blade for a cursor ray, with the stroke anchored at `anchor` (the picked point): it
 /// crosses the plane through the anchor facing the camera where the ray does, leaning away
 /// from the viewer along the ray and a little down the screen so it is seen as a line; the
