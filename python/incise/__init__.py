@@ -15,7 +15,8 @@ What is here (units are SI throughout: m, s, kg, N, Pa, kg/m^3):
   for files, ``render`` for pictures.
 - ``mesh_surface``: a triangle surface (repaired if it must be) tetrahedralised, as ``incise mesh``.
 - ``cut``: a mesh cut along a blade path without physics, with the ``incise cut`` report.
-- ``plan``: surgical planning from CT (a plan file or dict), the skin before and after.
+- ``plan``: surgical planning from CT (a plan file or dict), the skin before and after;
+  ``PlanSession``: a plan prepared once, bone segments moved and the face predicted after each.
 - ``sweep``: a table of scene variants through Dask, one row per variant (pandas).
 - ``CutAlongLineEnv``: a reinforcement-learning task with the Gymnasium API.
 
@@ -29,6 +30,7 @@ from ._incise import (  # noqa: F401  (the compiled core)
     Frame,
     InputError,
     Mesh,
+    PlanSession,
     Simulation,
     mesh_surface,
     read_blade_path,
@@ -60,6 +62,7 @@ __all__ = [
     "Frame",
     "InputError",
     "Mesh",
+    "PlanSession",
     "Simulation",
     "cut",
     "from_meshio",

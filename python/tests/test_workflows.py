@@ -77,6 +77,39 @@ def test_plan_from_the_example_ct(source_dir, tmp_path):
     assert stages and stages[-1][1] == pytest.approx(1.0)
 
 
+def test_a_plan_session_moves_a_segment_stops_at_contact_and_saves_what_plan_reproduces(
+        source_dir, tmp_path):
+    """incise.PlanSession, what incise plan --view drives: the example CT's plan prepared once,
+    its segment moved and predicted warm, a push through the cut refused, and the plan saved
+    with the move run by incise.plan to the session's cold prediction."""
+    path = source_dir / "scenes" / "plan_headsq.json"
+    plan = json.loads(path.read_text())
+    move = plan["moves"][0]
+    plan["moves"] = []
+    session = incise.PlanSession(plan, plan_file=path)
+    assert session.segments >= 2 and len(session.segment_volumes_mm3) == session.segments
+    assert session.predict()["converged"]
+    assert np.abs(session.skin_after - session.skin_before).max() < 5e-4  # m: nothing moved
+    segment = session.segment_near(move["segment_near"])
+    assert session.move(segment, translate_mm=move["translate"]) == []
+    warm = session.predict(warm=True)
+    assert warm["converged"]
+    after_warm = session.skin_after.copy()
+    assert np.linalg.norm(after_warm - session.skin_before, axis=1).max() > 2e-3
+    # Pushed 8 mm down through its cut: refused, naming the pair; the last move stays.
+    refused = session.move(segment, translate_mm=[0, 0, -8])
+    assert refused and segment in refused[0]["segments"] and refused[0]["depth_mm"] > 0.5
+    cold = session.predict(warm=False)
+    assert cold["converged"]
+    assert np.abs(session.skin_after - after_warm).max() < 1e-5
+    saved = session.plan_with_moves(plan)
+    assert len(saved["moves"]) == 1 and saved["moves"][0]["translate"] == move["translate"]
+    result = incise.plan(saved, out_dir=tmp_path, plan_file=path)
+    assert np.abs(result["skin_after"] - session.skin_after).max() < 1e-12
+    with pytest.raises(incise.InputError, match="no bone segment"):
+        session.move(session.segments, translate_mm=[1, 0, 0])
+
+
 def test_a_plan_from_a_dict_and_its_bad_keys(source_dir, tmp_path):
     path = source_dir / "scenes" / "plan_headsq.json"
     plan = json.loads(path.read_text())
