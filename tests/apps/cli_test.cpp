@@ -1024,6 +1024,24 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
   const double shown = std::stod(out.substr(at + 26));
   EXPECT_GT(shown, 0.5);
   EXPECT_NEAR(report["max_displacement"].get<double>(), shown, 1e-3);
+  // A plan that moves the cap already: the window starts from that move, and a nudge adds to it.
+  std::ofstream(dir / "moved.json") << R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"}, "layers": 2,
+    "osteotomies": [{"point": [0, 0, 20], "normal": [0, 0, 1]}],
+    "moves": [{"segment_near": [0, 0, 40], "translate": [0, 0, 2]}]
+  })";
+  const std::string saved_moved = (dir / "saved_moved.json").string();
+  std::ofstream(dir / "nudge.json") << R"({"plan": "moved.json", "requests": [
+    {"nudge": {"segment": 1, "translate_mm": [0, 0, 1], "rotate_deg": [0, 0, 0]}},
+    {"save": ")" + saved_moved + R"("}]})";
+  const std::string command =
+      "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(INCISE_EXECUTABLE) + " plan " +
+      (dir / "moved.json").string() + " --view --size 640x480 --replay " +
+      (dir / "nudge.json").string() + " >" + (dir / "moved.out").string() + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << slurp(dir / "moved.out");
+  const auto added = nlohmann::json::parse(slurp(saved_moved));
+  ASSERT_EQ(added["moves"].size(), 1u);
+  EXPECT_NEAR(added["moves"][0]["translate"][2].get<double>(), 3.0, 1e-9);
 }
 
 TEST(Cli, ReplayRefusesABadRecordingByLine) {

@@ -90,9 +90,21 @@ void PlanWorker::loop() {
     for (std::size_t s = 0; s < centres_.size(); ++s) {
       centres_[s] /= std::max(count[s], 1);
     }
-    // The plan's own moves are where a session starts: kept as they are (no pose to nudge
-    // from is known for them, so a nudge composes onto an identity pose and replaces them).
+    // The plan's own moves are where a session starts, as poses about the segments' centres:
+    // R (x - c) + c + t = R (x - s) + s + t' with t' = t + c - s + R (s - c).
     poses_.assign(static_cast<std::size_t>(segments.count), SegmentPose{});
+    for (std::size_t s = 0; s < poses_.size(); ++s) {
+      const planning::RigidMove& move = session_->moves()[s];
+      if (move.angle == 0.0 && move.translation == Vec3::Zero()) {
+        continue;
+      }
+      const Mat3 rotation =
+          Eigen::AngleAxisd(move.angle, move.axis.normalized()).toRotationMatrix();
+      poses_[s].rotation = rotation;
+      poses_[s].translation_mm =
+          (move.translation + move.center - centres_[s] + rotation * (centres_[s] - move.center)) /
+          kMillimetre;
+    }
     publish([&](PlanState& s) {
       s.skin_triangles.assign(session_->skin_triangles().begin(), session_->skin_triangles().end());
       s.skin_before = session_->skin_before();
