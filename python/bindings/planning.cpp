@@ -130,19 +130,7 @@ void bind_planning(py::module_& module) {
                                      " (the bone has " + std::to_string(p.segments().count) + ")");
                   }
                   if (!centre_given) {
-                    // The segment's centre: its surface points' mean.
-                    Vec3 sum = Vec3::Zero();
-                    int count = 0;
-                    const SurfaceMesh& bone = p.bone();
-                    for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
-                      if (p.segments().triangle_segment[t] == segment) {
-                        for (const VertexId v : bone.triangles[t]) {
-                          sum += bone.points[static_cast<std::size_t>(v)];
-                          ++count;
-                        }
-                      }
-                    }
-                    move.center = sum / std::max(count, 1);
+                    move.center = p.segment_centre(segment);
                   }
                   return p.try_move(segment, move);
                 });

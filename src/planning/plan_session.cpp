@@ -349,6 +349,21 @@ int PlanSession::segment_near(const Vec3& point) const {
   return nearest_segment(state_->bone.surface, state_->segments, point);
 }
 
+Vec3 PlanSession::segment_centre(int segment) const {
+  const SurfaceMesh& bone = state_->bone.surface;
+  Vec3 sum = Vec3::Zero();
+  int corners = 0;
+  for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
+    if (state_->segments.triangle_segment[t] == segment) {
+      for (const VertexId v : bone.triangles[t]) {
+        sum += bone.points[static_cast<std::size_t>(v)];
+        ++corners;
+      }
+    }
+  }
+  return sum / static_cast<double>(std::max(corners, 1));
+}
+
 std::vector<Interpenetration> PlanSession::try_move(int segment, const RigidMove& move) {
   State& s = *state_;
   if (segment < 0 || segment >= s.segments.count) {

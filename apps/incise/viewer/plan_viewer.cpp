@@ -104,7 +104,8 @@ PlanViewer::PlanViewer(PlanViewerOptions options) : options_(std::move(options))
   if (options_.replay) {
     replay = read_recording(*options_.replay);
   }
-  const planning::PlanDescription plan = planning::load_plan(options_.plan);
+  const std::string plan_text = slurp(options_.plan);  // parsed here, and kept for Save
+  const planning::PlanDescription plan = planning::parse_plan(plan_text, options_.plan);
   if (!options_.save) {
     options_.save = options_.plan.parent_path() / (options_.plan.stem().string() + "_moved.json");
   }
@@ -121,7 +122,7 @@ PlanViewer::PlanViewer(PlanViewerOptions options) : options_(std::move(options))
   graphics_ = std::make_unique<Graphics>();
   render_.draw_blade = false;
   render_.texture_period = 0.03;  // m: skin-sized tiles
-  worker_ = std::make_unique<PlanWorker>(plan, slurp(options_.plan), [] { glfwPostEmptyEvent(); });
+  worker_ = std::make_unique<PlanWorker>(plan, plan_text, [] { glfwPostEmptyEvent(); });
   for (PlanRequest& request : replay) {
     recorded_.push_back(request);
     worker_->request(std::move(request));
@@ -493,18 +494,7 @@ void PlanViewer::draw_panel() {
 }
 
 void PlanViewer::save_screenshot(const std::filesystem::path& path) {
-  int width = 0;
-  int height = 0;
-  glfwGetFramebufferSize(window_, &width, &height);
-  Image image(width, height);
-  glReadBuffer(GL_BACK);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, image.pixels().data());
-  image.flip_rows();
-  for (Rgba& pixel : image.pixels()) {
-    pixel.a = 255;
-  }
-  write_png(path, image);
+  write_png(path, read_window_picture(window_));
 }
 
 int PlanViewer::run() {

@@ -77,18 +77,9 @@ void PlanWorker::loop() {
           });
         });
     const planning::BoneSegments& segments = session_->segments();
-    const SurfaceMesh& bone = session_->bone();
-    centres_.assign(static_cast<std::size_t>(segments.count), Vec3::Zero());
-    std::vector<int> count(static_cast<std::size_t>(segments.count), 0);
-    for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
-      const auto s = static_cast<std::size_t>(segments.triangle_segment[t]);
-      for (const VertexId v : bone.triangles[t]) {
-        centres_[s] += bone.points[static_cast<std::size_t>(v)];
-        ++count[s];
-      }
-    }
-    for (std::size_t s = 0; s < centres_.size(); ++s) {
-      centres_[s] /= std::max(count[s], 1);
+    centres_.clear();
+    for (int segment = 0; segment < segments.count; ++segment) {
+      centres_.push_back(session_->segment_centre(segment));
     }
     // The plan's own moves are where a session starts, as poses about the segments' centres:
     // R (x - c) + c + t = R (x - s) + s + t' with t' = t + c - s + R (s - c).

@@ -308,18 +308,7 @@ void Viewer::draw_scene() {
 }
 
 void Viewer::save_screenshot(const std::filesystem::path& path) {
-  int width = 0;
-  int height = 0;
-  glfwGetFramebufferSize(window_, &width, &height);
-  Image image(width, height);
-  glReadBuffer(GL_BACK);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, image.pixels().data());
-  image.flip_rows();
-  for (Rgba& pixel : image.pixels()) {
-    pixel.a = 255;
-  }
-  write_png(path, image);
+  write_png(path, read_window_picture(window_));
   message_ = "saved " + path.string();
   action("screenshot", path.string());
 }

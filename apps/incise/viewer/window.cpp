@@ -1,5 +1,7 @@
 #include "window.hpp"
 
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 #include <imgui.h>
@@ -48,6 +50,21 @@ void start_imgui(GLFWwindow* window) {
   ImGui::StyleColorsDark();
   ImGui_ImplGlfw_InitForOpenGL(window, true);
   ImGui_ImplOpenGL3_Init("#version 330 core");
+}
+
+Image read_window_picture(GLFWwindow* window) {
+  int width = 0;
+  int height = 0;
+  glfwGetFramebufferSize(window, &width, &height);
+  Image image(width, height);
+  glReadBuffer(GL_BACK);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, image.pixels().data());
+  image.flip_rows();
+  for (Rgba& pixel : image.pixels()) {
+    pixel.a = 255;
+  }
+  return image;
 }
 
 void close_window(GLFWwindow* window) {

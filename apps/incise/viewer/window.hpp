@@ -4,6 +4,8 @@
 
 #include <string>
 
+#include "incise/render/image.hpp"
+
 struct GLFWwindow;
 
 namespace incise::app {
@@ -17,6 +19,9 @@ GLFWwindow* open_window(int width, int height, const std::string& title, int swa
 /// Dear ImGui on the window: after the window's own input callbacks are installed (ImGui's
 /// chain to them). No imgui.ini is left in the user's folder.
 void start_imgui(GLFWwindow* window);
+
+/// What the window's back buffer holds now (drawn, not yet swapped), rows from the top, opaque.
+[[nodiscard]] Image read_window_picture(GLFWwindow* window);
 
 /// Closes what open_window opened (ImGui, the window, GLFW).
 void close_window(GLFWwindow* window);

@@ -34,6 +34,8 @@ class PlanSession {
   [[nodiscard]] const LayeredTissue& tissue() const;
   /// The segment of the bone triangle nearest `point` (m).
   [[nodiscard]] int segment_near(const Vec3& point) const;
+  /// The mean of the segment's triangles' corners (m): where its rotations turn about.
+  [[nodiscard]] Vec3 segment_centre(int segment) const;
 
   /// One move per segment (identity where it stays).
   [[nodiscard]] std::span<const RigidMove> moves() const;
