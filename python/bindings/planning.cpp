@@ -166,12 +166,20 @@ void bind_planning(py::module_& module) {
             out["seconds"] = result.seconds;
             out["message"] = result.message;
             out["residual_force"] = residual;
+            out["factorizations"] = result.factorizations;
+            out["lagged_steps"] = result.lagged_steps;
+            out["stage_seconds"] = py::dict(py::arg("assembly") = result.assembly_seconds,
+                                            py::arg("factorization") = result.factorization_seconds,
+                                            py::arg("solve") = result.solve_seconds,
+                                            py::arg("line_search") = result.line_search_seconds);
             return out;
           },
           py::arg("warm") = true,
           "Predicts the soft tissue for the moves made: from the last prediction (warm) or from "
-          "the scanned state (what incise plan computes). Returns converged, iterations, "
-          "seconds, message and residual_force (N).")
+          "the scanned state (what incise plan computes). Returns converged, iterations (Newton "
+          "steps), seconds, message, residual_force (N), factorizations, lagged_steps (steps "
+          "solved with an earlier factorisation, kept between predictions) and stage_seconds "
+          "(assembly, factorization, solve, line_search: where the time went).")
       .def_property_readonly(
           "skin_triangles",
           [](PySession& s) {

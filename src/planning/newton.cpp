@@ -1,10 +1,14 @@
 #include "incise/planning/newton.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "incise/core/error.hpp"
@@ -25,10 +29,34 @@ constexpr int kMaxHalvings = 40;
 /// The first relative diagonal shift after an indefinite exact Hessian (ten times larger per
 /// further indefinite one, shrunk by 0.3 per accepted step).
 constexpr double kFirstShift = 1e-3;
-/// A lagged factorisation's conjugate gradients: at most this many, to this relative residual
-/// (an inexact Newton step: the line search and the next step correct the rest).
-constexpr int kLaggedIterations = 6;
+/// A lagged factorisation's conjugate gradients, to this relative residual (an inexact Newton
+/// step: the line search and the next step correct the rest): at least kLeastLaggedIterations,
+/// at most as many as cost half a new factorisation's operations (lagged_iterations), never
+/// more than kMostLaggedIterations.
+constexpr int kLeastLaggedIterations = 6;
+constexpr int kMostLaggedIterations = 40;
 constexpr double kLaggedTolerance = 1e-2;
+
+/// How many preconditioned conjugate gradient iterations cost half of a factorisation. An
+/// iteration is a solve with the factor (4 flops per factor nonzero, but memory-bound
+/// triangular solves run at about a fifth of the dense BLAS-3 rate of a supernodal
+/// factorisation: measured on the planning models, 8 ms per iteration against 0.1 s per
+/// factorisation of 8e8 flops) and a product with the matrix (4 flops per stored nonzero).
+/// Counted in operations, not timed, so that a prediction takes the same steps on any machine
+/// and under any load (the planning viewer's replays rely on it).
+int lagged_iterations(const DirectFactorization& factor,
+                      const DirectFactorization::SparseMatrix& matrix) {
+  constexpr double kSolveSlowdown = 5.0;
+  const DirectFactorization::Cost cost = factor.cost();
+  const double per_iteration = kSolveSlowdown * 4.0 * cost.nonzeros +
+                               kSolveSlowdown * 4.0 * static_cast<double>(matrix.nonZeros());
+  if (!(per_iteration > 0.0) || !(cost.flops > 0.0)) {
+    return kLeastLaggedIterations;
+  }
+  return static_cast<int>(std::clamp(0.5 * cost.flops / per_iteration,
+                                     static_cast<double>(kLeastLaggedIterations),
+                                     static_cast<double>(kMostLaggedIterations)));
+}
 
 /// The Hessian of the energy over the free points, the volume term's curvature left out; with
 /// `convex`, also the transverse term of compressed springs (negative: they buckle), which makes
@@ -61,68 +89,99 @@ void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& patter
   if (!(tissue.volume_weight > 0.0)) {
     return;
   }
-  for (std::size_t p = 0; p < tissue.prisms.size(); ++p) {
-    const Prism& prism = tissue.prisms[p];
-    if (prism.rest_volume == 0.0) {
-      continue;
-    }
-    PrismPoints corners;
-    for (std::size_t i = 0; i < 6; ++i) {
-      corners[i] = x[static_cast<std::size_t>(prism.points[i])];
-    }
-    const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
-    const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
-    // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form keeps the first.
-    PrismHessian block;
-    for (std::size_t i = 0; i < 6; ++i) {
-      for (std::size_t j = 0; j < 6; ++j) {
-        block.block<3, 3>(static_cast<Eigen::Index>(3 * i), static_cast<Eigen::Index>(3 * j)) =
-            weight * dv[i] * dv[j].transpose();
+  // Element matrices for a block of prisms in parallel, then added in order: the sum is the
+  // same for any thread count.
+  constexpr std::size_t kBlock = 1024;  // prisms: 1024 x 2.6 kB of matrices
+  std::vector<PrismHessian> element(kBlock);
+  for (std::size_t first = 0; first < tissue.prisms.size(); first += kBlock) {
+    const std::size_t last = std::min(first + kBlock, tissue.prisms.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(first, last, 64),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        for (std::size_t p = range.begin(); p < range.end(); ++p) {
+                          const Prism& prism = tissue.prisms[p];
+                          if (prism.rest_volume == 0.0) {
+                            continue;
+                          }
+                          PrismPoints corners;
+                          for (std::size_t i = 0; i < 6; ++i) {
+                            corners[i] = x[static_cast<std::size_t>(prism.points[i])];
+                          }
+                          const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
+                          const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
+                          // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form
+                          // keeps the first.
+                          PrismHessian& block = element[p - first];
+                          for (std::size_t i = 0; i < 6; ++i) {
+                            for (std::size_t j = 0; j < 6; ++j) {
+                              block.block<3, 3>(static_cast<Eigen::Index>(3 * i),
+                                                static_cast<Eigen::Index>(3 * j)) =
+                                  weight * dv[i] * dv[j].transpose();
+                            }
+                          }
+                          if (!convex) {
+                            block += (weight * (prism_volume(corners) - prism.rest_volume)) *
+                                     prism_volume_hessian(corners);
+                          }
+                        }
+                      });
+    for (std::size_t p = first; p < last; ++p) {
+      const Prism& prism = tissue.prisms[p];
+      if (prism.rest_volume == 0.0) {
+        continue;
       }
-    }
-    if (!convex) {
-      block +=
-          (weight * (prism_volume(corners) - prism.rest_volume)) * prism_volume_hessian(corners);
-    }
-    for (std::size_t i = 0, k = 0; i < 6; ++i) {
-      const auto bi = static_cast<Eigen::Index>(3 * i);
-      hessian.add_diagonal(prism.points[i], block.block<3, 3>(bi, bi));
-      for (std::size_t j = i + 1; j < 6; ++j, ++k) {
-        const auto bj = static_cast<Eigen::Index>(3 * j);
-        const std::size_t pair = pattern.prism_pairs[p * 15 + k];
-        // The block at (first, second) of the pair as stored.
-        const bool same_order = pattern.pairs[pair].first == prism.points[i];
-        hessian.add_coupling(
-            pair, same_order ? Mat3(block.block<3, 3>(bi, bj)) : Mat3(block.block<3, 3>(bj, bi)));
+      const PrismHessian& block = element[p - first];
+      for (std::size_t i = 0, k = 0; i < 6; ++i) {
+        const auto bi = static_cast<Eigen::Index>(3 * i);
+        hessian.add_diagonal(prism.points[i], block.block<3, 3>(bi, bi));
+        for (std::size_t j = i + 1; j < 6; ++j, ++k) {
+          const auto bj = static_cast<Eigen::Index>(3 * j);
+          const std::size_t pair = pattern.prism_pairs[p * 15 + k];
+          // The block at (first, second) of the pair as stored.
+          const bool same_order = pattern.pairs[pair].first == prism.points[i];
+          hessian.add_coupling(
+              pair, same_order ? Mat3(block.block<3, 3>(bi, bj)) : Mat3(block.block<3, 3>(bj, bi)));
+        }
       }
     }
   }
 }
 
+enum class LaggedSolve {
+  kSolved,
+  kNegativeCurvature,  ///< the matrix is not positive definite
+  kNotConverged,       ///< too far from the factorised one
+};
+
 /// Conjugate gradients on `matrix` (lower triangle stored) preconditioned by `factor` (of an
-/// earlier, nearby matrix). False, leaving `x` unusable, on negative curvature or when the
-/// relative residual is not below kLaggedTolerance within kLaggedIterations: then the matrix
-/// has moved too far from the factorised one and is factorised itself.
-bool lagged_solve(const DirectFactorization::SparseMatrix& matrix,
-                  const DirectFactorization& factor, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+/// earlier, nearby matrix). Not solved, leaving `x` unusable, on negative curvature or when the
+/// relative residual is not below kLaggedTolerance within lagged_iterations(): then the matrix
+/// has moved too far from the factorised one and is factorised itself (negative curvature says
+/// beforehand that a Cholesky factorisation of it would fail).
+LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
+                         const DirectFactorization& factor, const Eigen::VectorXd& b,
+                         Eigen::VectorXd& x) {
   const auto a = matrix.selfadjointView<Eigen::Lower>();
   x = factor.solve(b);
   Eigen::VectorXd r = b - a * x;
   const double b_norm = b.norm();
   if (!(b_norm > 0.0)) {
-    return false;
+    return LaggedSolve::kNotConverged;
   }
+  const auto finite = [&x] {
+    return x.allFinite() ? LaggedSolve::kSolved : LaggedSolve::kNotConverged;
+  };
   Eigen::VectorXd z = factor.solve(r);
   Eigen::VectorXd p = z;
   double rz = r.dot(z);
-  for (int iteration = 0; iteration < kLaggedIterations; ++iteration) {
+  const int most = lagged_iterations(factor, matrix);
+  for (int iteration = 0; iteration < most; ++iteration) {
     if (r.norm() <= kLaggedTolerance * b_norm) {
-      return x.allFinite();
+      return finite();
     }
     const Eigen::VectorXd ap = a * p;
     const double curvature = p.dot(ap);
     if (!(curvature > 0.0)) {
-      return false;
+      return LaggedSolve::kNegativeCurvature;
     }
     const double step = rz / curvature;
     x += step * p;
@@ -132,14 +191,95 @@ bool lagged_solve(const DirectFactorization::SparseMatrix& matrix,
     p = z + (rz_next / rz) * p;
     rz = rz_next;
   }
-  return r.norm() <= kLaggedTolerance * b_norm && x.allFinite();
+  return r.norm() <= kLaggedTolerance * b_norm ? finite() : LaggedSolve::kNotConverged;
 }
 
 }  // namespace
 
+struct NewtonWorkspace::Data {
+  const LayeredTissue* tissue = nullptr;
+  std::size_t points = 0;
+  std::size_t springs = 0;
+  std::size_t prisms = 0;
+  std::vector<char> free;
+  std::vector<int> row;  ///< each free point's first row, -1 for the others
+  int rows = 0;
+  CouplingPattern pattern;
+  std::optional<PointBlockMatrix> hessian;
+  DirectFactorization factorization;  ///< analysed on the first factorisation, kept after
+  bool have_factor = false;
+};
+
+NewtonWorkspace::NewtonWorkspace() = default;
+NewtonWorkspace::~NewtonWorkspace() = default;
+NewtonWorkspace::NewtonWorkspace(NewtonWorkspace&&) noexcept = default;
+NewtonWorkspace& NewtonWorkspace::operator=(NewtonWorkspace&&) noexcept = default;
+
+bool NewtonWorkspace::has_factor() const {
+  return data_ && data_->have_factor;
+}
+
+void NewtonWorkspace::forget_factor() {
+  if (data_) {
+    data_->have_factor = false;
+  }
+}
+
+NewtonWorkspace::Data& NewtonWorkspace::data_for(const LayeredTissue& tissue,
+                                                 std::span<const char> free) {
+  const bool same = data_ && data_->tissue == &tissue && data_->points == tissue.point_count() &&
+                    data_->springs == tissue.springs.size() &&
+                    data_->prisms == tissue.prisms.size() &&
+                    std::equal(free.begin(), free.end(), data_->free.begin(), data_->free.end());
+  if (same) {
+    return *data_;
+  }
+  data_ = std::make_unique<Data>();
+  Data& d = *data_;
+  d.tissue = &tissue;
+  d.points = tissue.point_count();
+  d.springs = tissue.springs.size();
+  d.prisms = tissue.prisms.size();
+  d.free.assign(free.begin(), free.end());
+  d.row.assign(free.size(), -1);
+  for (std::size_t i = 0; i < free.size(); ++i) {
+    if (free[i] != 0) {
+      d.row[i] = d.rows;
+      d.rows += 3;
+    }
+  }
+  d.pattern = coupling_pattern(tissue);
+  d.hessian.emplace(d.row, d.rows, d.pattern.pairs);
+  return d;
+}
+
+void NewtonWorkspace::factorize_at(const TissueEnergy& energy, std::span<const Vec3> x,
+                                   std::span<const char> free) {
+  const LayeredTissue& tissue = energy.tissue();
+  if (x.size() != tissue.point_count() || free.size() != tissue.point_count()) {
+    throw InputError("NewtonWorkspace: positions, free flags and the tissue differ in size");
+  }
+  Data& d = data_for(tissue, free);
+  d.have_factor = false;
+  if (d.rows == 0) {
+    return;
+  }
+  assemble_hessian(tissue, d.pattern, x, false, *d.hessian);
+  if (!d.factorization.factorize_positive_definite(d.hessian->matrix())) {
+    assemble_hessian(tissue, d.pattern, x, true, *d.hessian);
+    d.hessian->damp_diagonal(1e-12, 0.0);
+    if (!d.factorization.factorize(d.hessian->matrix())) {
+      throw InputError(
+          "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
+          "(a free point held by no spring?)");
+    }
+  }
+  d.have_factor = true;
+}
+
 MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
                                std::span<const char> free, const MinimizeOptions& options,
-                               const MinimizeProgress& progress) {
+                               const MinimizeProgress& progress, NewtonWorkspace* workspace) {
   const auto start = Clock::now();
   const LayeredTissue& tissue = energy.tissue();
   const std::size_t n = x.size();
@@ -147,14 +287,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     throw InputError("minimize_newton: positions, free flags and the tissue differ in size");
   }
   MinimizeResult result;
-  std::vector<int> row(n, -1);
-  int rows = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (free[i] != 0) {
-      row[i] = rows;
-      rows += 3;
-    }
-  }
+  NewtonWorkspace own;
+  NewtonWorkspace::Data& data = (workspace != nullptr ? *workspace : own).data_for(tissue, free);
+  const std::vector<int>& row = data.row;
+  const int rows = data.rows;
   std::vector<Vec3> g(n);
   double value = energy.energy(x, g);
   result.evaluations = 1;
@@ -170,12 +306,12 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     return result;
   }
 
-  const CouplingPattern pattern = coupling_pattern(tissue);
-  PointBlockMatrix hessian(row, rows, pattern.pairs);
-  DirectFactorization factorization;  // analysed on the first step, refactorised after
-  double damping = 0.0;               // relative, grown only when a step fails
-  double shift = 0.0;                 // relative, after an indefinite exact Hessian
-  bool have_factor = false;
+  const CouplingPattern& pattern = data.pattern;
+  PointBlockMatrix& hessian = *data.hessian;
+  DirectFactorization& factorization = data.factorization;
+  bool& have_factor = data.have_factor;  // a factor of an earlier, nearby Hessian
+  double damping = 0.0;                  // relative, grown only when a step fails
+  double shift = 0.0;                    // relative, after an indefinite exact Hessian
   int non_descent_steps = 0;
   double best_gradient = gradient;
   int steps_since_best = 0;
@@ -191,26 +327,59 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     }
     // The exact Hessian, shifted by a multiple of its diagonal after indefinite ones
     // (Levenberg-Marquardt; the shift decays as steps succeed).
+    auto mark = Clock::now();
+    const auto lap = [&mark](double& seconds) {
+      const auto now = Clock::now();
+      seconds += std::chrono::duration<double>(now - mark).count();
+      mark = now;
+    };
     assemble_hessian(tissue, pattern, x, false, hessian);
     hessian.damp_diagonal(damping + shift, 0.0);
+    lap(result.assembly_seconds);
     Eigen::VectorXd step;
     // First, conjugate gradients on it preconditioned by the last factorisation: a few solves
     // with a factor already paid for, instead of a new factorisation, while the Hessian has not
     // moved far from the one factorised.
-    bool lagged = have_factor && lagged_solve(hessian.matrix(), factorization, rhs, step) &&
-                  rhs.dot(step) > 0.0;  // a descent direction
+    const LaggedSolve outcome = have_factor
+                                    ? lagged_solve(hessian.matrix(), factorization, rhs, step)
+                                    : LaggedSolve::kNotConverged;
+    bool lagged = outcome == LaggedSolve::kSolved && rhs.dot(step) > 0.0;  // descent
+    lap(result.solve_seconds);
+    bool convexified = false;
+    if (!lagged && outcome == LaggedSolve::kNegativeCurvature) {
+      // The exact Hessian is indefinite (a Cholesky factorisation of it would fail): its convex
+      // form, solved with the factor in hand if it still preconditions it well (the steps of
+      // interactive nudges: each starts indefinite and is one factorisation cheaper so).
+      convexified = true;
+      assemble_hessian(tissue, pattern, x, true, hessian);
+      hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
+      lap(result.assembly_seconds);
+      lagged = lagged_solve(hessian.matrix(), factorization, rhs, step) == LaggedSolve::kSolved &&
+               rhs.dot(step) > 0.0;
+      lap(result.solve_seconds);
+    }
+    if (convexified) {
+      shift = shift == 0.0 ? kFirstShift : shift * 10.0;
+      ++result.convexified_steps;
+    }
     if (lagged) {
       ++result.lagged_steps;
     } else {
       // A factorisation of the exact Hessian where it is positive definite: fast convergence
       // near the minimum. Else of its convex part, which always gives a descent direction.
-      bool factorized = factorization.factorize_positive_definite(hessian.matrix());
-      if (!factorized) {
+      bool factorized = !convexified && factorization.factorize_positive_definite(hessian.matrix());
+      lap(result.factorization_seconds);
+      if (!factorized && !convexified) {
+        convexified = true;
         shift = shift == 0.0 ? kFirstShift : shift * 10.0;
         ++result.convexified_steps;
         assemble_hessian(tissue, pattern, x, true, hessian);
         hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
+        lap(result.assembly_seconds);
+      }
+      if (!factorized) {
         factorized = factorization.factorize(hessian.matrix());
+        lap(result.factorization_seconds);
       }
       have_factor = factorized;
       if (!factorized) {
@@ -224,6 +393,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       }
       ++result.factorizations;
       step = factorization.solve(rhs);
+      lap(result.solve_seconds);
     }
     const double slope = -rhs.dot(step);  // g . p
     if (!(slope < 0.0)) {
@@ -262,6 +432,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
         std::swap(g, trial_gradient);
       }
     }
+    lap(result.line_search_seconds);
     if (!accepted) {
       result.message = "line search found no decrease (the rounding floor)";
       result.converged = gradient <= 1e3 * options.gradient_tolerance;

@@ -113,7 +113,12 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
   if (plan.solver.method == Minimizer::kNewton) {
     report["newton"] = {{"factorizations", prediction.factorizations},
                         {"lagged_steps", prediction.lagged_steps},
-                        {"convexified_steps", prediction.convexified_steps}};
+                        {"convexified_steps", prediction.convexified_steps},
+                        {"seconds",
+                         {{"assembly", prediction.assembly_seconds},
+                          {"factorization", prediction.factorization_seconds},
+                          {"solve", prediction.solve_seconds},
+                          {"line_search", prediction.line_search_seconds}}}};
   }
   report["converged"] = prediction.converged;
   report["stopped"] = prediction.message;

@@ -73,6 +73,7 @@ struct PlanSession::State {
   std::vector<std::pair<int, int>> cut_skin_springs;
   std::vector<Vec3> x;  ///< the last prediction (the scanned state before the first)
   MinimizeResult prediction;
+  NewtonWorkspace newton;       ///< the Hessian's pattern and last factor, kept between predictions
   double largest_weight = 0.0;  ///< N
   double residual_force = 0.0;  ///< N, after the last prediction
   nlohmann::json report;
@@ -460,9 +461,18 @@ const MinimizeResult& PlanSession::predict(bool warm, const PlanProgress& progre
       progress(fmt::format("predicting (iteration {})", iteration), 0.5 + 0.4 * done);
     }
   };
-  MinimizeResult result = options.method == Minimizer::kNewton
-                              ? minimize_newton(energy, x, free, options, minimize_progress)
-                              : minimize(objective, x, free, options, minimize_progress);
+  if (!warm) {
+    s.newton.forget_factor();  // what incise plan computes, to the last bit
+  } else if (options.method == Minimizer::kNewton && !s.newton.has_factor()) {
+    // The first warm prediction (the last one took no step): the Hessian factorised where the
+    // last one ended, a minimum, so that this and the next nudges' Newton steps start with a
+    // factor in hand and need none of their own while the moves stay small.
+    s.newton.factorize_at(energy, s.x, free);
+  }
+  MinimizeResult result =
+      options.method == Minimizer::kNewton
+          ? minimize_newton(energy, x, free, options, minimize_progress, &s.newton)
+          : minimize(objective, x, free, options, minimize_progress);
   for (const Vec3& p : x) {
     if (!p.allFinite()) {
       throw InputError(s.plan.file.string(), 0,

@@ -18,9 +18,11 @@ struct DirectFactorization::Backends {
 #ifdef INCISE_HAVE_CHOLMOD
   Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> cholmod;
   bool cholmod_analyzed = false;
+  Cost cholmod_cost;  ///< from the analysis
 #endif
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt;
   bool ldlt_analyzed = false;
+  bool ldlt_factorized = false;
   bool using_cholmod = false;
 
 #ifdef INCISE_HAVE_CHOLMOD
@@ -29,6 +31,7 @@ struct DirectFactorization::Backends {
     if (!cholmod_analyzed) {
       cholmod.analyzePattern(matrix);
       cholmod_analyzed = true;
+      cholmod_cost = {cholmod.cholmod().lnz, cholmod.cholmod().fl};
     }
     cholmod.factorize(matrix);
     using_cholmod = cholmod.info() == Eigen::Success;
@@ -44,7 +47,8 @@ struct DirectFactorization::Backends {
       ldlt_analyzed = true;
     }
     ldlt.factorize(matrix);
-    return ldlt.info() == Eigen::Success;
+    ldlt_factorized = ldlt.info() == Eigen::Success;
+    return ldlt_factorized;
   }
 };
 
@@ -87,6 +91,7 @@ void DirectFactorization::reset_pattern() {
   backends_->cholmod_analyzed = false;
 #endif
   backends_->ldlt_analyzed = false;
+  backends_->ldlt_factorized = false;
 }
 
 bool DirectFactorization::factorize(const SparseMatrix& matrix) {
@@ -114,6 +119,27 @@ Eigen::VectorXd DirectFactorization::solve(const Eigen::VectorXd& rhs) const {
   }
 #endif
   return backends_->ldlt.solve(rhs);
+}
+
+DirectFactorization::Cost DirectFactorization::cost() const {
+#ifdef INCISE_HAVE_CHOLMOD
+  if (backends_->using_cholmod) {
+    return backends_->cholmod_cost;
+  }
+#endif
+  if (!backends_->ldlt_factorized) {
+    return {};
+  }
+  const auto l = backends_->ldlt.matrixL();
+  const SparseMatrix& factor = l.nestedExpression();
+  Cost cost;
+  cost.nonzeros = static_cast<double>(factor.nonZeros());
+  for (Eigen::Index c = 0; c < factor.outerSize(); ++c) {
+    const auto column =
+        static_cast<double>(factor.outerIndexPtr()[c + 1] - factor.outerIndexPtr()[c]);
+    cost.flops += column * column;
+  }
+  return cost;
 }
 
 std::string DirectFactorization::backend() const {

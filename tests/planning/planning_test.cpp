@@ -633,6 +633,47 @@ TEST(Plan, EveryExamplePlanParsesAndNamesExistingSurfaces) {
   EXPECT_GE(plans, 2);
 }
 
+// Interactive nudges keep the Newton factorisation between predictions: after the first, a
+// small nudge is predicted with the factor in hand (conjugate gradients on the new Hessian) and
+// no factorisation of its own, to the same face as a cold prediction.
+TEST(PlanSession, SmallNudgesArePredictedWithTheFactorInHand) {
+  const std::filesystem::path dir =
+      write_head(std::filesystem::temp_directory_path() / "incise_plan_nudge_test");
+  const std::string text = R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
+    "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
+    "skin_prestrain": 0.05, "volume_weight": 10000,
+    "osteotomies": [{"point": [0, 0, 10], "normal": [0, 0, 1]}]
+  })";
+  { std::ofstream(dir / "plan.json") << text; }
+  PlanSession session(load_plan(dir / "plan.json"));
+  const int cap = session.segment_near(Vec3(0, 0, 0.05));
+  EXPECT_TRUE(session.predict(true).converged);
+  int factorizations_after_first = 0;
+  for (int step = 1; step <= 4; ++step) {
+    RigidMove move;
+    move.translation = Vec3(0, 0, 0.0005 * step);  // m: half a millimetre per nudge
+    ASSERT_TRUE(session.try_move(cap, move).empty()) << "step " << step;
+    const MinimizeResult& warm = session.predict(true);
+    EXPECT_TRUE(warm.converged) << "step " << step << ": " << warm.message;
+    EXPECT_GT(warm.iterations, 0);
+    if (step > 1) {
+      factorizations_after_first += warm.factorizations;
+      EXPECT_EQ(warm.lagged_steps, warm.iterations) << "step " << step;
+    }
+  }
+  EXPECT_EQ(factorizations_after_first, 0);
+  const std::vector<Vec3> warm_skin = session.skin_after();
+  EXPECT_TRUE(session.predict(false).converged);
+  const std::vector<Vec3> cold_skin = session.skin_after();
+  double largest_difference = 0.0;
+  for (std::size_t i = 0; i < cold_skin.size(); ++i) {
+    largest_difference = std::max(largest_difference, (cold_skin[i] - warm_skin[i]).norm());
+  }
+  EXPECT_LT(largest_difference, 1e-5);  // m
+  std::filesystem::remove_all(dir);
+}
+
 TEST(PlanSession, MovesAreTriedRefusedAtContactAndPredictedWarmAndTheSavedPlanReproducesThem) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_session_test");

@@ -41,6 +41,12 @@ struct MinimizeResult {
   int factorizations = 0;     ///< Newton: sparse Cholesky factorisations
   int lagged_steps = 0;       ///< Newton: steps solved with an earlier factorisation (and CG)
   int convexified_steps = 0;  ///< Newton: steps on the convexified Hessian (indefinite exact one)
+  /// Newton: where the time went (s): Hessian assembly, factorisations, solves with a factor
+  /// (lagged conjugate gradients included), energy evaluations of the line search.
+  double assembly_seconds = 0.0;
+  double factorization_seconds = 0.0;
+  double solve_seconds = 0.0;
+  double line_search_seconds = 0.0;
   double seconds = 0.0;
   std::string message;  ///< why it stopped
 };

@@ -9,6 +9,7 @@
 // per spring the transverse term only when stretched, per prism the Gauss-Newton part. Near the
 // minimum the steps are exact Newton steps and converge quadratically.
 
+#include <memory>
 #include <span>
 
 #include "incise/planning/minimize.hpp"
@@ -16,10 +17,44 @@
 
 namespace incise::planning {
 
+/// What one Newton minimisation leaves for the next on the same tissue and free points: the
+/// Hessian's pattern, analysed once, and the last factorisation, which preconditions the next
+/// run's steps (conjugate gradients on the new Hessian), so that a prediction after a small
+/// move needs no factorisation of its own. Rebuilt by itself when the tissue or the free points
+/// differ. One owner; not for two threads at once.
+class NewtonWorkspace {
+ public:
+  NewtonWorkspace();
+  ~NewtonWorkspace();
+  NewtonWorkspace(NewtonWorkspace&&) noexcept;
+  NewtonWorkspace& operator=(NewtonWorkspace&&) noexcept;
+
+  /// Factorises the Hessian at x (its convex form where the exact one is indefinite), so that
+  /// the next minimisation from near x starts with a factor. Throws when neither factorises.
+  void factorize_at(const TissueEnergy& energy, std::span<const Vec3> x,
+                    std::span<const char> free);
+  [[nodiscard]] bool has_factor() const;
+  /// Drops the factor (the pattern and its analysis stay): the next minimisation takes the
+  /// steps a fresh one would, to the last bit.
+  void forget_factor();
+
+  struct Data;  ///< newton.cpp's
+
+ private:
+  friend MinimizeResult minimize_newton(const TissueEnergy&, std::span<Vec3>, std::span<const char>,
+                                        const MinimizeOptions&, const MinimizeProgress&,
+                                        NewtonWorkspace*);
+  /// The data for this tissue and free set, rebuilt (factor dropped) when they differ.
+  Data& data_for(const LayeredTissue& tissue, std::span<const char> free);
+  std::unique_ptr<Data> data_;
+};
+
 /// Minimises energy.energy() over the points marked free (options.gradient_tolerance, N;
-/// options.max_iterations Newton steps). Every accepted step decreases the energy.
+/// options.max_iterations Newton steps). Every accepted step decreases the energy. With a
+/// workspace, starts from its factor and leaves the last one in it.
 MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
                                std::span<const char> free, const MinimizeOptions& options,
-                               const MinimizeProgress& progress = {});
+                               const MinimizeProgress& progress = {},
+                               NewtonWorkspace* workspace = nullptr);
 
 }  // namespace incise::planning

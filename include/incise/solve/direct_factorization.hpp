@@ -32,6 +32,15 @@ class DirectFactorization {
   /// "cholmod-supernodal" or "simplicial-ldlt": which backend factorised last.
   [[nodiscard]] std::string backend() const;
 
+  /// The last factor's size: its nonzeros and the floating-point operations that made it
+  /// (CHOLMOD's count from its analysis; for LDL^T, the sum of its columns' squared lengths).
+  /// What a caller weighs a new factorisation against more solves with this factor by.
+  struct Cost {
+    double nonzeros = 0.0;
+    double flops = 0.0;
+  };
+  [[nodiscard]] Cost cost() const;
+
  private:
   struct Backends;
   std::unique_ptr<Backends> backends_;
