@@ -1044,6 +1044,60 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
   EXPECT_NEAR(added["moves"][0]["translate"][2].get<double>(), 3.0, 1e-9);
 }
 
+// A plan with no osteotomy: a plane placed by hand in the window cuts the skull, the cap it
+// makes is nudged, and the saved plan (the plane and the move in it) is what incise plan runs.
+TEST(Cli, PlanViewCutsTheBoneByAPlanePlacedByHandAndSavesIt) {
+  if (!have_xvfb()) {
+    if (std::getenv("INCISE_REQUIRE_GL") != nullptr) {
+      FAIL() << "INCISE_REQUIRE_GL is set and xvfb-run is missing (apt-get install xvfb)";
+    }
+    GTEST_SKIP() << "no xvfb-run here";
+  }
+  const auto dir = test::scratch_dir("plan-view-cut");
+  write_sphere_obj(dir / "skin.obj", 50.0);
+  write_sphere_obj(dir / "bone.obj", 40.0);
+  std::ofstream(dir / "plan.json") << R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"}, "layers": 2
+  })";
+  const std::string saved = (dir / "saved.json").string();
+  // A plane tilted 10 degrees about x through (0, 0, 20) mm; then the cap lifted 1.5 mm.
+  std::ofstream(dir / "session.json") << R"({"plan": "plan.json", "requests": [
+    {"cut": {"point_mm": [0, 0, 20], "normal": [0, -0.17364817766693033, 0.984807753012208]}},
+    {"nudge": {"segment": 1, "translate_mm": [0, 0, 1.5], "rotate_deg": [0, 0, 0]}},
+    {"save": ")" + saved + R"("}]})";
+  const std::string command =
+      "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(INCISE_EXECUTABLE) + " plan " +
+      (dir / "plan.json").string() + " --view --size 800x600 --replay " +
+      (dir / "session.json").string() + " --record " + (dir / "recorded.json").string() + " >" +
+      (dir / "view.out").string() + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << slurp(dir / "view.out");
+  const std::string out = slurp(dir / "view.out");
+  // One prediction to start, one after the cut, one after the nudge.
+  EXPECT_NE(out.find("3 predictions"), std::string::npos) << out;
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "recorded.json"))["requests"],
+            nlohmann::json::parse(slurp(dir / "session.json"))["requests"]);
+  const auto plan = nlohmann::json::parse(slurp(saved));
+  ASSERT_EQ(plan["osteotomies"].size(), 1u);
+  EXPECT_NEAR(plan["osteotomies"][0]["point"][2].get<double>(), 20.0, 1e-12);
+  EXPECT_NEAR(plan["osteotomies"][0]["normal"][1].get<double>(), -0.17364817766693033, 1e-12);
+  ASSERT_EQ(plan["moves"].size(), 1u);
+  EXPECT_NEAR(plan["moves"][0]["translate"][2].get<double>(), 1.5, 1e-9);
+  // The move is the cap's: its point lies above the plane.
+  const Vec3 near(plan["moves"][0]["segment_near"][0].get<double>(),
+                  plan["moves"][0]["segment_near"][1].get<double>(),
+                  plan["moves"][0]["segment_near"][2].get<double>());
+  EXPECT_GT((near - Vec3(0, 0, 20)).dot(Vec3(0, -0.17364817766693033, 0.984807753012208)), 0.0);
+  const CommandResult run = incise("plan " + saved + " --out " + (dir / "out").string());
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  EXPECT_EQ(report["segments"].get<int>(), 2);
+  const std::size_t at = out.find("largest skin displacement ");
+  ASSERT_NE(at, std::string::npos);
+  const double shown = std::stod(out.substr(at + 26));
+  EXPECT_GT(shown, 0.5);
+  EXPECT_NEAR(report["max_displacement"].get<double>(), shown, 1e-3);
+}
+
 TEST(Cli, ReplayRefusesABadRecordingByLine) {
   const auto dir = test::scratch_dir("bad-replay");
   std::ofstream(dir / "bad.jsonl") << "{\"incise_session\": 1}\n{\"frame\": 0}\n";

@@ -47,6 +47,11 @@ nlohmann::json to_json(const PlanRequest& request) {
   if (request.kind == PlanRequest::Kind::kSave) {
     return {{"save", request.path.string()}};
   }
+  if (request.kind == PlanRequest::Kind::kCut) {
+    const Vec3& p = request.point_mm;
+    const Vec3& n = request.normal;
+    return {{"cut", {{"point_mm", {p.x(), p.y(), p.z()}}, {"normal", {n.x(), n.y(), n.z()}}}}};
+  }
   const Vec3& t = request.translate_mm;
   const Vec3& r = request.rotate_deg;
   return {{"nudge",
@@ -64,22 +69,26 @@ std::vector<PlanRequest> read_recording(const std::filesystem::path& path) {
     for (std::size_t i = 0; i < root.at("requests").size(); ++i) {
       const nlohmann::json& item = root["requests"][i];
       PlanRequest request;
+      const auto vec = [&](const nlohmann::json& object, const char* kind, const char* key) {
+        const auto v = object.at(key).get<std::vector<double>>();
+        if (v.size() != 3) {
+          throw InputError(path.string(), 0,
+                           fmt::format("requests[{}].{}.{}: three numbers", i, kind, key));
+        }
+        return Vec3(v[0], v[1], v[2]);
+      };
       if (item.contains("save")) {
         request.kind = PlanRequest::Kind::kSave;
         request.path = item["save"].get<std::string>();
+      } else if (item.contains("cut")) {
+        request.kind = PlanRequest::Kind::kCut;
+        request.point_mm = vec(item["cut"], "cut", "point_mm");
+        request.normal = vec(item["cut"], "cut", "normal");
       } else {
         const nlohmann::json& nudge = item.at("nudge");
         request.segment = nudge.at("segment").get<int>();
-        const auto vec = [&](const char* key) {
-          const auto v = nudge.at(key).get<std::vector<double>>();
-          if (v.size() != 3) {
-            throw InputError(path.string(), 0,
-                             fmt::format("requests[{}].nudge.{}: three numbers", i, key));
-          }
-          return Vec3(v[0], v[1], v[2]);
-        };
-        request.translate_mm = vec("translate_mm");
-        request.rotate_deg = vec("rotate_deg");
+        request.translate_mm = vec(nudge, "nudge", "translate_mm");
+        request.rotate_deg = vec(nudge, "nudge", "rotate_deg");
       }
       requests.push_back(request);
     }
@@ -159,6 +168,57 @@ void PlanViewer::save() {
   worker_->request(request);
 }
 
+void PlanViewer::start_placing_plane() {
+  placing_plane_ = true;
+  bone_view_ = true;
+  // Level on screen (the cut a surgeon draws first), tipped 30 degrees towards the camera so
+  // that it shows as a disc rather than edge on.
+  const Vec3 forward = (render_.camera.target - render_.camera.eye).normalized();
+  Vec3 up = render_.camera.up - render_.camera.up.dot(forward) * forward;
+  plane_normal_ = up.norm() > 0.0 ? up.normalized() : Vec3::UnitZ();
+  tilt_plane(forward.cross(plane_normal_).normalized(), -30.0);
+}
+
+void PlanViewer::tilt_plane(const Vec3& axis, double degrees) {
+  plane_normal_ =
+      (Eigen::AngleAxisd(degrees * 3.14159265358979323846 / 180.0, axis) * plane_normal_)
+          .normalized();
+}
+
+void PlanViewer::cut_at(const Vec3& point, const Vec3& normal) {
+  PlanRequest request;
+  request.kind = PlanRequest::Kind::kCut;
+  request.point_mm = point * 1e3;
+  request.normal = normal;
+  recorded_.push_back(request);
+  worker_->request(request);
+  placing_plane_ = false;
+}
+
+std::vector<Vec3> PlanViewer::plane_disc() const {
+  std::vector<Vec3> corners;
+  if (!plane_point_) {
+    return corners;
+  }
+  Bounds box;
+  for (const Vec3& p : state_.bone_corners) {
+    box.add(p);
+  }
+  const double radius = 0.6 * box.radius();
+  const Vec3 n = plane_normal_.normalized();
+  const Vec3 u = n.unitOrthogonal();
+  const Vec3 v = n.cross(u);
+  constexpr int kSides = 48;
+  for (int i = 0; i < kSides; ++i) {
+    const double a = 2.0 * 3.14159265358979323846 * i / kSides;
+    const double b = 2.0 * 3.14159265358979323846 * (i + 1) / kSides;
+    corners.push_back(*plane_point_);
+    corners.push_back(*plane_point_ + radius * (std::cos(a) * u + std::sin(a) * v));
+    corners.push_back(*plane_point_ + radius * (std::cos(b) * u + std::sin(b) * v));
+  }
+  return corners;
+}
+
 void PlanViewer::look_from(const Vec3& towards_camera) {
   Bounds box;
   for (const Vec3& p : state_.skin_before) {
@@ -183,7 +243,19 @@ void PlanViewer::handle_keys() {
     const bool shift = (key.mods & GLFW_MOD_SHIFT) != 0;
     const double mm = step_mm_;
     const double deg = step_deg_;
+    const Vec3 forward = (render_.camera.target - render_.camera.eye).normalized();
+    const Vec3 right = forward.cross(render_.camera.up).normalized();
     auto move_along = [&](const Vec3& axis) {
+      if (placing_plane_) {
+        // The plane being placed tilts instead: left and right about the view, up and down
+        // about the screen's horizontal.
+        if (axis.x() != 0.0) {
+          tilt_plane(forward, axis.x() * deg);
+        } else if (axis.y() != 0.0) {
+          tilt_plane(right, axis.y() * deg);
+        }
+        return;
+      }
       if (shift) {
         nudge(Vec3::Zero(), deg * axis);
       } else {
@@ -226,6 +298,19 @@ void PlanViewer::handle_keys() {
       case GLFW_KEY_3:
         look_from(Vec3::UnitZ());
         break;
+      case GLFW_KEY_O:
+        if (placing_plane_) {
+          placing_plane_ = false;
+        } else {
+          start_placing_plane();
+        }
+        break;
+      case GLFW_KEY_ENTER:
+      case GLFW_KEY_KP_ENTER:
+        if (placing_plane_ && plane_point_) {
+          cut_at(*plane_point_, plane_normal_);
+        }
+        break;
       case GLFW_KEY_S:
         save();
         break;
@@ -233,7 +318,11 @@ void PlanViewer::handle_keys() {
         save_screenshot("incise_plan_screenshot.png");
         break;
       case GLFW_KEY_ESCAPE:
-        glfwSetWindowShouldClose(window_, GLFW_TRUE);
+        if (placing_plane_) {
+          placing_plane_ = false;
+        } else {
+          glfwSetWindowShouldClose(window_, GLFW_TRUE);
+        }
         break;
       default:
         break;
@@ -260,7 +349,14 @@ void PlanViewer::handle_mouse() {
   const double nx = 2.0 * x / std::max(width, 1) - 1.0;
   const double ny = 1.0 - 2.0 * y / std::max(height, 1);
   const Ray ray = cursor_ray(render_.camera, aspect(), nx, ny);
-  if (free && left && !dragging_ && !drag_anchor_ && bone_view_ && state_.ready && !state_.busy) {
+  if (placing_plane_ && !dragging_ && state_.ready) {
+    // The plane follows the bone point under the cursor.
+    if (const auto hit = pick_bone(ray)) {
+      plane_point_ = hit->point;
+    }
+  }
+  if (free && left && !dragging_ && !drag_anchor_ && bone_view_ && !placing_plane_ &&
+      state_.ready && !state_.busy) {
     // A press on the selected segment takes it.
     if (const auto hit = pick_bone(ray); hit && state_.bone_segment[hit->triangle] == selected_) {
       drag_anchor_ = hit->point;
@@ -300,9 +396,13 @@ void PlanViewer::handle_mouse() {
     if (!left && !right && !middle) {
       dragging_ = false;
       if (!moved_while_pressed_ && bone_view_) {
-        // A click on the bone picks its segment.
+        // A click on the bone cuts it there (placing a plane) or picks its segment.
         if (const auto hit = pick_bone(ray)) {
-          selected_ = state_.bone_segment[hit->triangle];
+          if (placing_plane_) {
+            cut_at(hit->point, plane_normal_);
+          } else {
+            selected_ = state_.bone_segment[hit->triangle];
+          }
         }
       }
     }
@@ -335,8 +435,12 @@ void PlanViewer::draw_scene() {
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     return;
   }
+  const int segments = static_cast<int>(state_.segment_volumes_mm3.size());
+  if (selected_ >= segments) {
+    selected_ = 0;  // a plane made fewer segments... or another plan
+  }
   if (state_.revision != drawn_revision_ || selected_ != drawn_selection_ ||
-      bone_view_ != drawn_bone_view_) {
+      bone_view_ != drawn_bone_view_ || placing_plane_) {
     ++surface_revision_;
     drawn_revision_ = state_.revision;
     drawn_selection_ = selected_;
@@ -363,8 +467,6 @@ void PlanViewer::draw_scene() {
         scalars[3 * t + static_cast<std::size_t>(c)] = value;
       }
     }
-    exterior.assign(soup.size(), 0);
-    input.triangles = soup;
     input.rest_positions = state_.bone_corners;
     input.positions = state_.bone_corners;
     if (drag_anchor_) {
@@ -379,6 +481,22 @@ void PlanViewer::draw_scene() {
       }
       input.positions = dragged_;
     }
+    if (placing_plane_ && plane_point_) {
+      // The plane being placed: a pale disc over the bone.
+      shown_.assign(input.positions.begin(), input.positions.end());
+      const std::vector<Vec3> disc = plane_disc();
+      for (std::size_t c = 0; c < disc.size(); c += 3) {
+        const auto first = static_cast<VertexId>(shown_.size());
+        shown_.insert(shown_.end(), disc.begin() + static_cast<std::ptrdiff_t>(c),
+                      disc.begin() + static_cast<std::ptrdiff_t>(c + 3));
+        soup.push_back({first, first + 1, first + 2});
+      }
+      scalars.resize(shown_.size(), 0.5);
+      input.rest_positions = shown_;
+      input.positions = shown_;
+    }
+    exterior.assign(soup.size(), 0);
+    input.triangles = soup;
     render_.scalar_range = {0.0, 1.0};
   } else {
     scalars.resize(state_.skin_after.size());
@@ -434,6 +552,18 @@ void PlanViewer::draw_panel() {
       const std::string largest = fmt::format("{:.2f} mm", state_.largest_displacement_mm);
       ImGui::SameLine(width - ImGui::CalcTextSize(largest.c_str()).x + 8.0F);
       ImGui::Text("%s", largest.c_str());
+    }
+    ImGui::Separator();
+    ImGui::Text("osteotomy planes: %d", state_.osteotomies);
+    if (placing_plane_) {
+      ImGui::TextWrapped(
+          "placing a plane (the pale disc): it goes through the bone under the cursor; the arrows "
+          "tilt it by the step in degrees; click the bone or press Enter to cut there.");
+      if (ImGui::Button("Cancel (O)")) {
+        placing_plane_ = false;
+      }
+    } else if (ImGui::Button("Place an osteotomy plane (O)")) {
+      start_placing_plane();
     }
     ImGui::Separator();
     ImGui::Text("segments (Tab; click one in the bone view)");

@@ -8,11 +8,16 @@
 // moves made, which `incise plan` then runs. A session records its nudges and saves, and a
 // recording replays to the same prediction, bit for bit.
 //
+// Osteotomy planes by hand: O (or the panel's button) shows a plane through the bone point
+// under the cursor, across the screen's vertical; the arrows tilt it (degrees); a click or
+// Enter cuts the bone there (the plan is prepared again with the plane: the worker's kCut), O
+// or Esc puts it away.
+//
 // Mouse (bone view): drag the selected segment to move it; click another to select it.
 // Keys: Tab / Shift+Tab select the next / previous segment; arrows move it along x and y,
 // Page Up / Down along z (mm); with Shift they rotate it about those axes (degrees); B shows the
-// bone or the skin; 1, 2, 3 look from the front, the side, above; S saves; P takes a picture;
-// Esc closes.
+// bone or the skin; 1, 2, 3 look from the front, the side, above; O places a plane; S saves;
+// P takes a picture; Esc closes.
 
 #include <deque>
 #include <filesystem>
@@ -62,6 +67,12 @@ class PlanViewer {
   void draw_panel();
   void nudge(const Vec3& translate_mm, const Vec3& rotate_deg);
   void save();
+  void start_placing_plane();
+  /// Tilts the plane being placed by `degrees` about `axis` (a unit vector).
+  void tilt_plane(const Vec3& axis, double degrees);
+  void cut_at(const Vec3& point, const Vec3& normal);
+  /// The plane being placed as a disc of triangle corners (three per triangle) over the bone.
+  [[nodiscard]] std::vector<Vec3> plane_disc() const;
   void look_from(const Vec3& towards_camera);
   void save_screenshot(const std::filesystem::path& path);
   [[nodiscard]] double aspect() const;
@@ -81,6 +92,10 @@ class PlanViewer {
   std::vector<double> scalars_;  ///< per drawn vertex
   std::vector<std::uint8_t> exterior_;
   std::vector<Vec3> dragged_;  ///< m: the bone's corners with a dragged segment moved
+  std::vector<Vec3> shown_;    ///< m: what the bone view draws (the bone, a plane being placed)
+  bool placing_plane_ = false;
+  Vec3 plane_normal_ = Vec3::UnitZ();
+  std::optional<Vec3> plane_point_;  ///< m: the bone point under the cursor
   RenderOptions render_;
   bool camera_fitted_ = false;
   bool bone_view_ = false;

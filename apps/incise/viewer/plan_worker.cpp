@@ -6,6 +6,7 @@
 #include <chrono>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <utility>
 
 #include "incise/core/atomic_file.hpp"
 #include "incise/core/error.hpp"
@@ -68,45 +69,50 @@ void PlanWorker::publish(const std::function<void(PlanState&)>& change) {
   }
 }
 
+void PlanWorker::prepare() {
+  auto session = std::make_unique<planning::PlanSession>(
+      plan_, [this](const std::string& stage, double fraction) {
+        publish([&](PlanState& s) {
+          s.status = fmt::format("preparing ({:.0f} %): {}", 100.0 * fraction, stage);
+        });
+      });
+  session_ = std::move(session);
+  const planning::BoneSegments& segments = session_->segments();
+  centres_.clear();
+  for (int segment = 0; segment < segments.count; ++segment) {
+    centres_.push_back(session_->segment_centre(segment));
+  }
+  // The plan's own moves are where a session starts, as poses about the segments' centres:
+  // R (x - c) + c + t = R (x - s) + s + t' with t' = t + c - s + R (s - c).
+  poses_.assign(static_cast<std::size_t>(segments.count), SegmentPose{});
+  for (std::size_t s = 0; s < poses_.size(); ++s) {
+    const planning::RigidMove& move = session_->moves()[s];
+    if (move.angle == 0.0 && move.translation == Vec3::Zero()) {
+      continue;
+    }
+    const Mat3 rotation = Eigen::AngleAxisd(move.angle, move.axis.normalized()).toRotationMatrix();
+    poses_[s].rotation = rotation;
+    poses_[s].translation_mm =
+        (move.translation + move.center - centres_[s] + rotation * (centres_[s] - move.center)) /
+        kMillimetre;
+  }
+  publish([&](PlanState& s) {
+    s.skin_triangles.assign(session_->skin_triangles().begin(), session_->skin_triangles().end());
+    s.skin_before = session_->skin_before();
+    s.bone_segment.assign(segments.triangle_segment.begin(), segments.triangle_segment.end());
+    s.segment_volumes_mm3.clear();
+    for (const double v : segments.volumes) {
+      s.segment_volumes_mm3.push_back(v / std::pow(kMillimetre, 3));
+    }
+    s.poses = poses_;
+    s.osteotomies = static_cast<int>(plan_.osteotomies.size());
+    s.status = "predicting...";
+  });
+}
+
 void PlanWorker::loop() {
   try {
-    session_ = std::make_unique<planning::PlanSession>(
-        plan_, [this](const std::string& stage, double fraction) {
-          publish([&](PlanState& s) {
-            s.status = fmt::format("preparing ({:.0f} %): {}", 100.0 * fraction, stage);
-          });
-        });
-    const planning::BoneSegments& segments = session_->segments();
-    centres_.clear();
-    for (int segment = 0; segment < segments.count; ++segment) {
-      centres_.push_back(session_->segment_centre(segment));
-    }
-    // The plan's own moves are where a session starts, as poses about the segments' centres:
-    // R (x - c) + c + t = R (x - s) + s + t' with t' = t + c - s + R (s - c).
-    poses_.assign(static_cast<std::size_t>(segments.count), SegmentPose{});
-    for (std::size_t s = 0; s < poses_.size(); ++s) {
-      const planning::RigidMove& move = session_->moves()[s];
-      if (move.angle == 0.0 && move.translation == Vec3::Zero()) {
-        continue;
-      }
-      const Mat3 rotation =
-          Eigen::AngleAxisd(move.angle, move.axis.normalized()).toRotationMatrix();
-      poses_[s].rotation = rotation;
-      poses_[s].translation_mm =
-          (move.translation + move.center - centres_[s] + rotation * (centres_[s] - move.center)) /
-          kMillimetre;
-    }
-    publish([&](PlanState& s) {
-      s.skin_triangles.assign(session_->skin_triangles().begin(), session_->skin_triangles().end());
-      s.skin_before = session_->skin_before();
-      s.bone_segment.assign(segments.triangle_segment.begin(), segments.triangle_segment.end());
-      s.segment_volumes_mm3.clear();
-      for (const double v : segments.volumes) {
-        s.segment_volumes_mm3.push_back(v / std::pow(kMillimetre, 3));
-      }
-      s.poses = poses_;
-      s.status = "predicting...";
-    });
+    prepare();
     predict();
   } catch (const std::exception& error) {
     publish([&](PlanState& s) {
@@ -136,6 +142,8 @@ void PlanWorker::loop() {
     try {
       if (next.kind == PlanRequest::Kind::kNudge) {
         nudge(next);
+      } else if (next.kind == PlanRequest::Kind::kCut) {
+        cut(next);
       } else {
         save(next.path);
       }
@@ -202,6 +210,39 @@ void PlanWorker::nudge(const PlanRequest& request) {
                                     request.segment, 100.0 * fraction)
                               : "predicting...";
   });
+  predict();
+}
+
+void PlanWorker::cut(const PlanRequest& request) {
+  if (!(request.normal.norm() > 0.0) || !request.point_mm.allFinite() ||
+      !request.normal.allFinite()) {
+    publish([&](PlanState& s) { s.status = "no cut: the plane needs a point and a normal"; });
+    return;
+  }
+  // The plan as it stands (its moves included), with one more plane: parsed as any plan is, so
+  // that Save writes it and incise plan runs it.
+  nlohmann::json plan = session_->plan_with_moves(nlohmann::json::parse(plan_text_));
+  if (!plan.contains("osteotomies")) {
+    plan["osteotomies"] = nlohmann::json::array();
+  }
+  const Vec3 normal = request.normal.normalized();
+  plan["osteotomies"].push_back(
+      {{"point", {request.point_mm.x(), request.point_mm.y(), request.point_mm.z()}},
+       {"normal", {normal.x(), normal.y(), normal.z()}}});
+  std::string text = plan.dump(2) + "\n";
+  planning::PlanDescription description = planning::parse_plan(text, plan_.file);
+  const planning::PlanDescription previous = std::exchange(plan_, std::move(description));
+  try {
+    prepare();
+  } catch (const std::exception& error) {
+    plan_ = previous;  // the session before the cut stays
+    publish([&](PlanState& s) {
+      s.status = std::string("no cut: ") + error.what();
+      s.osteotomies = static_cast<int>(plan_.osteotomies.size());
+    });
+    return;
+  }
+  plan_text_ = std::move(text);
   predict();
 }
 

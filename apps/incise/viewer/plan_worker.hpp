@@ -1,7 +1,8 @@
 #pragma once
 // The planning viewer's worker: a PlanSession on its own thread. It prepares the plan, then
-// runs requests one at a time (a segment nudged, the plan saved), predicting the soft tissue
-// after each move it accepts, warm-started; the window reads the latest published state.
+// runs requests one at a time (a segment nudged, an osteotomy plane added, the plan saved),
+// predicting the soft tissue after each change it accepts, warm-started after a nudge; the
+// window reads the latest published state.
 // Only this thread touches the session; the window's thread calls request() and state().
 // Requests run in order, so the same requests give the same predictions, bit for bit.
 
@@ -46,16 +47,22 @@ struct PlanState {
   std::vector<double> segment_volumes_mm3;
   std::vector<SegmentPose> poses;
   int predictions = 0;
+  int osteotomies = 0;  ///< the plan's planes, its own and those added by hand
 };
 
 /// A request: nudge a segment (translation in mm, rotation in degrees about the segment's
-/// centre along x, y, z, applied after its current pose), or save the plan with its moves.
+/// centre along x, y, z, applied after its current pose), cut the bone by one more osteotomy
+/// plane (through point_mm, across normal; the plan is prepared again with it, the moves made
+/// so far kept with the part that holds each moved segment's largest triangle), or save the
+/// plan with its planes and moves.
 struct PlanRequest {
-  enum class Kind { kNudge, kSave } kind = Kind::kNudge;
+  enum class Kind { kNudge, kCut, kSave } kind = Kind::kNudge;
   int segment = 0;
   Vec3 translate_mm = Vec3::Zero();
   Vec3 rotate_deg = Vec3::Zero();
-  std::filesystem::path path;  ///< kSave
+  Vec3 point_mm = Vec3::Zero();  ///< kCut
+  Vec3 normal = Vec3::UnitZ();   ///< kCut
+  std::filesystem::path path;    ///< kSave
 };
 
 class PlanWorker {
@@ -76,7 +83,10 @@ class PlanWorker {
  private:
   void loop();
   void publish(const std::function<void(PlanState&)>& change);
+  /// Prepares plan_ into a new session (the old one stays if it fails) and publishes it.
+  void prepare();
   void nudge(const PlanRequest& request);
+  void cut(const PlanRequest& request);
   void save(const std::filesystem::path& path);
   void predict();
 
