@@ -257,29 +257,18 @@ std::vector<Vec3> crossing_points(const std::array<Vec3, 3>& first,
   return points;
 }
 
-std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
-                                                     const BoneSegments& segments,
-                                                     std::span<const RigidMove> segment_moves,
-                                                     std::span<const CutPlane> input_planes,
-                                                     double tolerance) {
-  std::vector<CutPlane> planes(input_planes.begin(), input_planes.end());
-  for (CutPlane& plane : planes) {
+SegmentCuts segment_cuts(const SurfaceMesh& bone, const BoneSegments& segments,
+                         std::span<const CutPlane> input_planes, double tolerance) {
+  SegmentCuts result;
+  result.planes.assign(input_planes.begin(), input_planes.end());
+  for (CutPlane& plane : result.planes) {
     plane.normal.normalize();
   }
-  auto moved_segment = [&](int segment) {
-    const RigidMove& m = segment_moves[static_cast<std::size_t>(segment)];
-    return m.angle != 0.0 || m.translation != Vec3::Zero();
-  };
-  const std::vector<std::array<Vec3, 3>> moved = moved_triangles(bone, segments, segment_moves);
-
+  result.tolerance = tolerance;
+  const std::vector<CutPlane>& planes = result.planes;
   // Segments that share an edge were cut apart by a plane. For each such pair and each plane
   // with the two on opposite sides: the band about the plane that holds the triangles along
   // their cut (they straddle it by up to an edge), widened by the tolerance.
-  struct Cut {
-    std::size_t plane = 0;
-    double half_width = 0.0;  ///< m
-    double side[2] = {0.0, 0.0};
-  };
   std::map<std::pair<int, int>, std::vector<int>> cut_triangles;
   for (const auto& [edge, triangles] : triangles_by_edge(bone)) {
     for (std::size_t i = 0; i < triangles.size(); ++i) {
@@ -294,7 +283,6 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
       }
     }
   }
-  std::map<std::pair<int, int>, std::vector<Cut>> cuts;
   for (const auto& [pair, triangles] : cut_triangles) {
     for (std::size_t p = 0; p < planes.size(); ++p) {
       const CutPlane& plane = planes[p];
@@ -309,7 +297,7 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
       if ((side[0] >= 0.0) == (side[1] >= 0.0)) {
         continue;
       }
-      Cut cut;
+      SegmentCuts::Cut cut;
       cut.plane = p;
       cut.side[0] = side[0];
       cut.side[1] = side[1];
@@ -321,9 +309,53 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
         }
       }
       cut.half_width += tolerance;
-      cuts[pair].push_back(cut);
+      // Triangles on the cut straddle it by up to an edge before any move: the depth a move
+      // makes is measured beyond that.
+      for (int which = 0; which < 2; ++which) {
+        const int segment = which == 0 ? pair.first : pair.second;
+        const double sign = cut.side[which] >= 0.0 ? 1.0 : -1.0;
+        for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
+          if (segments.triangle_segment[t] != segment) {
+            continue;
+          }
+          for (const VertexId v : bone.triangles[t]) {
+            const Vec3 offset = bone.points[static_cast<std::size_t>(v)] - plane.point;
+            const double along = offset.dot(plane.normal);
+            if ((offset - along * plane.normal).norm() <= plane.radius) {
+              cut.before[which] = std::max(cut.before[which], -sign * along);
+            }
+          }
+        }
+      }
+      result.cuts[pair].push_back(cut);
     }
   }
+  return result;
+}
+
+std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
+                                                     const BoneSegments& segments,
+                                                     std::span<const RigidMove> segment_moves,
+                                                     std::span<const CutPlane> planes,
+                                                     double tolerance) {
+  return find_interpenetrations(bone, segments, segment_moves,
+                                segment_cuts(bone, segments, planes, tolerance));
+}
+
+std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
+                                                     const BoneSegments& segments,
+                                                     std::span<const RigidMove> segment_moves,
+                                                     const SegmentCuts& segment_cut_bands) {
+  const std::vector<CutPlane>& planes = segment_cut_bands.planes;
+  const double tolerance = segment_cut_bands.tolerance;
+  const auto& cuts = segment_cut_bands.cuts;
+  using Cut = SegmentCuts::Cut;
+  auto moved_segment = [&](int segment) {
+    const RigidMove& m = segment_moves[static_cast<std::size_t>(segment)];
+    return m.angle != 0.0 || m.translation != Vec3::Zero();
+  };
+  const std::vector<std::array<Vec3, 3>> moved = moved_triangles(bone, segments, segment_moves);
+
   // Whether two moved triangles lie within the band of a cut their segments share.
   auto on_their_cut = [&](std::size_t ta, std::size_t tb, const std::pair<int, int>& pair) {
     const auto found = cuts.find(pair);
@@ -353,9 +385,12 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
     return false;
   };
 
+  // Triangles of moved segments against all others (a still segment cannot cross another
+  // still one: the moves are the news): boxes of the moved ones against themselves and against
+  // the still ones.
   using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
-  std::vector<Box> boxes;
-  boxes.reserve(moved.size());
+  std::vector<Box> moving_boxes;
+  std::vector<Box> still_boxes;
   for (std::size_t t = 0; t < moved.size(); ++t) {
     double low[3];
     double high[3];
@@ -363,15 +398,16 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
       low[k] = std::min({moved[t][0][k], moved[t][1][k], moved[t][2][k]});
       high[k] = std::max({moved[t][0][k], moved[t][1][k], moved[t][2][k]});
     }
-    boxes.emplace_back(low, high, static_cast<int>(t));
+    (moved_segment(segments.triangle_segment[t]) ? moving_boxes : still_boxes)
+        .emplace_back(low, high, static_cast<int>(t));
   }
   std::map<std::pair<int, int>, int> crossings;
-  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), [&](const Box& a, const Box& b) {
+  const auto check = [&](const Box& a, const Box& b) {
     const auto ta = static_cast<std::size_t>(a.info());
     const auto tb = static_cast<std::size_t>(b.info());
     const int sa = segments.triangle_segment[ta];
     const int sb = segments.triangle_segment[tb];
-    if (sa == sb || (!moved_segment(sa) && !moved_segment(sb))) {
+    if (sa == sb) {
       return;
     }
     for (VertexId u : bone.triangles[ta]) {
@@ -394,7 +430,10 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
         !on_their_cut(ta, tb, pair)) {
       ++crossings[pair];
     }
-  });
+  };
+  CGAL::box_self_intersection_d(moving_boxes.begin(), moving_boxes.end(), check);
+  CGAL::box_intersection_d(moving_boxes.begin(), moving_boxes.end(), still_boxes.begin(),
+                           still_boxes.end(), check);
 
   std::set<std::pair<int, int>> candidates;
   for (const auto& [pair, list] : cuts) {
@@ -424,19 +463,18 @@ std::vector<Interpenetration> find_interpenetrations(const SurfaceMesh& bone,
           continue;
         }
         const double sign = cut.side[which] >= 0.0 ? 1.0 : -1.0;
-        double before = 0.0;
+        const double before = cut.before[which];
         double after = 0.0;
         for (std::size_t t = 0; t < bone.triangles.size(); ++t) {
           if (segments.triangle_segment[t] != segment) {
             continue;
           }
           for (int c = 0; c < 3; ++c) {
-            const Vec3& original = bone.points[static_cast<std::size_t>(
-                bone.triangles[t][static_cast<std::size_t>(c)])];
-            const Vec3 offset = original - plane.point;
+            const Vec3 offset = bone.points[static_cast<std::size_t>(
+                                    bone.triangles[t][static_cast<std::size_t>(c)])] -
+                                plane.point;
             const double along = offset.dot(plane.normal);
             if ((offset - along * plane.normal).norm() <= plane.radius) {
-              before = std::max(before, -sign * along);
               after = std::max(
                   after,
                   -sign * (moved[t][static_cast<std::size_t>(c)] - plane.point).dot(plane.normal));

@@ -67,6 +67,7 @@ struct PlanSession::State {
   PreparedSurface skin;
   PreparedSurface bone;
   BoneSegments segments;
+  SegmentCuts cuts;              ///< where the segments were cut apart, for contact checks
   std::vector<RigidMove> moves;  ///< one per segment
   LayeredTissue tissue;
   EquilibriumReport balance;
@@ -138,8 +139,9 @@ PlanSession::PlanSession(const PlanDescription& plan, const PlanProgress& progre
     s.moves[static_cast<std::size_t>(segment)] = move;
     moved_segments.push_back(segment);
   }
-  const std::vector<Interpenetration> overlaps = find_interpenetrations(
-      s.bone.surface, s.segments, s.moves, plan.osteotomies, plan.contact_tolerance);
+  s.cuts = segment_cuts(s.bone.surface, s.segments, plan.osteotomies, plan.contact_tolerance);
+  const std::vector<Interpenetration> overlaps =
+      find_interpenetrations(s.bone.surface, s.segments, s.moves, s.cuts);
   if (!overlaps.empty()) {
     std::string list;
     for (const Interpenetration& o : overlaps) {
@@ -373,8 +375,8 @@ std::vector<Interpenetration> PlanSession::try_move(int segment, const RigidMove
   }
   std::vector<RigidMove> trial = s.moves;
   trial[static_cast<std::size_t>(segment)] = move;
-  std::vector<Interpenetration> overlaps = find_interpenetrations(
-      s.bone.surface, s.segments, trial, s.plan.osteotomies, s.plan.contact_tolerance);
+  std::vector<Interpenetration> overlaps =
+      find_interpenetrations(s.bone.surface, s.segments, trial, s.cuts);
   if (overlaps.empty()) {
     s.moves = std::move(trial);
   }

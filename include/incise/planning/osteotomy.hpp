@@ -13,6 +13,7 @@
 // Segments sliding along their cut, or hinged open about it, only touch there: contact.
 
 #include <limits>
+#include <map>
 #include <span>
 #include <string>
 #include <vector>
@@ -80,6 +81,26 @@ struct Interpenetration {
 [[nodiscard]] std::vector<Vec3> crossing_points(const std::array<Vec3, 3>& first,
                                                 const std::array<Vec3, 3>& second);
 
+/// Where the segments were cut apart, for the interpenetration checks: per pair of segments
+/// that share cut edges, each plane with the two on opposite sides, the band about it that
+/// holds their cut (its half width, m, the tolerance included) and how far each of the two
+/// reached beyond it before any move. Depends on the bone, its segments and the planes only: a
+/// planning session computes it once for all the moves it tries.
+struct SegmentCuts {
+  struct Cut {
+    std::size_t plane = 0;
+    double half_width = 0.0;        ///< m
+    double side[2] = {0.0, 0.0};    ///< which side each of the pair lies on (its sign)
+    double before[2] = {0.0, 0.0};  ///< m: how far each reaches beyond the plane unmoved
+  };
+  std::vector<CutPlane> planes;  ///< the planes, normals made unit
+  double tolerance = 0.0;        ///< m
+  std::map<std::pair<int, int>, std::vector<Cut>> cuts;
+};
+
+[[nodiscard]] SegmentCuts segment_cuts(const SurfaceMesh& bone, const BoneSegments& segments,
+                                       std::span<const CutPlane> planes, double tolerance = 1e-6);
+
 /// Pairs of segments, at least one of them moved, whose moved triangles cross where they did
 /// not before the move (exact predicates; triangles that share a vertex are not compared)
 /// outside the band about a cut the two share (the band holds the triangles along the cut,
@@ -91,5 +112,9 @@ struct Interpenetration {
 [[nodiscard]] std::vector<Interpenetration> find_interpenetrations(
     const SurfaceMesh& bone, const BoneSegments& segments, std::span<const RigidMove> segment_moves,
     std::span<const CutPlane> planes, double tolerance = 1e-6);
+/// The same with the cuts computed beforehand (segment_cuts of the same bone and segments).
+[[nodiscard]] std::vector<Interpenetration> find_interpenetrations(
+    const SurfaceMesh& bone, const BoneSegments& segments, std::span<const RigidMove> segment_moves,
+    const SegmentCuts& cuts);
 
 }  // namespace incise::planning
