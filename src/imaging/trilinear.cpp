@@ -120,38 +120,51 @@ bool project_to_isosurface(const VolumeImage& image, double iso, Vec3& grid_mm, 
   return false;
 }
 
-std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso) {
-  // Runs of voxels at most iso along i, joined (union-find) with the runs they overlap in the
-  // rows beside them (j - 1 and k - 1): the regions are unions of runs. A flood fill voxel by
-  // voxel took 3.7-4.6 s on a 512 x 512 x 300 CT (random access over 78M voxels, one
-  // thread); runs are found slice by slice in parallel, and a head has a few per row.
-  // (not a structured binding: clang 14 cannot capture those in the lambdas below)
-  const std::size_t nx = image.size[0];
-  const std::size_t ny = image.size[1];
-  const std::size_t nz = image.size[2];
+namespace {
+
+/// The 6-connected regions of voxels on one side of `iso` (above it, or at most it), as runs
+/// along i joined (union-find) with the runs they overlap in the rows beside them (j - 1 and
+/// k - 1): a region is a union of runs. A flood fill voxel by voxel took 3.7-4.6 s on a 512 x
+/// 512 x 300 CT (random access over 78M voxels, one thread); runs are found slice by slice in
+/// parallel, and a head has a few per row.
+struct RegionRuns {
   struct Run {
     std::uint32_t begin = 0;  // i of the first voxel
     std::uint32_t end = 0;    // one past the last
   };
-  std::vector<std::vector<Run>> slice_runs(nz);
-  std::vector<std::vector<std::size_t>> slice_rows(nz);  // per slice: each row's first run
+  std::vector<std::vector<Run>> slice_runs;
+  std::vector<std::vector<std::size_t>> slice_rows;  ///< per slice: each row's first run
+  std::vector<std::size_t> first_of_slice;           ///< the id of each slice's first run
+  std::vector<std::size_t> region;                   ///< per run id: its region's root run
+};
+
+RegionRuns region_runs(const VolumeImage& image, double iso, bool above) {
+  // (not a structured binding: clang 14 cannot capture those in the lambdas below)
+  const std::size_t nx = image.size[0];
+  const std::size_t ny = image.size[1];
+  const std::size_t nz = image.size[2];
+  using Run = RegionRuns::Run;
+  RegionRuns result;
+  result.slice_runs.resize(nz);
+  result.slice_rows.resize(nz);
+  const auto inside = [above, iso](float value) { return above ? value > iso : !(value > iso); };
   tbb::parallel_for(std::size_t{0}, nz, [&](std::size_t k) {
-    std::vector<Run>& runs = slice_runs[k];
-    std::vector<std::size_t>& rows = slice_rows[k];
+    std::vector<Run>& runs = result.slice_runs[k];
+    std::vector<std::size_t>& rows = result.slice_rows[k];
     rows.reserve(ny + 1);
     for (std::size_t j = 0; j < ny; ++j) {
       rows.push_back(runs.size());
       const float* row = &image.values[nx * (j + ny * k)];
       std::size_t i = 0;
       while (i < nx) {
-        while (i < nx && row[i] > iso) {
+        while (i < nx && !inside(row[i])) {
           ++i;
         }
         if (i == nx) {
           break;
         }
         const std::size_t begin = i;
-        while (i < nx && !(row[i] > iso)) {
+        while (i < nx && inside(row[i])) {
           ++i;
         }
         runs.push_back({static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(i)});
@@ -159,11 +172,12 @@ std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso) {
     }
     rows.push_back(runs.size());
   });
-  std::vector<std::size_t> first_of_slice(nz + 1, 0);
+  result.first_of_slice.assign(nz + 1, 0);
   for (std::size_t k = 0; k < nz; ++k) {
-    first_of_slice[k + 1] = first_of_slice[k] + slice_runs[k].size();
+    result.first_of_slice[k + 1] = result.first_of_slice[k] + result.slice_runs[k].size();
   }
-  std::vector<std::size_t> parent(first_of_slice[nz]);
+  std::vector<std::size_t>& parent = result.region;
+  parent.resize(result.first_of_slice[nz]);
   for (std::size_t r = 0; r < parent.size(); ++r) {
     parent[r] = r;
   }
@@ -198,52 +212,89 @@ std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso) {
     }
   };
   for (std::size_t k = 0; k < nz; ++k) {
-    const std::vector<std::size_t>& rows = slice_rows[k];
+    const std::vector<std::size_t>& rows = result.slice_rows[k];
     for (std::size_t j = 0; j < ny; ++j) {
       if (j > 0) {
-        join_rows(slice_runs[k], rows[j], rows[j + 1], first_of_slice[k], slice_runs[k],
-                  rows[j - 1], rows[j], first_of_slice[k]);
+        join_rows(result.slice_runs[k], rows[j], rows[j + 1], result.first_of_slice[k],
+                  result.slice_runs[k], rows[j - 1], rows[j], result.first_of_slice[k]);
       }
       if (k > 0) {
-        const std::vector<std::size_t>& below = slice_rows[k - 1];
-        join_rows(slice_runs[k], rows[j], rows[j + 1], first_of_slice[k], slice_runs[k - 1],
-                  below[j], below[j + 1], first_of_slice[k - 1]);
-      }
-    }
-  }
-  // A region is outside when one of its runs touches the scan's border.
-  std::vector<std::uint8_t> root_outside(parent.size(), 0);
-  for (std::size_t k = 0; k < nz; ++k) {
-    for (std::size_t j = 0; j < ny; ++j) {
-      const bool border_row = j == 0 || k == 0 || j + 1 == ny || k + 1 == nz;
-      for (std::size_t r = slice_rows[k][j]; r < slice_rows[k][j + 1]; ++r) {
-        const Run& run = slice_runs[k][r];
-        if (border_row || run.begin == 0 || run.end == nx) {
-          root_outside[find(first_of_slice[k] + r)] = 1;
-        }
+        const std::vector<std::size_t>& below = result.slice_rows[k - 1];
+        join_rows(result.slice_runs[k], rows[j], rows[j + 1], result.first_of_slice[k],
+                  result.slice_runs[k - 1], below[j], below[j + 1], result.first_of_slice[k - 1]);
       }
     }
   }
   for (std::size_t r = 0; r < parent.size(); ++r) {
-    parent[r] = find(r);  // flat, so the parallel fill below only reads
+    parent[r] = find(r);  // flat, so that readers in parallel only read
   }
-  std::vector<std::uint8_t> outside(image.values.size(), 0);
+  return result;
+}
+
+/// A mask over the image: 1 on the voxels of the runs whose region `marked` says.
+std::vector<std::uint8_t> mask_of(const VolumeImage& image, const RegionRuns& runs,
+                                  const std::vector<std::uint8_t>& marked) {
+  const std::size_t nx = image.size[0];
+  const std::size_t ny = image.size[1];
+  const std::size_t nz = image.size[2];
+  std::vector<std::uint8_t> mask(image.values.size(), 0);
   tbb::parallel_for(std::size_t{0}, nz, [&](std::size_t k) {
     for (std::size_t j = 0; j < ny; ++j) {
-      for (std::size_t r = slice_rows[k][j]; r < slice_rows[k][j + 1]; ++r) {
-        if (root_outside[parent[first_of_slice[k] + r]] != 0) {
-          const Run& run = slice_runs[k][r];
-          std::fill_n(outside.begin() + static_cast<std::ptrdiff_t>(nx * (j + ny * k) + run.begin),
+      for (std::size_t r = runs.slice_rows[k][j]; r < runs.slice_rows[k][j + 1]; ++r) {
+        if (marked[runs.region[runs.first_of_slice[k] + r]] != 0) {
+          const RegionRuns::Run& run = runs.slice_runs[k][r];
+          std::fill_n(mask.begin() + static_cast<std::ptrdiff_t>(nx * (j + ny * k) + run.begin),
                       run.end - run.begin, std::uint8_t{1});
         }
       }
     }
   });
-  return outside;
+  return mask;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso) {
+  const RegionRuns runs = region_runs(image, iso, /*above=*/false);
+  const std::size_t nx = image.size[0];
+  const std::size_t ny = image.size[1];
+  const std::size_t nz = image.size[2];
+  // A region is outside when one of its runs touches the scan's border.
+  std::vector<std::uint8_t> root_outside(runs.region.size(), 0);
+  for (std::size_t k = 0; k < nz; ++k) {
+    for (std::size_t j = 0; j < ny; ++j) {
+      const bool border_row = j == 0 || k == 0 || j + 1 == ny || k + 1 == nz;
+      for (std::size_t r = runs.slice_rows[k][j]; r < runs.slice_rows[k][j + 1]; ++r) {
+        const RegionRuns::Run& run = runs.slice_runs[k][r];
+        if (border_row || run.begin == 0 || run.end == nx) {
+          root_outside[runs.region[runs.first_of_slice[k] + r]] = 1;
+        }
+      }
+    }
+  }
+  return mask_of(image, runs, root_outside);
+}
+
+std::vector<std::uint8_t> small_regions_above(const VolumeImage& image, double iso,
+                                              std::size_t least_voxels) {
+  const RegionRuns runs = region_runs(image, iso, /*above=*/true);
+  std::vector<std::size_t> voxels(runs.region.size(), 0);
+  for (std::size_t k = 0; k < runs.slice_runs.size(); ++k) {
+    for (std::size_t r = 0; r < runs.slice_runs[k].size(); ++r) {
+      const RegionRuns::Run& run = runs.slice_runs[k][r];
+      voxels[runs.region[runs.first_of_slice[k] + r]] += run.end - run.begin;
+    }
+  }
+  std::vector<std::uint8_t> small(runs.region.size(), 0);
+  for (std::size_t r = 0; r < runs.region.size(); ++r) {
+    small[r] = runs.region[r] == r && voxels[r] < least_voxels ? 1 : 0;
+  }
+  return mask_of(image, runs, small);
 }
 
 IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wanted,
-                           std::uint64_t seed, const std::vector<std::uint8_t>* outside) {
+                           std::uint64_t seed, const std::vector<std::uint8_t>* outside,
+                           const std::vector<std::uint8_t>* small_above) {
   IsoCrossings result;
   const std::size_t nz = image.size[2];
   result.total = tbb::parallel_reduce(
@@ -271,27 +322,41 @@ IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wan
     const auto here = static_cast<std::size_t>(edge / 3);
     return image.values[here] > iso ? here + step[static_cast<std::size_t>(edge % 3)] : here;
   };
-  using Found = std::pair<std::vector<Vec3>, std::vector<std::uint8_t>>;
+  auto high_voxel = [&](std::uint64_t edge) {
+    const auto here = static_cast<std::size_t>(edge / 3);
+    return image.values[here] > iso ? here : here + step[static_cast<std::size_t>(edge % 3)];
+  };
+  struct Found {
+    std::vector<Vec3> points;
+    std::vector<std::uint8_t> enclosed;
+    std::vector<std::uint8_t> on_small_region;
+  };
   Found found = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, nz), Found{},
       [&](const tbb::blocked_range<std::size_t>& r, Found part) {
         for_each_crossing(image, iso, r.begin(), r.end(), [&](std::uint64_t edge, const Vec3& p) {
           if (mix(edge ^ mix(seed)) <= threshold) {
-            part.first.push_back(p);
+            part.points.push_back(p);
             if (outside != nullptr) {
-              part.second.push_back((*outside)[low_voxel(edge)] == 0 ? 1 : 0);
+              part.enclosed.push_back((*outside)[low_voxel(edge)] == 0 ? 1 : 0);
+            }
+            if (small_above != nullptr) {
+              part.on_small_region.push_back((*small_above)[high_voxel(edge)]);
             }
           }
         });
         return part;
       },
       [](Found a, Found b) {
-        a.first.insert(a.first.end(), b.first.begin(), b.first.end());
-        a.second.insert(a.second.end(), b.second.begin(), b.second.end());
+        a.points.insert(a.points.end(), b.points.begin(), b.points.end());
+        a.enclosed.insert(a.enclosed.end(), b.enclosed.begin(), b.enclosed.end());
+        a.on_small_region.insert(a.on_small_region.end(), b.on_small_region.begin(),
+                                 b.on_small_region.end());
         return a;
       });
-  result.points = std::move(found.first);
-  result.enclosed = std::move(found.second);
+  result.points = std::move(found.points);
+  result.enclosed = std::move(found.enclosed);
+  result.on_small_region = std::move(found.on_small_region);
   return result;
 }
 

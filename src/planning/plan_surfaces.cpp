@@ -122,6 +122,7 @@ nlohmann::json distance_report(const IsosurfaceDistance& d, double bound) {
   nlohmann::json from = side(d.isosurface_to_model);
   from["samples_on_surfaces_left_out"] = d.isosurface_to_model.left_out;
   from["samples_on_enclosed_cavities"] = d.isosurface_to_model.enclosed;
+  from["samples_on_small_regions"] = d.isosurface_to_model.on_small_regions;
   from["samples_at_scan_border"] = d.isosurface_to_model.at_scan_border;
   return {{"bound", bound},
           {"bound_means",
@@ -139,8 +140,10 @@ nlohmann::json distance_report(const IsosurfaceDistance& d, double bound) {
            "samples within a voxel of the scan border (the surface is open where the tissue "
            "leaves the scanned region); the isosurface's points on the walls of enclosed "
            "regions (below the iso value and cut off from the scan's border: airways, sinuses, "
-           "marrow), which the model's outer surface does not represent; and those nearest a "
-           "component left out"}};
+           "marrow), which the model's outer surface does not represent; those around regions "
+           "above the iso value smaller than the model holds (specks of cancellous bone or "
+           "noise: below min_segment_volume for the bone, facet_size cubed for the skin); and "
+           "those nearest a component left out"}};
 }
 
 }  // namespace
@@ -214,10 +217,13 @@ PlanSurfaces surfaces_from_image(const PlanDescription& plan, const PlanProgress
                                   high);
   const Kept skin_kept = keep_body(skin_parts);
   const Kept bone_kept = keep_bones(bone_parts, least_bone);
-  const IsosurfaceDistance skin_distance = measure_isosurface_distance(
-      image, plan.skin_iso, skin.surface, skin_kept.keep, kDistanceSamples, options.seed);
+  const double smallest_meshed = std::pow(options.facet_size, 3);  // mm^3
+  const IsosurfaceDistance skin_distance =
+      measure_isosurface_distance(image, plan.skin_iso, skin.surface, skin_kept.keep,
+                                  kDistanceSamples, options.seed, smallest_meshed);
   const IsosurfaceDistance bone_distance = measure_isosurface_distance(
-      image, plan.bone_iso, bone.surface, bone_kept.keep, kDistanceSamples, options.seed + 1);
+      image, plan.bone_iso, bone.surface, bone_kept.keep, kDistanceSamples, options.seed + 1,
+      std::max(least_bone, smallest_meshed));
   result.skin = in_metres(select_triangles(skin.surface, skin_kept.keep));
   result.bone = in_metres(select_triangles(bone.surface, bone_kept.keep));
   result.seconds_check = seconds_since(stage);

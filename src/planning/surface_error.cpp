@@ -117,7 +117,8 @@ bool near_scan_border(const imaging::VolumeImage& image, const Vec3& grid_mm) {
 IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image, double iso,
                                                const SurfaceMesh& surface,
                                                std::span<const char> keep_triangle,
-                                               std::size_t samples, std::uint64_t seed) {
+                                               std::size_t samples, std::uint64_t seed,
+                                               double least_region_mm3) {
   IsosurfaceDistance result;
   // The surface in the grid's frame, where the image is sampled.
   std::vector<Vec3> grid_points(surface.points.size());
@@ -130,8 +131,18 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
   // is the body's (or the bones') outer surface, and the nearest model point to a cavity's wall
   // says nothing about the model's accuracy.
   const std::vector<std::uint8_t> outside = imaging::outside_of(image, iso);
+  // So are crossings around specks above iso smaller than the model holds: unmeshed (below
+  // the mesher's size) or left out (below the plan's least segment), they are not the model's
+  // error. On the 256 phantom, cancellous bone's specks made the bone's p99 2.2 mm.
+  const double voxel_mm3 = image.spacing.x() * image.spacing.y() * image.spacing.z();
+  const auto least_voxels = least_region_mm3 > 0.0 && voxel_mm3 > 0.0
+                                ? static_cast<std::size_t>(std::ceil(least_region_mm3 / voxel_mm3))
+                                : std::size_t{0};
+  const std::vector<std::uint8_t> small =
+      least_voxels > 1 ? imaging::small_regions_above(image, iso, least_voxels)
+                       : std::vector<std::uint8_t>{};
   const imaging::IsoCrossings crossings =
-      imaging::iso_crossings(image, iso, samples, seed, &outside);
+      imaging::iso_crossings(image, iso, samples, seed, &outside, small.empty() ? nullptr : &small);
   result.isosurface_crossings = crossings.total;
   {
     const NearestTriangle nearest(grid_points, surface.triangles);
@@ -145,6 +156,10 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
         distance[i] = -3.0;
         return;
       }
+      if (!crossings.on_small_region.empty() && crossings.on_small_region[i] != 0) {
+        distance[i] = -4.0;
+        return;
+      }
       const NearestTriangle::Hit hit = nearest.closest(crossings.points[i]);
       if (keep_triangle[static_cast<std::size_t>(hit.triangle)] != 0) {
         distance[i] = (hit.point - crossings.points[i]).norm();
@@ -156,10 +171,13 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
         static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -2.0));
     const auto enclosed =
         static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -3.0));
+    const auto on_small =
+        static_cast<std::size_t>(std::count(distance.begin(), distance.end(), -4.0));
     std::erase_if(distance, [](double d) { return d < 0.0; });
     result.isosurface_to_model = summarize(std::move(distance));
     result.isosurface_to_model.left_out = left_out;
     result.isosurface_to_model.enclosed = enclosed;
+    result.isosurface_to_model.on_small_regions = on_small;
     result.isosurface_to_model.at_scan_border = at_border;
   }
 

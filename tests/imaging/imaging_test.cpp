@@ -512,6 +512,99 @@ TEST(Trilinear, OutsideIsWhatReachesTheScanBorderAndCavitiesAreEnclosed) {
   EXPECT_GT(outer, 100u);
 }
 
+/// Per voxel above iso: the number of voxels of its 6-connected region (0 elsewhere), by a
+/// breadth-first search: the independent answer small_regions_above is checked against.
+std::vector<std::size_t> region_sizes_by_search(const VolumeImage& image, double iso) {
+  const std::size_t nx = image.size[0];
+  const std::size_t ny = image.size[1];
+  const std::size_t nz = image.size[2];
+  std::vector<std::size_t> size(image.values.size(), 0);
+  std::vector<std::uint8_t> seen(image.values.size(), 0);
+  for (std::size_t start = 0; start < image.values.size(); ++start) {
+    if (seen[start] != 0 || !(image.values[start] > iso)) {
+      continue;
+    }
+    std::vector<std::size_t> region{start};
+    seen[start] = 1;
+    for (std::size_t next = 0; next < region.size(); ++next) {
+      const std::size_t v = region[next];
+      const std::size_t i = v % nx;
+      const std::size_t j = (v / nx) % ny;
+      const std::size_t k = v / (nx * ny);
+      const auto visit = [&](std::size_t w) {
+        if (seen[w] == 0 && image.values[w] > iso) {
+          seen[w] = 1;
+          region.push_back(w);
+        }
+      };
+      if (i > 0)
+        visit(v - 1);
+      if (i + 1 < nx)
+        visit(v + 1);
+      if (j > 0)
+        visit(v - nx);
+      if (j + 1 < ny)
+        visit(v + nx);
+      if (k > 0)
+        visit(v - nx * ny);
+      if (k + 1 < nz)
+        visit(v + nx * ny);
+    }
+    for (const std::size_t v : region) {
+      size[v] = region.size();
+    }
+  }
+  return size;
+}
+
+TEST(Trilinear, SmallRegionsAboveIsoAreTheSpecksAModelCannotHold) {
+  // Random blobs: many small regions above iso, some large winding ones.
+  for (const std::uint32_t seed : {4U, 5U}) {
+    VolumeImage image;
+    image.size = {31, 27, 19};
+    image.spacing = Vec3(1.0, 1.0, 2.0);
+    image.values.resize(31 * 27 * 19);
+    std::mt19937 random(seed);
+    std::uniform_real_distribution<float> uniform(0.0F, 1.0F);
+    for (float& v : image.values) {
+      v = uniform(random);
+    }
+    for (const double iso : {0.6, 0.75, 0.85}) {
+      const std::vector<std::size_t> sizes = region_sizes_by_search(image, iso);
+      for (const std::size_t least : {2UL, 5UL, 40UL}) {
+        const std::vector<std::uint8_t> small = small_regions_above(image, iso, least);
+        ASSERT_EQ(small.size(), sizes.size());
+        std::size_t marked = 0;
+        for (std::size_t v = 0; v < small.size(); ++v) {
+          const bool expected = sizes[v] > 0 && sizes[v] < least;
+          ASSERT_EQ(small[v] != 0, expected)
+              << "voxel " << v << " (region of " << sizes[v] << "), seed " << seed << ", iso "
+              << iso << ", least " << least;
+          marked += small[v];
+        }
+        if (least == 40) {
+          EXPECT_GT(marked, 0U) << "the case has small regions";
+        }
+      }
+    }
+  }
+  // A speck beside the phantom's bone: the crossings around it say so, the bone's do not.
+  VolumeImage image = phantom(2.0);
+  const auto n = image.size[0];
+  image.values[2 + n * (25 + n * 25)] = 3000.0F;  // one voxel at (4, 50, 50) mm, in soft tissue
+  const std::vector<std::uint8_t> outside = outside_of(image, 1000.0);
+  const std::vector<std::uint8_t> small = small_regions_above(image, 1000.0, 10);
+  const IsoCrossings crossings = iso_crossings(image, 1000.0, 1000000, 0, &outside, &small);
+  ASSERT_EQ(crossings.on_small_region.size(), crossings.points.size());
+  std::size_t on_speck = 0;
+  for (std::size_t c = 0; c < crossings.points.size(); ++c) {
+    const bool near_speck = (crossings.points[c] - Vec3(4.0, 50.0, 50.0)).norm() < 2.5;
+    EXPECT_EQ(crossings.on_small_region[c] != 0, near_speck) << crossings.points[c].transpose();
+    on_speck += near_speck ? 1 : 0;
+  }
+  EXPECT_EQ(on_speck, 6U);  // the six edges out of the voxel
+}
+
 TEST(Isosurface, DirectionAndOriginPlaceThePointsInPatientSpace) {
   VolumeImage image = phantom(3.0);
   image.origin = Vec3(100.0, -20.0, 7.0);

@@ -32,20 +32,30 @@ struct TrilinearSample {
 /// enclosed: airways, sinuses, the marrow inside a bone.
 [[nodiscard]] std::vector<std::uint8_t> outside_of(const VolumeImage& image, double iso);
 
+/// Per voxel: 1 where the value is above `iso` in a 6-connected region of fewer than
+/// `least_voxels` such voxels: specks (of cancellous bone, of noise) too small for a surface
+/// mesher of a coarser size to represent.
+[[nodiscard]] std::vector<std::uint8_t> small_regions_above(const VolumeImage& image, double iso,
+                                                            std::size_t least_voxels);
+
 struct IsoCrossings {
   std::vector<Vec3> points;  ///< mm, grid frame: a sample of the crossings
   /// Per point, with an `outside` mask only: 1 when the crossing bounds an enclosed region
   /// (its voxel at most iso is not outside).
   std::vector<std::uint8_t> enclosed;
+  /// Per point, with a `small_above` mask only: 1 when its voxel above iso is in a small region.
+  std::vector<std::uint8_t> on_small_region;
   std::size_t total = 0;  ///< crossings on the whole grid
 };
 
 /// Where the field crosses `iso` on the edges between neighbouring voxel centres: about
 /// `wanted` of them (every one when there are fewer), chosen by a hash of the edge so the
 /// choice is uniform over the surface's crossings and repeats for a `seed`. Parallel. With
-/// `outside` (outside_of's mask for the same iso), each point says whether it is enclosed.
+/// `outside` (outside_of's mask for the same iso), each point says whether it is enclosed; with
+/// `small_above` (small_regions_above's), whether it bounds a small region.
 [[nodiscard]] IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wanted,
                                          std::uint64_t seed = 0,
-                                         const std::vector<std::uint8_t>* outside = nullptr);
+                                         const std::vector<std::uint8_t>* outside = nullptr,
+                                         const std::vector<std::uint8_t>* small_above = nullptr);
 
 }  // namespace incise::imaging

@@ -46,14 +46,16 @@ struct SurfaceComponents {
                                            std::span<const char> keep_triangle);
 
 struct OneSidedDistance {
-  double max = 0.0;                ///< mm
-  double p99 = 0.0;                ///< mm: 99 % of the samples are nearer
-  double mean = 0.0;               ///< mm
-  std::size_t samples = 0;         ///< measured
-  std::size_t unresolved = 0;      ///< model samples the gradient could not carry to the surface
-  std::size_t left_out = 0;        ///< isosurface samples nearest a component that was left out
-  std::size_t enclosed = 0;        ///< isosurface samples on an enclosed region's wall (a cavity)
-  std::size_t at_scan_border = 0;  ///< within a voxel of the scan's border: not measured
+  double max = 0.0;                  ///< mm
+  double p99 = 0.0;                  ///< mm: 99 % of the samples are nearer
+  double mean = 0.0;                 ///< mm
+  std::size_t samples = 0;           ///< measured
+  std::size_t unresolved = 0;        ///< model samples the gradient could not carry to the surface
+  std::size_t left_out = 0;          ///< isosurface samples nearest a component that was left out
+  std::size_t enclosed = 0;          ///< isosurface samples on an enclosed region's wall (a cavity)
+  std::size_t on_small_regions = 0;  ///< isosurface samples around a region above iso smaller
+                                     ///< than the least the model holds (specks)
+  std::size_t at_scan_border = 0;    ///< within a voxel of the scan's border: not measured
 };
 
 struct IsosurfaceDistance {
@@ -67,11 +69,14 @@ struct IsosurfaceDistance {
 
 /// Measures `surface` (mm, patient space; only the triangles with keep_triangle set are the
 /// model, the others are surfaces left out) against the isosurface of `image` at `iso` with
-/// `samples` samples each way. Parallel; repeats for a seed.
+/// `samples` samples each way. Parallel; repeats for a seed. Isosurface samples around regions
+/// above iso of less than `least_region_mm3` (what the model keeps or can mesh) are counted
+/// apart, not measured.
 [[nodiscard]] IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image,
                                                              double iso, const SurfaceMesh& surface,
                                                              std::span<const char> keep_triangle,
                                                              std::size_t samples,
-                                                             std::uint64_t seed = 0);
+                                                             std::uint64_t seed = 0,
+                                                             double least_region_mm3 = 0.0);
 
 }  // namespace incise::planning
