@@ -22,33 +22,45 @@ std::uint64_t mix(std::uint64_t x) {
   return x ^ (x >> 31U);
 }
 
-/// Calls visit(edge_id, point) for every crossing on the edges leaving voxels of slices
-/// [k_begin, k_end) towards +i, +j and +k.
-template <typename Visit>
+/// For every crossing on the edges leaving voxels of slices [k_begin, k_end) towards +i, +j and
+/// +k: asks wanted(edge_id), and only when it says so finds where the edge crosses and calls
+/// visit(edge_id, point). (Most callers want few of the crossings: on a 512 x 512 x 300 CT,
+/// placing every one took most of the surface check's 3 s.)
+template <typename Wanted, typename Visit>
 void for_each_crossing(const VolumeImage& image, double iso, std::size_t k_begin, std::size_t k_end,
-                       Visit&& visit) {
+                       Wanted&& wanted, Visit&& visit) {
   const auto [nx, ny, nz] = image.size;
-  const std::array<std::size_t, 3> step{1, nx, nx * ny};
+  // Row by row with the rows beside it (+j, +k) in hand: no per-voxel index arithmetic or
+  // bounds table (the scan of a 512 x 512 x 300 CT was most of the surface check).
   for (std::size_t k = k_begin; k < k_end; ++k) {
     for (std::size_t j = 0; j < ny; ++j) {
+      const std::size_t first = nx * (j + ny * k);
+      const float* row = &image.values[first];
+      const float* next_row = j + 1 < ny ? row + nx : nullptr;
+      const float* next_slice = k + 1 < nz ? row + nx * ny : nullptr;
+      const auto cross = [&](std::size_t i, std::size_t axis, double a, double b) {
+        const std::uint64_t edge = 3 * (first + i) + axis;
+        if (!wanted(edge)) {
+          return;
+        }
+        const double t = (iso - a) / (b - a);
+        Vec3 p(static_cast<double>(i) * image.spacing.x(),
+               static_cast<double>(j) * image.spacing.y(),
+               static_cast<double>(k) * image.spacing.z());
+        p[static_cast<Eigen::Index>(axis)] += t * image.spacing[static_cast<Eigen::Index>(axis)];
+        visit(edge, p);
+      };
       for (std::size_t i = 0; i < nx; ++i) {
-        const std::size_t here = i + nx * (j + ny * k);
-        const double a = image.values[here];
-        const std::array<bool, 3> has{i + 1 < nx, j + 1 < ny, k + 1 < nz};
-        for (std::size_t axis = 0; axis < 3; ++axis) {
-          if (!has[axis]) {
-            continue;
-          }
-          const double b = image.values[here + step[axis]];
-          if ((a > iso) == (b > iso)) {
-            continue;
-          }
-          const double t = (iso - a) / (b - a);
-          Vec3 p(static_cast<double>(i) * image.spacing.x(),
-                 static_cast<double>(j) * image.spacing.y(),
-                 static_cast<double>(k) * image.spacing.z());
-          p[static_cast<Eigen::Index>(axis)] += t * image.spacing[static_cast<Eigen::Index>(axis)];
-          visit(3 * here + axis, p);
+        const double a = row[i];
+        const bool above = a > iso;
+        if (i + 1 < nx && above != (static_cast<double>(row[i + 1]) > iso)) {
+          cross(i, 0, a, row[i + 1]);
+        }
+        if (next_row != nullptr && above != (static_cast<double>(next_row[i]) > iso)) {
+          cross(i, 1, a, next_row[i]);
+        }
+        if (next_slice != nullptr && above != (static_cast<double>(next_slice[i]) > iso)) {
+          cross(i, 2, a, next_slice[i]);
         }
       }
     }
@@ -300,8 +312,13 @@ IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wan
   result.total = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, nz), std::size_t{0},
       [&](const tbb::blocked_range<std::size_t>& r, std::size_t count) {
-        for_each_crossing(image, iso, r.begin(), r.end(),
-                          [&](std::uint64_t, const Vec3&) { ++count; });
+        for_each_crossing(
+            image, iso, r.begin(), r.end(),
+            [&count](std::uint64_t) {
+              ++count;
+              return false;
+            },
+            [](std::uint64_t, const Vec3&) {});
         return count;
       },
       [](std::size_t a, std::size_t b) { return a + b; });
@@ -334,17 +351,18 @@ IsoCrossings iso_crossings(const VolumeImage& image, double iso, std::size_t wan
   Found found = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, nz), Found{},
       [&](const tbb::blocked_range<std::size_t>& r, Found part) {
-        for_each_crossing(image, iso, r.begin(), r.end(), [&](std::uint64_t edge, const Vec3& p) {
-          if (mix(edge ^ mix(seed)) <= threshold) {
-            part.points.push_back(p);
-            if (outside != nullptr) {
-              part.enclosed.push_back((*outside)[low_voxel(edge)] == 0 ? 1 : 0);
-            }
-            if (small_above != nullptr) {
-              part.on_small_region.push_back((*small_above)[high_voxel(edge)]);
-            }
-          }
-        });
+        for_each_crossing(
+            image, iso, r.begin(), r.end(),
+            [&](std::uint64_t edge) { return mix(edge ^ mix(seed)) <= threshold; },
+            [&](std::uint64_t edge, const Vec3& p) {
+              part.points.push_back(p);
+              if (outside != nullptr) {
+                part.enclosed.push_back((*outside)[low_voxel(edge)] == 0 ? 1 : 0);
+              }
+              if (small_above != nullptr) {
+                part.on_small_region.push_back((*small_above)[high_voxel(edge)]);
+              }
+            });
         return part;
       },
       [](Found a, Found b) {
