@@ -1,8 +1,5 @@
 #include "incise/planning/newton.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
@@ -12,6 +9,7 @@
 #include <vector>
 
 #include "incise/core/error.hpp"
+#include "incise/core/parallel_for.hpp"
 #include "incise/planning/prism.hpp"
 #include "incise/solve/direct_factorization.hpp"
 #include "point_block_matrix.hpp"
@@ -95,35 +93,33 @@ void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& patter
   std::vector<PrismHessian> element(kBlock);
   for (std::size_t first = 0; first < tissue.prisms.size(); first += kBlock) {
     const std::size_t last = std::min(first + kBlock, tissue.prisms.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(first, last, 64),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                        for (std::size_t p = range.begin(); p < range.end(); ++p) {
-                          const Prism& prism = tissue.prisms[p];
-                          if (prism.rest_volume == 0.0) {
-                            continue;
-                          }
-                          PrismPoints corners;
-                          for (std::size_t i = 0; i < 6; ++i) {
-                            corners[i] = x[static_cast<std::size_t>(prism.points[i])];
-                          }
-                          const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
-                          const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
-                          // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form
-                          // keeps the first.
-                          PrismHessian& block = element[p - first];
-                          for (std::size_t i = 0; i < 6; ++i) {
-                            for (std::size_t j = 0; j < 6; ++j) {
-                              block.block<3, 3>(static_cast<Eigen::Index>(3 * i),
-                                                static_cast<Eigen::Index>(3 * j)) =
-                                  weight * dv[i] * dv[j].transpose();
-                            }
-                          }
-                          if (!convex) {
-                            block += (weight * (prism_volume(corners) - prism.rest_volume)) *
-                                     prism_volume_hessian(corners);
-                          }
-                        }
-                      });
+    parallel_for(first, last, 64, [&](std::size_t begin, std::size_t end) {
+      for (std::size_t p = begin; p < end; ++p) {
+        const Prism& prism = tissue.prisms[p];
+        if (prism.rest_volume == 0.0) {
+          continue;
+        }
+        PrismPoints corners;
+        for (std::size_t i = 0; i < 6; ++i) {
+          corners[i] = x[static_cast<std::size_t>(prism.points[i])];
+        }
+        const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
+        const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
+        // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form
+        // keeps the first.
+        PrismHessian& block = element[p - first];
+        for (std::size_t i = 0; i < 6; ++i) {
+          for (std::size_t j = 0; j < 6; ++j) {
+            block.block<3, 3>(static_cast<Eigen::Index>(3 * i), static_cast<Eigen::Index>(3 * j)) =
+                weight * dv[i] * dv[j].transpose();
+          }
+        }
+        if (!convex) {
+          block += (weight * (prism_volume(corners) - prism.rest_volume)) *
+                   prism_volume_hessian(corners);
+        }
+      }
+    });
     for (std::size_t p = first; p < last; ++p) {
       const Prism& prism = tissue.prisms[p];
       if (prism.rest_volume == 0.0) {
