@@ -94,6 +94,10 @@ def test_a_plan_session_moves_a_segment_stops_at_contact_and_saves_what_plan_rep
     assert session.move(segment, translate_mm=move["translate"]) == []
     warm = session.predict(warm=True)
     assert warm["converged"]
+    # Where the time went, and how many factorisations it took (the session keeps the last).
+    assert set(warm["stage_seconds"]) == {"assembly", "factorization", "solve", "line_search"}
+    assert 0 <= warm["lagged_steps"] <= warm["iterations"]
+    assert warm["factorizations"] >= 0
     after_warm = session.skin_after.copy()
     assert np.linalg.norm(after_warm - session.skin_before, axis=1).max() > 2e-3
     # Pushed 8 mm down through its cut: refused, naming the pair; the last move stays.
