@@ -194,7 +194,6 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
 
 struct NewtonWorkspace::Data {
   const LayeredTissue* tissue = nullptr;
-  std::size_t points = 0;
   std::size_t springs = 0;
   std::size_t prisms = 0;
   std::vector<char> free;
@@ -223,8 +222,8 @@ void NewtonWorkspace::forget_factor() {
 
 NewtonWorkspace::Data& NewtonWorkspace::data_for(const LayeredTissue& tissue,
                                                  std::span<const char> free) {
-  const bool same = data_ && data_->tissue == &tissue && data_->points == tissue.point_count() &&
-                    data_->springs == tissue.springs.size() &&
+  // (free holds a flag per point: equal flags mean the same point count too)
+  const bool same = data_ && data_->tissue == &tissue && data_->springs == tissue.springs.size() &&
                     data_->prisms == tissue.prisms.size() &&
                     std::equal(free.begin(), free.end(), data_->free.begin(), data_->free.end());
   if (same) {
@@ -233,7 +232,6 @@ NewtonWorkspace::Data& NewtonWorkspace::data_for(const LayeredTissue& tissue,
   data_ = std::make_unique<Data>();
   Data& d = *data_;
   d.tissue = &tissue;
-  d.points = tissue.point_count();
   d.springs = tissue.springs.size();
   d.prisms = tissue.prisms.size();
   d.free.assign(free.begin(), free.end());
@@ -341,22 +339,25 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
                                     : LaggedSolve::kNotConverged;
     bool lagged = outcome == LaggedSolve::kSolved && rhs.dot(step) > 0.0;  // descent
     lap(result.solve_seconds);
+    // The Hessian replaced by its convex form (positive semi-definite by construction), and the
+    // shift grown for the exact ones to come.
     bool convexified = false;
+    const auto convexify = [&] {
+      convexified = true;
+      shift = shift == 0.0 ? kFirstShift : shift * 10.0;
+      ++result.convexified_steps;
+      assemble_hessian(tissue, pattern, x, true, hessian);
+      hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
+      lap(result.assembly_seconds);
+    };
     if (!lagged && outcome == LaggedSolve::kNegativeCurvature) {
       // The exact Hessian is indefinite (a Cholesky factorisation of it would fail): its convex
       // form, solved with the factor in hand if it still preconditions it well (the steps of
       // interactive nudges: each starts indefinite and is one factorisation cheaper so).
-      convexified = true;
-      assemble_hessian(tissue, pattern, x, true, hessian);
-      hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
-      lap(result.assembly_seconds);
+      convexify();
       lagged = lagged_solve(hessian.matrix(), factorization, rhs, step) == LaggedSolve::kSolved &&
                rhs.dot(step) > 0.0;
       lap(result.solve_seconds);
-    }
-    if (convexified) {
-      shift = shift == 0.0 ? kFirstShift : shift * 10.0;
-      ++result.convexified_steps;
     }
     if (lagged) {
       ++result.lagged_steps;
@@ -365,15 +366,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       // near the minimum. Else of its convex part, which always gives a descent direction.
       bool factorized = !convexified && factorization.factorize_positive_definite(hessian.matrix());
       lap(result.factorization_seconds);
-      if (!factorized && !convexified) {
-        convexified = true;
-        shift = shift == 0.0 ? kFirstShift : shift * 10.0;
-        ++result.convexified_steps;
-        assemble_hessian(tissue, pattern, x, true, hessian);
-        hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
-        lap(result.assembly_seconds);
-      }
       if (!factorized) {
+        if (!convexified) {
+          convexify();
+        }
         factorized = factorization.factorize(hessian.matrix());
         lap(result.factorization_seconds);
       }
