@@ -133,7 +133,7 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
   const std::vector<std::uint8_t> outside = imaging::outside_of(image, iso);
   // So are crossings around specks above iso smaller than the model holds: unmeshed (below
   // the mesher's size) or left out (below the plan's least segment), they are not the model's
-  // error. On the 256 phantom, cancellous bone's specks made the bone's p99 2.2 mm.
+  // error (2,070 of the bone's 100k samples on the 256 phantom).
   const double voxel_mm3 = image.spacing.x() * image.spacing.y() * image.spacing.z();
   const auto least_voxels = least_region_mm3 > 0.0 && voxel_mm3 > 0.0
                                 ? static_cast<std::size_t>(std::ceil(least_region_mm3 / voxel_mm3))
