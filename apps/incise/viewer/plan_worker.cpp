@@ -69,9 +69,9 @@ void PlanWorker::publish(const std::function<void(PlanState&)>& change) {
   }
 }
 
-void PlanWorker::prepare() {
+void PlanWorker::prepare(const planning::PlanDescription& plan) {
   auto session = std::make_unique<planning::PlanSession>(
-      plan_, [this](const std::string& stage, double fraction) {
+      plan, [this](const std::string& stage, double fraction) {
         publish([&](PlanState& s) {
           s.status = fmt::format("preparing ({:.0f} %): {}", 100.0 * fraction, stage);
         });
@@ -105,14 +105,14 @@ void PlanWorker::prepare() {
       s.segment_volumes_mm3.push_back(v / std::pow(kMillimetre, 3));
     }
     s.poses = poses_;
-    s.osteotomies = static_cast<int>(plan_.osteotomies.size());
+    s.osteotomies = static_cast<int>(plan.osteotomies.size());
     s.status = "predicting...";
   });
 }
 
 void PlanWorker::loop() {
   try {
-    prepare();
+    prepare(plan_);
     predict();
   } catch (const std::exception& error) {
     publish([&](PlanState& s) {
@@ -231,17 +231,14 @@ void PlanWorker::cut(const PlanRequest& request) {
        {"normal", {normal.x(), normal.y(), normal.z()}}});
   std::string text = plan.dump(2) + "\n";
   planning::PlanDescription description = planning::parse_plan(text, plan_.file);
-  const planning::PlanDescription previous = std::exchange(plan_, std::move(description));
   try {
-    prepare();
+    prepare(description);
   } catch (const std::exception& error) {
-    plan_ = previous;  // the session before the cut stays
-    publish([&](PlanState& s) {
-      s.status = std::string("no cut: ") + error.what();
-      s.osteotomies = static_cast<int>(plan_.osteotomies.size());
-    });
+    // The session before the cut stays (prepare replaces it only once the new one is made).
+    publish([&](PlanState& s) { s.status = std::string("no cut: ") + error.what(); });
     return;
   }
+  plan_ = std::move(description);
   plan_text_ = std::move(text);
   predict();
 }

@@ -83,8 +83,8 @@ class PlanWorker {
  private:
   void loop();
   void publish(const std::function<void(PlanState&)>& change);
-  /// Prepares plan_ into a new session (the old one stays if it fails) and publishes it.
-  void prepare();
+  /// Prepares `plan` into a new session (the old one stays if it fails) and publishes it.
+  void prepare(const planning::PlanDescription& plan);
   void nudge(const PlanRequest& request);
   void cut(const PlanRequest& request);
   void save(const std::filesystem::path& path);
