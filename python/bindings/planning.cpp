@@ -53,6 +53,18 @@ py::array copy_points(std::vector<Vec3> points) {
   return points_view(*held, keeper(held));
 }
 
+/// A progress callback for planning's own thread, which runs without the GIL: it takes the GIL
+/// for the Python callable (none when `progress` is None).
+planning::PlanProgress progress_with_gil(const py::object& progress) {
+  if (progress.is_none()) {
+    return {};
+  }
+  return [&progress](const std::string& stage, double fraction) {
+    const py::gil_scoped_acquire acquire;
+    progress(stage, fraction);
+  };
+}
+
 }  // namespace
 
 void bind_planning(py::module_& module) {
@@ -67,13 +79,7 @@ void bind_planning(py::module_& module) {
           py::init([](const py::object& plan, const std::optional<std::filesystem::path>& plan_file,
                       const py::object& progress) {
             const planning::PlanDescription description = describe(plan, plan_file);
-            planning::PlanProgress report;
-            if (!progress.is_none()) {
-              report = [&progress](const std::string& stage, double fraction) {
-                const py::gil_scoped_acquire acquire;
-                progress(stage, fraction);
-              };
-            }
+            const planning::PlanProgress report = progress_with_gil(progress);
             auto holder = std::make_unique<PySession>();
             const py::gil_scoped_release release;
             holder->session = std::make_unique<planning::PlanSession>(description, report);
@@ -222,14 +228,7 @@ void bind_planning(py::module_& module) {
       [](const py::object& plan, const std::optional<std::filesystem::path>& plan_file,
          const std::filesystem::path& out_dir, const py::object& progress) {
         const planning::PlanDescription description = describe(plan, plan_file);
-        planning::PlanProgress report_progress;
-        if (!progress.is_none()) {
-          // Called from the planning thread without the GIL: take it for the callback.
-          report_progress = [&progress](const std::string& stage, double fraction) {
-            const py::gil_scoped_acquire acquire;
-            progress(stage, fraction);
-          };
-        }
+        const planning::PlanProgress report_progress = progress_with_gil(progress);
         planning::PlanSummary summary;
         {
           py::gil_scoped_release release;
