@@ -407,6 +407,22 @@ TEST(Isosurface, TissueLeavingTheScanLeavesTheSurfaceOpen) {
 
 /// The voxels at most `iso` that reach the border through such voxels, found voxel by voxel
 /// (breadth first): the reference for outside_of, which joins runs.
+/// Values uniform in [0, 1) voxel by voxel: at an iso value near the percolation threshold,
+/// regions that wind, branch and enclose.
+VolumeImage random_blobs(const std::array<std::size_t, 3>& size, const Vec3& spacing,
+                         std::uint32_t seed) {
+  VolumeImage image;
+  image.size = size;
+  image.spacing = spacing;
+  image.values.resize(size[0] * size[1] * size[2]);
+  std::mt19937 random(seed);
+  std::uniform_real_distribution<float> uniform(0.0F, 1.0F);
+  for (float& v : image.values) {
+    v = uniform(random);
+  }
+  return image;
+}
+
 std::vector<std::uint8_t> outside_by_flood_fill(const VolumeImage& image, double iso) {
   const std::size_t nx = image.size[0];  // (clang 14 cannot capture a structured binding)
   const std::size_t ny = image.size[1];
@@ -458,15 +474,7 @@ TEST(Trilinear, OutsideIsWhatReachesTheScanBorderAndCavitiesAreEnclosed) {
   // Random blobs at the percolation threshold: regions that wind, branch and enclose, and
   // some only reach the border along a long path.
   for (const std::uint32_t seed : {1U, 2U, 3U}) {
-    VolumeImage image;
-    image.size = {37, 29, 23};
-    image.spacing = Vec3(1.0, 1.5, 2.0);
-    image.values.resize(37 * 29 * 23);
-    std::mt19937 random(seed);
-    std::uniform_real_distribution<float> uniform(0.0F, 1.0F);
-    for (float& v : image.values) {
-      v = uniform(random);
-    }
+    const VolumeImage image = random_blobs({37, 29, 23}, Vec3(1.0, 1.5, 2.0), seed);
     for (const double iso : {0.3, 0.69, 0.75}) {
       const std::vector<std::uint8_t> expected = outside_by_flood_fill(image, iso);
       const std::vector<std::uint8_t> found = outside_of(image, iso);
@@ -560,15 +568,7 @@ std::vector<std::size_t> region_sizes_by_search(const VolumeImage& image, double
 TEST(Trilinear, SmallRegionsAboveIsoAreTheSpecksAModelCannotHold) {
   // Random blobs: many small regions above iso, some large winding ones.
   for (const std::uint32_t seed : {4U, 5U}) {
-    VolumeImage image;
-    image.size = {31, 27, 19};
-    image.spacing = Vec3(1.0, 1.0, 2.0);
-    image.values.resize(31 * 27 * 19);
-    std::mt19937 random(seed);
-    std::uniform_real_distribution<float> uniform(0.0F, 1.0F);
-    for (float& v : image.values) {
-      v = uniform(random);
-    }
+    const VolumeImage image = random_blobs({31, 27, 19}, Vec3(1.0, 1.0, 2.0), seed);
     for (const double iso : {0.6, 0.75, 0.85}) {
       const std::vector<std::size_t> sizes = region_sizes_by_search(image, iso);
       for (const std::size_t least : {2UL, 5UL, 40UL}) {
