@@ -633,18 +633,21 @@ TEST(Plan, EveryExamplePlanParsesAndNamesExistingSurfaces) {
   EXPECT_GE(plans, 2);
 }
 
+// write_head's skull with its cap cut off by a plane at z = 10 mm: the PlanSession tests' plan.
+constexpr const char* kCapPlan = R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
+    "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
+    "skin_prestrain": 0.05, "volume_weight": 10000,
+    "osteotomies": [{"point": [0, 0, 10], "normal": [0, 0, 1]}]
+  })";
+
 // Interactive nudges keep the Newton factorisation between predictions: after the first, a
 // small nudge is predicted with the factor in hand (conjugate gradients on the new Hessian) and
 // no factorisation of its own, to the same face as a cold prediction.
 TEST(PlanSession, SmallNudgesArePredictedWithTheFactorInHand) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_nudge_test");
-  const std::string text = R"({
-    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
-    "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
-    "skin_prestrain": 0.05, "volume_weight": 10000,
-    "osteotomies": [{"point": [0, 0, 10], "normal": [0, 0, 1]}]
-  })";
+  const std::string text = kCapPlan;
   { std::ofstream(dir / "plan.json") << text; }
   PlanSession session(load_plan(dir / "plan.json"));
   const int cap = session.segment_near(Vec3(0, 0, 0.05));
@@ -677,12 +680,7 @@ TEST(PlanSession, SmallNudgesArePredictedWithTheFactorInHand) {
 TEST(PlanSession, MovesAreTriedRefusedAtContactAndPredictedWarmAndTheSavedPlanReproducesThem) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_session_test");
-  const std::string text = R"({
-    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
-    "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
-    "skin_prestrain": 0.05, "volume_weight": 10000,
-    "osteotomies": [{"point": [0, 0, 10], "normal": [0, 0, 1]}]
-  })";
+  const std::string text = kCapPlan;
   { std::ofstream(dir / "plan.json") << text; }
   const PlanDescription plan = load_plan(dir / "plan.json");
   PlanSession session(plan);
