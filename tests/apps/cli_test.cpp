@@ -919,6 +919,15 @@ bool have_xvfb() {
   return std::system("command -v xvfb-run >/dev/null 2>&1") == 0;
 }
 
+/// `incise ARGUMENTS` in a virtual X server, its output into `output`; its exit code.
+int incise_under_xvfb(const std::string& arguments, const std::filesystem::path& output) {
+  const std::string command = "xvfb-run -a -s '-screen 0 1280x1024x24' " +
+                              std::string(INCISE_EXECUTABLE) + " " + arguments + " >" +
+                              output.string() + " 2>&1";
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
 TEST(Cli, ViewReplaysAHandMadeCutUnderXvfbAndRunReplaysItBitForBit) {
   // tests/data/mouse_cut.jsonl: incise view on the default scene, recorded with the mouse (the
   // scene's own cut, then a diagonal stroke by hand at frame 80), 116 frames.
@@ -930,13 +939,9 @@ TEST(Cli, ViewReplaysAHandMadeCutUnderXvfbAndRunReplaysItBitForBit) {
   }
   const auto dir = test::scratch_dir("view");
   const std::string recording = std::string(INCISE_SOURCE_DIR) + "/tests/data/mouse_cut.jsonl";
-  const std::string xvfb = "xvfb-run -a -s '-screen 0 1280x1024x24' ";
   const auto view = [&](const std::string& arguments) {
-    const std::string command = xvfb + INCISE_EXECUTABLE + " view --replay " + recording +
-                                " --size 640x480 " + arguments + " >" +
-                                (dir / "view.out").string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return incise_under_xvfb("view --replay " + recording + " --size 640x480 " + arguments,
+                             dir / "view.out");
   };
   ASSERT_EQ(view("--exit-after 0 --mode cut --screenshot " + (dir / "first.png").string()), 0)
       << slurp(dir / "view.out");
@@ -979,14 +984,11 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
     {"nudge": {"segment": 1, "translate_mm": [0, 0, -8], "rotate_deg": [0, 0, 0]}},
     {"save": ")" + saved + R"("}]})";
   const auto view = [&](const std::string& name) {
-    const std::string command =
-        "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(INCISE_EXECUTABLE) + " plan " +
-        (dir / "plan.json").string() + " --view --size 800x600 --replay " +
-        (dir / "session.json").string() + " --record " + (dir / (name + ".json")).string() +
-        " --screenshot " + (dir / (name + ".png")).string() + " >" +
-        (dir / (name + ".out")).string() + " 2>&1";
-    const int status = std::system(command.c_str());
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return incise_under_xvfb(
+        "plan " + (dir / "plan.json").string() + " --view --size 800x600 --replay " +
+            (dir / "session.json").string() + " --record " + (dir / (name + ".json")).string() +
+            " --screenshot " + (dir / (name + ".png")).string(),
+        dir / (name + ".out"));
   };
   ASSERT_EQ(view("first"), 0) << slurp(dir / "first.out");
   ASSERT_EQ(view("second"), 0) << slurp(dir / "second.out");
@@ -1034,11 +1036,12 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
   std::ofstream(dir / "nudge.json") << R"({"plan": "moved.json", "requests": [
     {"nudge": {"segment": 1, "translate_mm": [0, 0, 1], "rotate_deg": [0, 0, 0]}},
     {"save": ")" + saved_moved + R"("}]})";
-  const std::string command =
-      "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(INCISE_EXECUTABLE) + " plan " +
-      (dir / "moved.json").string() + " --view --size 640x480 --replay " +
-      (dir / "nudge.json").string() + " >" + (dir / "moved.out").string() + " 2>&1";
-  ASSERT_EQ(std::system(command.c_str()), 0) << slurp(dir / "moved.out");
+  ASSERT_EQ(
+      incise_under_xvfb("plan " + (dir / "moved.json").string() +
+                            " --view --size 640x480 --replay " + (dir / "nudge.json").string(),
+                        dir / "moved.out"),
+      0)
+      << slurp(dir / "moved.out");
   const auto added = nlohmann::json::parse(slurp(saved_moved));
   ASSERT_EQ(added["moves"].size(), 1u);
   EXPECT_NEAR(added["moves"][0]["translate"][2].get<double>(), 3.0, 1e-9);
@@ -1065,12 +1068,13 @@ TEST(Cli, PlanViewCutsTheBoneByAPlanePlacedByHandAndSavesIt) {
     {"cut": {"point_mm": [0, 0, 20], "normal": [0, -0.17364817766693033, 0.984807753012208]}},
     {"nudge": {"segment": 1, "translate_mm": [0, 0, 1.5], "rotate_deg": [0, 0, 0]}},
     {"save": ")" + saved + R"("}]})";
-  const std::string command =
-      "xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(INCISE_EXECUTABLE) + " plan " +
-      (dir / "plan.json").string() + " --view --size 800x600 --replay " +
-      (dir / "session.json").string() + " --record " + (dir / "recorded.json").string() + " >" +
-      (dir / "view.out").string() + " 2>&1";
-  ASSERT_EQ(std::system(command.c_str()), 0) << slurp(dir / "view.out");
+  ASSERT_EQ(
+      incise_under_xvfb("plan " + (dir / "plan.json").string() +
+                            " --view --size 800x600 --replay " + (dir / "session.json").string() +
+                            " --record " + (dir / "recorded.json").string(),
+                        dir / "view.out"),
+      0)
+      << slurp(dir / "view.out");
   const std::string out = slurp(dir / "view.out");
   // One prediction to start, one after the cut, one after the nudge.
   EXPECT_NE(out.find("3 predictions"), std::string::npos) << out;
