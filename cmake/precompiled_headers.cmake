@@ -1,9 +1,9 @@
 # Precompiled headers: about half of a typical incise file's compile time is parsing the same
-# C++ standard library and Eigen headers (190k preprocessed lines for a 600-line file), and
-# GoogleTest in every test file. Each kind of target reuses one precompiled header, built
-# once with that kind's flags: libraries (position-independent), executables, test
-# executables. A target whose flags differ (the Python module, third-party sources) keeps
-# parsing its headers itself.
+# C++ standard library and Eigen headers (engine.cpp, 600 lines, preprocesses to 145k lines of
+# code: 80k of the standard library, 47k of Eigen), and GoogleTest in every test file. Each
+# kind of target reuses one precompiled header, built once with that kind's flags: libraries
+# (position-independent), executables, test executables. A target whose flags differ (the
+# Python module, third-party sources) keeps parsing its headers itself.
 #
 # incise_precompiled_headers(TARGET KIND): KIND is library, executable or test.
 

@@ -405,8 +405,6 @@ TEST(Isosurface, TissueLeavingTheScanLeavesTheSurfaceOpen) {
   }
 }
 
-/// The voxels at most `iso` that reach the border through such voxels, found voxel by voxel
-/// (breadth first): the reference for outside_of, which joins runs.
 /// Values uniform in [0, 1) voxel by voxel: at an iso value near the percolation threshold,
 /// regions that wind, branch and enclose.
 VolumeImage random_blobs(const std::array<std::size_t, 3>& size, const Vec3& spacing,
@@ -423,6 +421,8 @@ VolumeImage random_blobs(const std::array<std::size_t, 3>& size, const Vec3& spa
   return image;
 }
 
+/// The voxels at most `iso` that reach the border through such voxels, found voxel by voxel
+/// (breadth first): the reference for outside_of, which joins runs.
 std::vector<std::uint8_t> outside_by_flood_fill(const VolumeImage& image, double iso) {
   const std::size_t nx = image.size[0];  // (clang 14 cannot capture a structured binding)
   const std::size_t ny = image.size[1];

@@ -647,8 +647,7 @@ constexpr const char* kCapPlan = R"({
 TEST(PlanSession, SmallNudgesArePredictedWithTheFactorInHand) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_nudge_test");
-  const std::string text = kCapPlan;
-  { std::ofstream(dir / "plan.json") << text; }
+  { std::ofstream(dir / "plan.json") << kCapPlan; }
   PlanSession session(load_plan(dir / "plan.json"));
   const int cap = session.segment_near(Vec3(0, 0, 0.05));
   EXPECT_TRUE(session.predict(true).converged);
