@@ -6,9 +6,12 @@
 #include <cctype>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <set>
+#include <sstream>
 #include <string>
 
+#include "incise/mesh/generators.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
 namespace incise::test {
@@ -23,6 +26,13 @@ inline constexpr bool kSanitized = true;
 #else
 inline constexpr bool kSanitized = false;
 #endif
+
+/// How many seeded repeats a randomised test makes: all `full` in the optimised build, half
+/// under AddressSanitizer, where each takes 10-20 times longer and the first half already
+/// walks the paths a memory error would be on. The g++ run keeps the full breadth.
+inline constexpr unsigned seed_count(unsigned full) {
+  return kSanitized ? (full + 1) / 2 : full;
+}
 #else
 inline constexpr bool kSanitized = false;
 #endif
@@ -77,6 +87,19 @@ inline std::string test_name_from(std::string text) {
 inline TetMesh unit_tet(double size = 1.0) {
   return TetMesh({Vec3(0, 0, 0), Vec3(size, 0, 0), Vec3(0, size, 0), Vec3(0, 0, size)},
                  {Tet{0, 1, 2, 3}});
+}
+
+/// A bar 8 x 2 x 2 cm of 8 x 2 x 2 cells.
+inline TetMesh bar_8x2x2cm() {
+  return make_box_grid({{8, 2, 2}, Vec3(0.08, 0.02, 0.02), Vec3::Zero(), 6});
+}
+
+/// The bytes of the file at `path` (empty if it cannot be read).
+inline std::string file_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  return bytes.str();
 }
 
 }  // namespace incise::test

@@ -29,8 +29,9 @@
 #endif
 
 namespace incise::python {
-namespace {
 
+// Outside the anonymous namespace: Simulation holds four (g++ warns of a member whose type has
+// internal linkage where the file is compiled as part of a unity build).
 /// A copy of one engine array, refreshed when its stamp moves on; never rewritten while an
 /// array outside holds it.
 template <typename T>
@@ -52,6 +53,8 @@ class Mirror {
   std::shared_ptr<std::vector<T>> data_;
   std::uint64_t stamp_ = 0;
 };
+
+namespace {
 
 /// Holds the engine's mutex with the GIL released while waiting for it, so a thread stepping
 /// without the GIL can finish and a waiting one cannot deadlock with it.

@@ -11,8 +11,6 @@
 namespace incise::io_detail {
 namespace {
 
-constexpr std::size_t kMaxCount = std::numeric_limits<std::int32_t>::max();
-
 /// Nodes per element for Gmsh element types 1..31 (0 = unknown).
 int nodes_per_element(long long type) {
   static constexpr std::array<int, 32> kNodes = {0,  2,  3,  4,  4, 8, 6,  5,  3,  6, 9,

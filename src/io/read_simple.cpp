@@ -13,11 +13,6 @@
 #include "readers.hpp"
 
 namespace incise::io_detail {
-namespace {
-
-constexpr std::size_t kMaxCount = std::numeric_limits<std::int32_t>::max();
-
-}  // namespace
 
 // ---- TetGen -------------------------------------------------------------------------------
 

@@ -12,8 +12,6 @@
 namespace incise::io_detail {
 namespace {
 
-constexpr std::size_t kMaxCount = std::numeric_limits<std::int32_t>::max();
-
 /// One CELLS / POLYGONS block: cell i uses connectivity[offsets[i] .. offsets[i+1]).
 struct CellBlock {
   std::vector<long long> offsets{0};

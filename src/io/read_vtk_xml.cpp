@@ -16,8 +16,6 @@
 namespace incise::io_detail {
 namespace {
 
-constexpr std::size_t kMaxCount = std::numeric_limits<std::int32_t>::max();
-
 std::size_t type_size(std::string_view type) {
   if (type == "Int8" || type == "UInt8") {
     return 1;

@@ -1,6 +1,8 @@
 #pragma once
 // Per-format readers and the bookkeeping they share. Private to the io module.
 
+#include <cstdint>
+#include <limits>
 #include <map>
 #include <string>
 #include <unordered_map>
@@ -9,6 +11,10 @@
 #include "source.hpp"
 
 namespace incise::io_detail {
+
+/// The most items a count in a file may announce (int32, as VTK and Gmsh store them): a larger
+/// one is a damaged file, refused before anything is allocated for it.
+inline constexpr std::size_t kMaxCount = std::numeric_limits<std::int32_t>::max();
 
 /// Collects cells, maps file node tags to point indices, and counts what it skipped.
 class MeshBuilder {

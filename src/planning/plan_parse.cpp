@@ -18,8 +18,6 @@ using json::Context;
 using json::Json;
 using json::ObjectReader;
 
-constexpr double kMillimetre = 1e-3;  // m
-
 Vec3 millimetres(const ObjectReader& reader, const std::string& key, const Vec3& fallback) {
   return reader.vec3(key, fallback / kMillimetre) * kMillimetre;
 }

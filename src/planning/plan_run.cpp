@@ -22,12 +22,6 @@
 
 namespace incise::planning {
 
-namespace {
-
-constexpr double kMillimetre = 1e-3;  // m
-
-}  // namespace
-
 PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& out_dir,
                      const PlanProgress& progress) {
   const auto start = Clock::now();

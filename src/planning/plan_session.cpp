@@ -19,16 +19,16 @@
 
 namespace incise::planning {
 
-namespace {
-
-constexpr double kMillimetre = 1e-3;  // m
-
+// Not in the anonymous namespace: PlanSession::State holds two (g++ warns of a member whose
+// type has internal linkage where the file is compiled as part of a unity build).
 struct PreparedSurface {
   SurfaceMesh surface;
   std::size_t triangles_full = 0;
   double hausdorff_to_input = 0.0;
   double hausdorff_from_input = 0.0;
 };
+
+namespace {
 
 PreparedSurface prepare(const SurfaceMesh& input, const std::optional<double>& max_error) {
   PreparedSurface prepared;

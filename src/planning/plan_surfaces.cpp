@@ -18,7 +18,6 @@ namespace incise::planning {
 
 namespace {
 
-constexpr double kMillimetre = 1e-3;  // m
 /// Samples each way when a surface is measured against the isosurface: the largest distance
 /// then holds for all but ln(100)/n = 0.005 % of the surface with 99 % confidence.
 constexpr std::size_t kDistanceSamples = 100000;

@@ -30,13 +30,6 @@ struct CommandResult {
   std::string err;
 };
 
-std::string slurp(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
-
 CommandResult incise(const std::string& arguments) {
   const auto dir = test::scratch_dir("cli-run");
   const std::string command = std::string(INCISE_EXECUTABLE) + " " + arguments + " >" +
@@ -44,8 +37,8 @@ CommandResult incise(const std::string& arguments) {
   const int status = std::system(command.c_str());
   CommandResult run;
   run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  run.out = slurp(dir / "out");
-  run.err = slurp(dir / "err");
+  run.out = test::file_bytes(dir / "out");
+  run.err = test::file_bytes(dir / "err");
   return run;
 }
 
@@ -220,7 +213,7 @@ TEST(Cli, MeshTheLiverSurfaceAndRepairAnOpenOne) {
              " --report " + (dir / "mesh.json").string());
   EXPECT_EQ(repaired.code, 0) << repaired.err;
   EXPECT_NE(repaired.err.find("repair: filled 1 holes"), std::string::npos) << repaired.err;
-  const auto described = nlohmann::json::parse(slurp(dir / "mesh.json"));
+  const auto described = nlohmann::json::parse(test::file_bytes(dir / "mesh.json"));
   EXPECT_EQ(described["repair"]["holes_filled"], 1);
   EXPECT_GT(described["repair"]["hole_area"].get<double>(), 0.0);
   EXPECT_FALSE(described["repair"]["wrapped"].get<bool>());
@@ -237,7 +230,7 @@ nlohmann::json run_scene(const std::filesystem::path& dir, const std::string& sc
       incise("run " + (dir / "scene.json").string() + " --out " + (dir / "out").string() +
              " --report " + (dir / "report.json").string());
   EXPECT_EQ(run.code, 0) << run.err;
-  return run.code == 0 ? nlohmann::json::parse(slurp(dir / "report.json"))
+  return run.code == 0 ? nlohmann::json::parse(test::file_bytes(dir / "report.json"))
                        : nlohmann::json::object();
 }
 
@@ -297,7 +290,7 @@ TEST(Cli, EverySceneDescriptionNamesOnlyFilesTheSceneWrites) {
     if (entry.path().extension() != ".json") {
       continue;
     }
-    const auto scene = nlohmann::json::parse(slurp(entry.path()));
+    const auto scene = nlohmann::json::parse(test::file_bytes(entry.path()));
     if (!scene.contains("description") || !scene.contains("output")) {
       continue;
     }
@@ -381,7 +374,7 @@ TEST(Cli, BrokenSurfacesOfEveryKindAreMeshedAndCutApart) {
         incise("cut " + mesh + " --blade " + (dir / "path.csv").string() + " -o " +
                (dir / (name + "_cut.vtu")).string() + " --report " + report);
     ASSERT_EQ(cut.code, 0) << name << ": " << cut.err;
-    const auto json = nlohmann::json::parse(slurp(report));
+    const auto json = nlohmann::json::parse(test::file_bytes(report));
     EXPECT_TRUE(json["valid"].get<bool>()) << name;
     EXPECT_EQ(json["components"], 2) << name << ": " << cut.err;
   }
@@ -411,7 +404,7 @@ TEST(Cli, ARefusedSurfaceIsRepairedMeshedCutAndSimulated) {
       incise("cut " + mesh + " --blade " + (dir / "path.csv").string() + " -o " +
              (dir / "cut.vtu").string() + " --report " + (dir / "cut.json").string());
   ASSERT_EQ(cut.code, 0) << cut.err;
-  const auto cut_report = nlohmann::json::parse(slurp(dir / "cut.json"));
+  const auto cut_report = nlohmann::json::parse(test::file_bytes(dir / "cut.json"));
   EXPECT_TRUE(cut_report["valid"].get<bool>());
   EXPECT_EQ(cut_report["components"], 2);  // it separates
   const nlohmann::json report =
@@ -431,7 +424,7 @@ TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {
   // state's inversion from a broken mesh: the mesh is valid in its rest shape either way.
   const auto dir = test::scratch_dir("cli-run-default-inverted");
   const std::string source = std::string(INCISE_SOURCE_DIR) + "/scenes/default.json";
-  auto scene = nlohmann::json::parse(slurp(source));
+  auto scene = nlohmann::json::parse(test::file_bytes(source));
   scene.erase("output");
   std::map<std::string, int> inverted;
   std::map<std::string, int> inverted_by_info;
@@ -461,7 +454,7 @@ TEST(Cli, TheVolumeTermKeepsTheDefaultSceneRightSideOut) {
     const CommandResult run =
         incise("run " + path.string() + " --out " + out.string() + " --report " + report);
     ASSERT_EQ(run.code, 0) << run.err;
-    const auto json = nlohmann::json::parse(slurp(report));
+    const auto json = nlohmann::json::parse(test::file_bytes(report));
     ASSERT_TRUE(json.contains("inverted_tets"));
     EXPECT_GT(json["tets"].template get<int>(), 900);  // cut through
     inverted[name] = json["inverted_tets"].template get<int>();
@@ -505,7 +498,7 @@ TEST(Cli, SoakCutsEndEveryFrameRightSideOut) {
                                       : "subdivision + mass-spring"),
               std::string::npos)
         << run.out;
-    const auto report = nlohmann::json::parse(slurp(out / "soak.json"));
+    const auto report = nlohmann::json::parse(test::file_bytes(out / "soak.json"));
     EXPECT_EQ(report["inverted_tets_max"], 0) << seed;
   }
 }
@@ -519,7 +512,7 @@ TEST(Cli, RunTheDefaultSceneWithAReport) {
   for (const char* stage : {"cd", "gc", "rx", "rd"}) {
     EXPECT_NE(run.out.find(std::string("\n") + stage + " "), std::string::npos) << run.out;
   }
-  const auto json = nlohmann::json::parse(slurp(report));
+  const auto json = nlohmann::json::parse(test::file_bytes(report));
   for (const char* key : {"vertices", "tets", "kinetic_energy", "max_displacement", "diverged",
                           "mean_ms", "per_frame_ms"}) {
     EXPECT_TRUE(json.contains(key)) << key;
@@ -550,7 +543,7 @@ TEST(Cli, SoakCutsWithEveryCutterAndModelAndFindsNoViolation) {
                            "xfem + corotational-fem", "full sweep", "random walk"}) {
     EXPECT_NE(run.out.find(kind), std::string::npos) << kind << " never drawn:\n" << run.out;
   }
-  const auto report = nlohmann::json::parse(slurp(dir / "soak" / "soak.json"));
+  const auto report = nlohmann::json::parse(test::file_bytes(dir / "soak" / "soak.json"));
   EXPECT_EQ(report["cuts"], 6);
   EXPECT_EQ(report["frames"], 6 * 20);
   EXPECT_EQ(report["violations"], 0);
@@ -605,7 +598,7 @@ TEST(Cli, AKilledRunLeavesEveryFrameItWroteAndItsCheckpointWhole) {
       EXPECT_GE(nlohmann::json::parse(info.out)["tets"].get<int>(), 576) << name;
     } else if (entry.path().extension() == ".pvd") {
       // Every frame it lists is there.
-      const std::string series = slurp(entry.path());
+      const std::string series = test::file_bytes(entry.path());
       EXPECT_NE(series.find("</VTKFile>"), std::string::npos) << series;
       for (std::size_t at = series.find("file=\""); at != std::string::npos;
            at = series.find("file=\"", at + 1)) {
@@ -658,9 +651,10 @@ TEST(Cli, RunResumesFromACheckpointIntoTheSameSeries) {
   for (int frame = 0; frame <= 40; frame += 5) {
     const std::string name =
         "default_0000" + std::string(frame < 10 ? "0" : "") + std::to_string(frame) + ".vtu";
-    EXPECT_EQ(slurp(dir / "straight" / name), slurp(dir / "parts" / name)) << name;
+    EXPECT_EQ(test::file_bytes(dir / "straight" / name), test::file_bytes(dir / "parts" / name))
+        << name;
   }
-  const std::string pvd = slurp(dir / "parts" / "default.pvd");
+  const std::string pvd = test::file_bytes(dir / "parts" / "default.pvd");
   EXPECT_NE(pvd.find("default_000005.vtu"), std::string::npos) << pvd;
   EXPECT_NE(pvd.find("default_000040.vtu"), std::string::npos) << pvd;
   // A scene file beside --resume is refused; so is a damaged checkpoint.
@@ -689,7 +683,7 @@ TEST(Cli, CutReportsWhatTheIssueAsks) {
   const CommandResult run = incise("cut " + mesh + " --blade " + (dir / "blade.csv").string() +
                                    " -o " + (dir / "cut.vtu").string() + " --report " + report);
   ASSERT_EQ(run.code, 0) << run.err;
-  const auto json = nlohmann::json::parse(slurp(report));
+  const auto json = nlohmann::json::parse(test::file_bytes(report));
   for (const char* key :
        {"tets_in", "tets_out", "vertices_in", "vertices_out", "volume_in", "volume_out",
         "components", "watertight", "inverted_tets", "min_volume_ratio", "cut_area", "cd", "gc",
@@ -745,9 +739,10 @@ TEST(Cli, FemScenesRunAndGiveTheSameFramesWhateverTheThreadCount) {
       incise("run " + scene + " --frames 6 --threads 2 --out " + (dir / "two").string());
   ASSERT_EQ(two.code, 0) << two.err;
   for (const char* frame : {"fem_box_sag_000005.vtu", "fem_box_sag_000006.vtu"}) {
-    const std::string a = slurp(dir / "one" / frame);
+    const std::string a = test::file_bytes(dir / "one" / frame);
     ASSERT_FALSE(a.empty()) << frame;
-    EXPECT_EQ(a, slurp(dir / "two" / frame)) << frame << " differs between 1 and 2 threads";
+    EXPECT_EQ(a, test::file_bytes(dir / "two" / frame))
+        << frame << " differs between 1 and 2 threads";
   }
   // The static cantilever: one Newton solve with a direct solver, a downward tip.
   const std::string report = (dir / "cantilever.json").string();
@@ -755,7 +750,7 @@ TEST(Cli, FemScenesRunAndGiveTheSameFramesWhateverTheThreadCount) {
       incise("run " + std::string(INCISE_SOURCE_DIR) + "/scenes/cantilever_static.json --out " +
              (dir / "cantilever").string() + " --report " + report);
   ASSERT_EQ(cantilever.code, 0) << cantilever.err;
-  const auto json = nlohmann::json::parse(slurp(report));
+  const auto json = nlohmann::json::parse(test::file_bytes(report));
   EXPECT_EQ(json["integrator"], "static");
   // 40 x 4 x 4 cells lock to 1.31 mm of the beam theory's 1.47 mm (see the accuracy tests).
   EXPECT_NEAR(json["max_displacement"].template get<double>(), 1.31e-3, 0.03e-3);
@@ -770,7 +765,7 @@ bool lacks_offscreen_gl(const CommandResult& run) {
 }
 
 std::pair<int, int> png_size(const std::filesystem::path& path) {
-  const std::string bytes = slurp(path);
+  const std::string bytes = test::file_bytes(path);
   if (bytes.size() < 24 || bytes.compare(1, 3, "PNG") != 0) {
     return {0, 0};
   }
@@ -944,20 +939,20 @@ TEST(Cli, ViewReplaysAHandMadeCutUnderXvfbAndRunReplaysItBitForBit) {
                              dir / "view.out");
   };
   ASSERT_EQ(view("--exit-after 0 --mode cut --screenshot " + (dir / "first.png").string()), 0)
-      << slurp(dir / "view.out");
+      << test::file_bytes(dir / "view.out");
   ASSERT_EQ(view("--exit-after 116 --mode cut --screenshot " + (dir / "last.png").string() +
                  " --out " + (dir / "view").string()),
             0)
-      << slurp(dir / "view.out");
+      << test::file_bytes(dir / "view.out");
   EXPECT_EQ(cut_pixels(dir / "first.png"), 0u);
   EXPECT_GT(cut_pixels(dir / "last.png"), 300u);
   // Without a window, the same recording gives the same final mesh, byte for byte.
   const CommandResult run =
       incise("run --replay " + recording + " --out " + (dir / "run").string());
   ASSERT_EQ(run.code, 0) << run.err;
-  const std::string from_view = slurp(dir / "view" / "default_000116.vtu");
+  const std::string from_view = test::file_bytes(dir / "view" / "default_000116.vtu");
   EXPECT_GT(from_view.size(), 1000u);
-  EXPECT_EQ(from_view, slurp(dir / "run" / "default_000116.vtu"));
+  EXPECT_EQ(from_view, test::file_bytes(dir / "run" / "default_000116.vtu"));
 }
 
 TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
@@ -990,16 +985,16 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
             " --screenshot " + (dir / (name + ".png")).string(),
         dir / (name + ".out"));
   };
-  ASSERT_EQ(view("first"), 0) << slurp(dir / "first.out");
-  ASSERT_EQ(view("second"), 0) << slurp(dir / "second.out");
+  ASSERT_EQ(view("first"), 0) << test::file_bytes(dir / "first.out");
+  ASSERT_EQ(view("second"), 0) << test::file_bytes(dir / "second.out");
   // One prediction to start and one per nudge that moved; the same session gives the same
   // prediction, bit for bit (the largest displacement printed to 17 digits), and records
   // itself as it was played.
-  const std::string out = slurp(dir / "first.out");
+  const std::string out = test::file_bytes(dir / "first.out");
   EXPECT_NE(out.find("5 predictions"), std::string::npos) << out;
-  EXPECT_EQ(out, slurp(dir / "second.out"));
-  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "first.json"))["requests"],
-            nlohmann::json::parse(slurp(dir / "session.json"))["requests"]);
+  EXPECT_EQ(out, test::file_bytes(dir / "second.out"));
+  EXPECT_EQ(nlohmann::json::parse(test::file_bytes(dir / "first.json"))["requests"],
+            nlohmann::json::parse(test::file_bytes(dir / "session.json"))["requests"]);
   // The window showed the skin coloured by its displacement (red over the lifted cap) and the
   // panel.
   const Image picture = read_png(dir / "first.png");
@@ -1010,7 +1005,7 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
   }
   EXPECT_GT(red, 500U);
   // The push down stopped at contact: the cap stays above where it started, below 2 mm.
-  const auto plan = nlohmann::json::parse(slurp(dir / "saved.json"));
+  const auto plan = nlohmann::json::parse(test::file_bytes(dir / "saved.json"));
   ASSERT_EQ(plan["moves"].size(), 1u);
   const double lifted = plan["moves"][0]["translate"][2].get<double>();
   EXPECT_GT(lifted, 0.0);
@@ -1020,7 +1015,7 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
   // from the scan here: within the solver's tolerance).
   const CommandResult run = incise("plan " + saved + " --out " + (dir / "out").string());
   ASSERT_EQ(run.code, 0) << run.err;
-  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
   const std::size_t at = out.find("largest skin displacement ");
   ASSERT_NE(at, std::string::npos);
   const double shown = std::stod(out.substr(at + 26));
@@ -1041,8 +1036,8 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
                             " --view --size 640x480 --replay " + (dir / "nudge.json").string(),
                         dir / "moved.out"),
       0)
-      << slurp(dir / "moved.out");
-  const auto added = nlohmann::json::parse(slurp(saved_moved));
+      << test::file_bytes(dir / "moved.out");
+  const auto added = nlohmann::json::parse(test::file_bytes(saved_moved));
   ASSERT_EQ(added["moves"].size(), 1u);
   EXPECT_NEAR(added["moves"][0]["translate"][2].get<double>(), 3.0, 1e-9);
 }
@@ -1074,13 +1069,13 @@ TEST(Cli, PlanViewCutsTheBoneByAPlanePlacedByHandAndSavesIt) {
                             " --record " + (dir / "recorded.json").string(),
                         dir / "view.out"),
       0)
-      << slurp(dir / "view.out");
-  const std::string out = slurp(dir / "view.out");
+      << test::file_bytes(dir / "view.out");
+  const std::string out = test::file_bytes(dir / "view.out");
   // One prediction to start, one after the cut, one after the nudge.
   EXPECT_NE(out.find("3 predictions"), std::string::npos) << out;
-  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "recorded.json"))["requests"],
-            nlohmann::json::parse(slurp(dir / "session.json"))["requests"]);
-  const auto plan = nlohmann::json::parse(slurp(saved));
+  EXPECT_EQ(nlohmann::json::parse(test::file_bytes(dir / "recorded.json"))["requests"],
+            nlohmann::json::parse(test::file_bytes(dir / "session.json"))["requests"]);
+  const auto plan = nlohmann::json::parse(test::file_bytes(saved));
   ASSERT_EQ(plan["osteotomies"].size(), 1u);
   EXPECT_NEAR(plan["osteotomies"][0]["point"][2].get<double>(), 20.0, 1e-12);
   EXPECT_NEAR(plan["osteotomies"][0]["normal"][1].get<double>(), -0.17364817766693033, 1e-12);
@@ -1093,7 +1088,7 @@ TEST(Cli, PlanViewCutsTheBoneByAPlanePlacedByHandAndSavesIt) {
   EXPECT_GT((near - Vec3(0, 0, 20)).dot(Vec3(0, -0.17364817766693033, 0.984807753012208)), 0.0);
   const CommandResult run = incise("plan " + saved + " --out " + (dir / "out").string());
   ASSERT_EQ(run.code, 0) << run.err;
-  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
   EXPECT_EQ(report["segments"].get<int>(), 2);
   const std::size_t at = out.find("largest skin displacement ");
   ASSERT_NE(at, std::string::npos);
@@ -1120,8 +1115,8 @@ TEST(Cli, RunWritesAVideoThroughFfmpegOrSaysItIsMissing) {
                               arguments + " 2>" + (dir / "err").string() + " >/dev/null";
   const int status = std::system(command.c_str());
   EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 2);
-  EXPECT_NE(slurp(dir / "err").find("needs the ffmpeg program"), std::string::npos)
-      << slurp(dir / "err");
+  EXPECT_NE(test::file_bytes(dir / "err").find("needs the ffmpeg program"), std::string::npos)
+      << test::file_bytes(dir / "err");
   if (std::system("command -v ffmpeg >/dev/null 2>&1") != 0) {
     GTEST_SKIP() << "ffmpeg is not installed here (apt-get install ffmpeg)";
   }
@@ -1130,7 +1125,7 @@ TEST(Cli, RunWritesAVideoThroughFfmpegOrSaysItIsMissing) {
     GTEST_SKIP() << "no OpenGL here";
   }
   ASSERT_EQ(run.code, 0) << run.err;
-  const std::string video = slurp(dir / "cut.mp4");
+  const std::string video = test::file_bytes(dir / "cut.mp4");
   ASSERT_GT(video.size(), 1000u);
   EXPECT_EQ(video.substr(4, 4), "ftyp");  // an MP4 container
 }
@@ -1157,7 +1152,7 @@ std::string start_server(const std::filesystem::path& dir, const std::string& fl
   std::string port;
   for (int i = 0; i < 200 && port.empty(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    port = slurp(dir / "port");
+    port = test::file_bytes(dir / "port");
   }
   return port.substr(0, port.find('\n'));
 }
@@ -1192,14 +1187,14 @@ TEST(Cli, ServeAndDeviceCutTheDefaultBlockOverLoopback) {
   }
   const std::string port =
       start_server(dir, "--exit-when-idle --max-seconds 60 --out " + (dir / "out").string());
-  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  ASSERT_FALSE(port.empty()) << test::file_bytes(dir / "serve.log");
   const CommandResult device = incise("device " + (dir / "path.csv").string() + " --port " + port +
                                       " --log " + (dir / "forces.csv").string());
   ASSERT_EQ(device.code, 0) << device.err;
   EXPECT_NE(device.out.find("forces received"), std::string::npos) << device.out;
   // The server notices the device left, writes its results and exits.
-  ASSERT_TRUE(appears(dir / "out" / "report.json")) << slurp(dir / "serve.log");
-  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  ASSERT_TRUE(appears(dir / "out" / "report.json")) << test::file_bytes(dir / "serve.log");
+  const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
   EXPECT_EQ(report["ended"], "idle (the last device left)");
   EXPECT_TRUE(report["valid"].get<bool>());
   EXPECT_TRUE(report["watertight"].get<bool>());
@@ -1271,11 +1266,11 @@ TEST(Cli, ServeAnXfemSceneTheTissueFeelsTheDevicesReaction) {
   const std::string scene = std::string(INCISE_SOURCE_DIR) + "/scenes/xfem_skin.json";
   const std::string port = start_server(
       dir, scene + " --exit-when-idle --max-seconds 60 --out " + (dir / "out").string());
-  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  ASSERT_FALSE(port.empty()) << test::file_bytes(dir / "serve.log");
   const CommandResult device = incise("device " + (dir / "path.csv").string() + " --port " + port);
   ASSERT_EQ(device.code, 0) << device.err;
-  ASSERT_TRUE(appears(dir / "out" / "report.json")) << slurp(dir / "serve.log");
-  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  ASSERT_TRUE(appears(dir / "out" / "report.json")) << test::file_bytes(dir / "serve.log");
+  const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
   EXPECT_TRUE(report["valid"].get<bool>());
   EXPECT_GT(report["tets"].get<int>(), report["tets_start"].get<int>());  // virtual elements
   // The device felt the skin, and the skin felt the device back, on its collision surface.
@@ -1293,7 +1288,7 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
   const auto dir = test::scratch_dir("serve-sigterm");
   write_stroke(dir / "path.csv", 0.3, 0.02);
   const std::string port = start_server(dir, "--max-seconds 60 --out " + (dir / "out").string());
-  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  ASSERT_FALSE(port.empty()) << test::file_bytes(dir / "serve.log");
   // A client that sends only garbage, then leaves.
   const std::string garbage =
       "bash -c 'head -c 4096 /dev/urandom >/dev/tcp/127.0.0.1/" + port + "' 2>/dev/null";
@@ -1307,10 +1302,10 @@ TEST(Cli, ServeOutlivesItsClientsAndWritesItsResultsOnSigterm) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "out" / "report.json"));
-  const std::string pid = slurp(dir / "pid");
+  const std::string pid = test::file_bytes(dir / "pid");
   ASSERT_EQ(std::system(("kill -TERM " + pid.substr(0, pid.find('\n'))).c_str()), 0);
-  ASSERT_TRUE(appears(dir / "out" / "report.json")) << slurp(dir / "serve.log");
-  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  ASSERT_TRUE(appears(dir / "out" / "report.json")) << test::file_bytes(dir / "serve.log");
+  const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
   // (Under a sanitizer a frame can outlast the 0.7 s the server waits: it then says it
   // abandoned that frame, after the same words.)
   EXPECT_EQ(report["ended"].get<std::string>().rfind("stopped (SIGINT/SIGTERM)", 0), 0u)
@@ -1340,9 +1335,10 @@ TEST(Cli, ServeAnswersSigtermWithinASecondEvenInTheMiddleOfALongFrame) {
   }
   const std::string port = start_server(
       dir, (dir / "slow.json").string() + " --max-seconds 600 --out " + (dir / "out").string());
-  ASSERT_FALSE(port.empty()) << slurp(dir / "serve.log");
+  ASSERT_FALSE(port.empty()) << test::file_bytes(dir / "serve.log");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // inside the first frame
-  const std::string pid = slurp(dir / "pid").substr(0, slurp(dir / "pid").find('\n'));
+  const std::string pid =
+      test::file_bytes(dir / "pid").substr(0, test::file_bytes(dir / "pid").find('\n'));
   const auto signalled = std::chrono::steady_clock::now();
   ASSERT_EQ(std::system(("kill -TERM " + pid).c_str()), 0);
   // Its files written, and gone, long before the frame could have ended (the grace is 0.7 s;
@@ -1362,11 +1358,11 @@ TEST(Cli, ServeAnswersSigtermWithinASecondEvenInTheMiddleOfALongFrame) {
   if (!gone) {
     (void)std::system(("kill -KILL " + pid).c_str());
   }
-  ASSERT_TRUE(std::filesystem::exists(report_path)) << slurp(dir / "serve.log");
+  ASSERT_TRUE(std::filesystem::exists(report_path)) << test::file_bytes(dir / "serve.log");
   std::printf("incise serve wrote its report %.2f s after SIGTERM\n", waited);
   EXPECT_LT(waited, 5.0);
-  EXPECT_TRUE(gone) << slurp(dir / "serve.log");
-  const auto report = nlohmann::json::parse(slurp(dir / "out" / "report.json"));
+  EXPECT_TRUE(gone) << test::file_bytes(dir / "serve.log");
+  const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
   EXPECT_NE(report["ended"].get<std::string>().find("abandoned"), std::string::npos)
       << report["ended"];
   EXPECT_EQ(report["frames"].get<int>(), 0);
@@ -1399,8 +1395,8 @@ TEST(Cli, CutWithXfemSeparatesTheLiverWithFewerDofs) {
   const CommandResult subdivision = incise(common + "-o " + (dir / "sub.vtu").string() +
                                            " --report " + (dir / "sub.json").string());
   ASSERT_EQ(subdivision.code, 0) << subdivision.err;
-  const auto x = nlohmann::json::parse(slurp(dir / "xfem.json"));
-  const auto s = nlohmann::json::parse(slurp(dir / "sub.json"));
+  const auto x = nlohmann::json::parse(test::file_bytes(dir / "xfem.json"));
+  const auto s = nlohmann::json::parse(test::file_bytes(dir / "sub.json"));
   EXPECT_EQ(x["components"], 2);
   EXPECT_EQ(s["components"], 2);
   EXPECT_NEAR(x["volume_out"].get<double>(), x["volume_in"].get<double>(),
@@ -1435,7 +1431,7 @@ TEST(Cli, CutWithXfemSeparatesTheLiverWithFewerDofs) {
              data("sofa/liver-smooth.obj") + " --visual-out " + (dir / "xv.vtp").string() +
              " --report " + (dir / "xv.json").string());
   ASSERT_EQ(with_visual.code, 0) << with_visual.err;
-  const auto v = nlohmann::json::parse(slurp(dir / "xv.json"));
+  const auto v = nlohmann::json::parse(test::file_bytes(dir / "xv.json"));
   EXPECT_TRUE(v["visual_watertight"].get<bool>());
   EXPECT_NEAR(v["visual_volume_out"].get<double>(), v["visual_volume_in"].get<double>(),
               0.01 * v["visual_volume_in"].get<double>());

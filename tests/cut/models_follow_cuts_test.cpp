@@ -145,7 +145,7 @@ void expect_same(const ModelOutput& followed, const ModelOutput& rebuilt,
 template <typename MakeModel>
 void check_followed_equals_rebuilt(const MakeModel& make_model) {
   const bool have_data = std::filesystem::exists(test::data_dir());
-  for (unsigned seed = 1; seed <= 6; ++seed) {
+  for (unsigned seed = 1; seed <= test::seed_count(6); ++seed) {
     std::mt19937 rng(4100 + seed);
     TetMesh mesh = walk_mesh(seed, have_data, rng);
     auto model = make_model(mesh);

@@ -28,13 +28,6 @@ std::vector<std::filesystem::path> example_scenes() {
   return scenes;
 }
 
-std::string slurp(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
-
 /// Steps until `frame` (stopping early only at a divergence, which the test reports).
 void step_to(Engine& engine, int frame) {
   while (engine.frame() < frame) {
@@ -75,7 +68,8 @@ void expect_resumes_bit_for_bit(const SceneDescription& scene, int stop, int tot
   b.begin(*resumed);
   const std::string file = "frame_" + std::string(6 - std::to_string(total).size(), '0') +
                            std::to_string(total) + ".vtu";
-  EXPECT_EQ(slurp(dir / (name + "-straight") / file), slurp(dir / (name + "-resumed") / file));
+  EXPECT_EQ(test::file_bytes(dir / (name + "-straight") / file),
+            test::file_bytes(dir / (name + "-resumed") / file));
 }
 
 TEST(Checkpoint, EveryExampleSceneResumesBitForBit) {
@@ -127,7 +121,7 @@ TEST(Checkpoint, DamagedFilesGiveClearErrors) {
   Engine engine(scene);
   step_to(engine, 20);
   engine.save_checkpoint(dir / "good.ck");
-  const std::string good = slurp(dir / "good.ck");
+  const std::string good = test::file_bytes(dir / "good.ck");
 
   const auto expect_error = [&](const std::string& bytes, const std::string& expected) {
     std::ofstream(dir / "bad.ck", std::ios::binary) << bytes;

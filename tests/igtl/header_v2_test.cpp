@@ -243,8 +243,8 @@ TEST(HeaderVersion2, BodiesWhosePartsDoNotAddUpAreRefusedWhateverTheySay) {
 // ---- the server speaks each client's version ----
 
 /// A server taking TRANSFORMs from `device`.
-struct RunningServer : test::RunningServer {
-  explicit RunningServer(std::string device)
+struct DeviceServer : test::RunningServer {
+  explicit DeviceServer(std::string device)
       : test::RunningServer([&] {
           ServerOptions options;
           options.device = std::move(device);
@@ -287,7 +287,7 @@ std::vector<std::vector<std::uint8_t>> receive(const Socket& socket, std::size_t
 TEST(HeaderVersion2, TheServerTakesVersion2PosesAndAnswersInTheVersionEachClientSpeaks) {
   // A name longer than the header's 20 characters, carried in metadata.
   const std::string long_name = "PLUS_Stylus_To_Reference_Scalpel";
-  RunningServer running(long_name);
+  DeviceServer running(long_name);
   const auto content = transform_content(kRotation, kTranslationMm);
   {
     Socket client = connect_to("127.0.0.1", running.server.port(), 2.0);
@@ -337,7 +337,7 @@ TEST(HeaderVersion2, TheServerTakesVersion2PosesAndAnswersInTheVersionEachClient
   ToolFrame frame;
   frame.rotation = kRotation;
   frame.translation = kTranslationMm / 1000.0;
-  RunningServer short_named("Scalpel");
+  DeviceServer short_named("Scalpel");
   Socket short_client = connect_to("127.0.0.1", short_named.server.port(), 2.0);
   configure_stream(short_client);
   send_bytes(short_client, encode_transform(frame, "Scalpel", timestamp_of(5.0)));

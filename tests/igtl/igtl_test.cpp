@@ -211,8 +211,8 @@ void refresh_crc(std::vector<std::uint8_t>& bytes) {
 }
 
 /// A server whose incomplete messages stall for 0.3 s at most.
-struct RunningServer : test::RunningServer {
-  RunningServer()
+struct StallingServer : test::RunningServer {
+  StallingServer()
       : test::RunningServer([] {
           ServerOptions options;
           options.stall_timeout = 0.3;
@@ -221,7 +221,7 @@ struct RunningServer : test::RunningServer {
 };
 
 /// Sends `bytes` from a fresh client, which then leaves; expects `reason` to be counted.
-void expect_dropped(RunningServer& running, std::span<const std::uint8_t> bytes,
+void expect_dropped(StallingServer& running, std::span<const std::uint8_t> bytes,
                     DropReason reason) {
   const std::uint64_t before = running.server.counters().dropped[static_cast<std::size_t>(reason)];
   {
@@ -235,7 +235,7 @@ void expect_dropped(RunningServer& running, std::span<const std::uint8_t> bytes,
 }
 
 TEST(Server, DropsAndCountsEveryMalformedMessageThenServesAGoodClient) {
-  RunningServer running;
+  StallingServer running;
   const ToolFrame frame = tilted_frame();
   const auto good = encode_transform(frame, "Scalpel", timestamp_of(10.0));
 

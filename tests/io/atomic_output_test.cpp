@@ -18,13 +18,6 @@
 namespace incise {
 namespace {
 
-std::string contents(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  return bytes.str();
-}
-
 TetMesh box(int cells) {
   BoxGridOptions options;
   options.cells = {cells, cells, cells};
@@ -81,7 +74,7 @@ TEST(AtomicOutput, AFullDiskLeavesTheEarlierFileWholeAndNoLeftovers) {
   const auto path = dir / "mesh.vtu";
   const TetMesh small = box(1);
   write_vtu(path, small);
-  const std::string before = contents(path);
+  const std::string before = test::file_bytes(path);
   ASSERT_GT(before.size(), 100U);
   const TetMesh large = box(20);  // about 2 MB of .vtu
   {
@@ -95,7 +88,7 @@ TEST(AtomicOutput, AFullDiskLeavesTheEarlierFileWholeAndNoLeftovers) {
       EXPECT_NE(message.find("File too large"), std::string::npos) << message;
     }
   }
-  EXPECT_EQ(contents(path), before) << "the earlier file was damaged";
+  EXPECT_EQ(test::file_bytes(path), before) << "the earlier file was damaged";
   EXPECT_EQ(files_in(dir), 1U) << "a temporary file was left behind";
   // With room again the same write succeeds and reads back.
   write_vtu(path, large);
@@ -110,7 +103,7 @@ TEST(AtomicOutput, AWriteAbandonedHalfWayChangesNothing) {
     AtomicFile file(path);
     file.write("{\"new\": ");  // an exception here would unwind without commit()
   }
-  EXPECT_EQ(contents(path), "{\"old\": true}\n");
+  EXPECT_EQ(test::file_bytes(path), "{\"old\": true}\n");
   EXPECT_EQ(files_in(dir), 1U);
 }
 

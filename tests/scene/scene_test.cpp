@@ -312,13 +312,6 @@ TEST(SceneParsing, RegionsThatSelectNothingAreErrors) {
   }
 }
 
-std::string slurp(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
-
 /// Runs `frames` frames into a ParaView series in `dir` (every `every`-th frame, first, last).
 RunResult run_to(Engine& engine, int frames, const std::filesystem::path& dir,
                  const std::string& name, int every, std::filesystem::path* pvd = nullptr) {
@@ -341,7 +334,7 @@ TEST(Simulation, SameSceneSameBytes) {
   for (const auto& entry : std::filesystem::directory_iterator(dir / "a")) {
     const auto twin = dir / "b" / entry.path().filename();
     ASSERT_TRUE(std::filesystem::exists(twin)) << twin;
-    EXPECT_EQ(slurp(entry.path()), slurp(twin)) << entry.path().filename();
+    EXPECT_EQ(test::file_bytes(entry.path()), test::file_bytes(twin)) << entry.path().filename();
     ++compared;
   }
   EXPECT_EQ(compared, 6u);  // the .pvd and frames 0, 5, 10, 15, 20
@@ -359,7 +352,7 @@ TEST(Simulation, DivergenceStopsAndKeepsWrittenFrames) {
   EXPECT_NE(result.divergence.find("diverged in frame"), std::string::npos) << result.divergence;
   EXPECT_LT(result.frames.size(), 200u);
   // Every frame listed in the series exists and holds only finite numbers (read back).
-  const std::string pvd = slurp(pvd_path);
+  const std::string pvd = test::file_bytes(pvd_path);
   for (const FrameRecord& record : result.frames) {
     EXPECT_TRUE(std::isfinite(record.kinetic_energy));
   }

@@ -20,11 +20,6 @@
 namespace incise {
 namespace {
 
-/// A bar 8 x 2 x 2 cm of 8 x 2 x 2 cells.
-TetMesh bar() {
-  return make_box_grid({{8, 2, 2}, Vec3(0.08, 0.02, 0.02), Vec3::Zero(), 6});
-}
-
 std::array<Vec3, 4> corners(const TetMesh& mesh, TetId t) {
   const Tet& tet = mesh.tet(t);
   return {mesh.rest_position(tet[0]), mesh.rest_position(tet[1]), mesh.rest_position(tet[2]),
@@ -56,7 +51,7 @@ PlaneCut cut_at(const TetMesh& mesh, double at, Keep keep) {
 }
 
 TEST(VirtualMesh, AFullCutSeparatesTheBarIntoTheClippedPieces) {
-  const TetMesh mesh = bar();
+  const TetMesh mesh = test::bar_8x2x2cm();
   const PlaneCut plane = cut_at(mesh, 0.0437, [](const auto&) { return true; });
   const VirtualMesh body = build_virtual_mesh(mesh, plane.cuts);
   EXPECT_GT(body.split, 0u);
@@ -98,7 +93,7 @@ TEST(VirtualMesh, AFullCutSeparatesTheBarIntoTheClippedPieces) {
 }
 
 TEST(VirtualMesh, APartialCutStaysWholeWithItsFrontTied) {
-  const TetMesh mesh = bar();
+  const TetMesh mesh = test::bar_8x2x2cm();
   // The blade went down to mid-height: tetrahedra in the lower cell layer are crossed
   // completely; those above it are reached but not crossed (the front).
   const PlaneCut plane = cut_at(mesh, 0.0437, [](const std::array<Vec3, 4>& x) {
@@ -150,7 +145,7 @@ std::vector<std::array<Vec3, 3>> blade_sweep(double to_y) {
 }
 
 TEST(VirtualMesh, ABladeSweptThroughSeparatesAndOneSweptHalfWayDoesNot) {
-  const TetMesh mesh = bar();
+  const TetMesh mesh = test::bar_8x2x2cm();
   const double total = 0.08 * 0.02 * 0.02;
   {
     const SurfaceCuts through = cuts_by_surface(mesh, blade_sweep(0.03));
@@ -248,7 +243,7 @@ TEST(VirtualMesh, AFullCutSeparatesRealMeshes) {
 
 TEST(VirtualMesh, AMinimumFractionKeepsElementsFromEmptyingAndConservesMaterial) {
   // A plane 1e-6 m past a grid plane of the bar: slivers of fraction about 1e-4 and below.
-  const TetMesh mesh = bar();
+  const TetMesh mesh = test::bar_8x2x2cm();
   const PlaneCut plane = cut_at(mesh, 0.04 + 1e-6, [](const auto&) { return true; });
   const VirtualMesh exact = build_virtual_mesh(mesh, plane.cuts);
   const VirtualMesh conditioned = build_virtual_mesh(mesh, plane.cuts, {}, 1e-3);
@@ -266,7 +261,7 @@ TEST(VirtualMesh, AMinimumFractionKeepsElementsFromEmptyingAndConservesMaterial)
 }
 
 TEST(VirtualMesh, NoCutNoChange) {
-  const TetMesh mesh = bar();
+  const TetMesh mesh = test::bar_8x2x2cm();
   const std::vector<std::optional<ElementCut>> none(mesh.tet_count());
   const VirtualMesh body = build_virtual_mesh(mesh, none);
   EXPECT_EQ(body.elements.size(), mesh.tet_count());

@@ -23,11 +23,6 @@
 namespace incise {
 namespace {
 
-/// A bar 8 x 2 x 2 cm of 8 x 2 x 2 cells.
-TetMesh bar() {
-  return make_box_grid({{8, 2, 2}, Vec3(0.08, 0.02, 0.02), Vec3::Zero(), 6});
-}
-
 /// The boundary of a box grid of `cells` (m `size`, corner at `origin`) as a surface.
 SurfaceMesh box_surface(const std::array<int, 3>& cells, const Vec3& size, const Vec3& origin) {
   const TetMesh fine = make_box_grid({cells, size, origin, 6});
@@ -112,7 +107,7 @@ TEST(VisualSurface, ThePictureOpensWhereThePhysicsSplitsAndStaysClosedWhereItWai
   // picture shows cut faces exactly where elements split (nowhere further: in front of them
   // both lips are carried by the same nodes and cannot part) and stays a closed 2-manifold,
   // with its volume, after every pose.
-  TetMesh mesh = bar();
+  TetMesh mesh = test::bar_8x2x2cm();
   const SurfaceMesh surface = inner_box();
   const double volume = enclosed_volume(surface.points, surface.triangles);
   VisualSurface visual(mesh, surface.points, surface.triangles);
@@ -154,7 +149,7 @@ TEST(VisualSurface, ThePictureOpensWhereThePhysicsSplitsAndStaysClosedWhereItWai
 }
 
 TEST(VisualSurface, StaysClosedAndEnclosesItsVolumeAfterEveryPose) {
-  TetMesh mesh = bar();
+  TetMesh mesh = test::bar_8x2x2cm();
   const SurfaceMesh surface = inner_box();
   const double volume = enclosed_volume(surface.points, surface.triangles);
   EXPECT_NEAR(volume, 0.076 * 0.016 * 0.016, 1e-15);
@@ -241,7 +236,7 @@ TEST(VisualSurface, StaysAClosedManifoldAlongRandomWalksAtDeviceRate) {
   // The live path: random walks (reversals, tremor, stops, re-entry), each pose cut as a
   // device sends them and the picture following after every few, as frames do.
   for (unsigned seed : {11u, 12u, 13u, 14u}) {
-    TetMesh mesh = bar();
+    TetMesh mesh = test::bar_8x2x2cm();
     const SurfaceMesh surface = inner_box();
     const double volume = enclosed_volume(surface.points, surface.triangles);
     VisualSurface visual(mesh, surface.points, surface.triangles);
@@ -300,7 +295,7 @@ TEST(VisualSurface, ASelfIntersectingSurfaceWhereTheCutPassesKeepsItsLastGoodPic
   // Two boxes that overlap: a visual surface that intersects itself (as some from the wild
   // do), which CGAL's corefinement must not be given where the cut meets it (it may throw,
   // crash or never return). The update keeps the last good picture and says why.
-  TetMesh mesh = bar();
+  TetMesh mesh = test::bar_8x2x2cm();
   SurfaceMesh surface = inner_box();
   const SurfaceMesh second =
       box_surface({4, 4, 4}, Vec3(0.012, 0.012, 0.012), Vec3(0.038, 0.010, 0.005));

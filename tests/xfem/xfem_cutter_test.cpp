@@ -24,11 +24,6 @@
 namespace incise {
 namespace {
 
-/// A bar 8 x 2 x 2 cm of 8 x 2 x 2 cells.
-TetMesh bar() {
-  return make_box_grid({{8, 2, 2}, Vec3(0.08, 0.02, 0.02), Vec3::Zero(), 6});
-}
-
 /// m^3: every element's fraction of its rest volume.
 double material_volume(const TetMesh& mesh) {
   double volume = 0.0;
@@ -69,7 +64,7 @@ void sweep_bar(TetMesh& mesh, XfemCutter& cutter, double x, double to_y, int pos
 }
 
 TEST(XfemCutter, ABladeSweptThroughSeparatesTheBarPoseByPose) {
-  TetMesh mesh = bar();
+  TetMesh mesh = test::bar_8x2x2cm();
   const std::size_t rest_vertices = mesh.vertex_count();
   XfemCutter cutter(mesh);
   sweep_bar(mesh, cutter, 0.0437, 0.03, 13);
@@ -109,7 +104,7 @@ TEST(XfemCutter, ABladeSweptThroughSeparatesTheBarPoseByPose) {
 }
 
 TEST(XfemCutter, AHalfCutKeepsOnePieceWithItsFrontClosed) {
-  TetMesh mesh = bar();
+  TetMesh mesh = test::bar_8x2x2cm();
   XfemCutter cutter(mesh);
   sweep_bar(mesh, cutter, 0.0437, 0.011, 8);
   EXPECT_GT(cutter.stats().elements_split, 0u);
@@ -117,7 +112,7 @@ TEST(XfemCutter, AHalfCutKeepsOnePieceWithItsFrontClosed) {
   EXPECT_GT(cutter.stats().tied_vertices, 0u);
   EXPECT_EQ(pieces_by_vertices(mesh), 1);
   // Going on through releases the ties and separates.
-  const double rest = total_volume(bar());
+  const double rest = total_volume(test::bar_8x2x2cm());
   for (int i = 1; i <= 5; ++i) {
     const double y = 0.011 + 0.019 * i / 5;
     cutter.move_to({1.0 + i, Vec3(0.0437, y, -0.01), Vec3(0.0437, y, 0.03)});
@@ -131,7 +126,7 @@ TEST(XfemCutter, TremorSplitsNothing) {
   // The blade goes 2 mm into the bar, not through any tetrahedron (every one in a 1 cm cell
   // has a corner at y = 1 cm, so its crossings reach y >= 3.7 mm), and back, three times.
   // Out, every edge it crossed is crossed an even number of times: no front is left.
-  TetMesh mesh = bar();
+  TetMesh mesh = test::bar_8x2x2cm();
   const std::size_t tets = mesh.tet_count();
   XfemCutter cutter(mesh);
   const Vec3 out(0.0437, -0.01, -0.01);
@@ -152,7 +147,7 @@ TEST(XfemCutter, TremorSplitsNothing) {
 TEST(XfemCutter, ACutInAGridPlaneSeparatesWithoutEmptyElements) {
   // x = 0.04 holds a plane of grid vertices and faces: the swept surface passes exactly
   // through vertices, along edges and in face planes.
-  TetMesh mesh = bar();
+  TetMesh mesh = test::bar_8x2x2cm();
   const std::size_t tets = mesh.tet_count();
   XfemCutter cutter(mesh);
   sweep_bar(mesh, cutter, 0.04, 0.03, 7);
@@ -172,7 +167,7 @@ TEST(XfemCutter, ASweepAHairOffAGridPlaneSeparates) {
   // begins must count once, not twice (tremor), or the tetrahedra around it never split.
   for (const double x : {std::nextafter(0.04, 0.0), std::nextafter(0.04, 1.0)}) {
     for (const int poses : {8, 16, 40}) {
-      TetMesh mesh = bar();
+      TetMesh mesh = test::bar_8x2x2cm();
       XfemCutter cutter(mesh);
       sweep_bar(mesh, cutter, x, 0.03, poses);
       const std::string where = "x = 0.04 " + std::string(x < 0.04 ? "- " : "+ ") + "1 ulp, " +
@@ -233,7 +228,7 @@ TEST(XfemCutter, RandomBladeWalksKeepEveryInvariantAfterEveryPose) {
   // grids and real meshes; the body's own boundary rides along as a visual surface. A failure
   // names the seed that reproduces it.
   const bool have_data = std::filesystem::exists(test::data_dir());
-  for (unsigned seed = 1; seed <= 12; ++seed) {
+  for (unsigned seed = 1; seed <= test::seed_count(12); ++seed) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     std::mt19937 rng(seed);
     TetMesh mesh = test::walk_mesh(seed, have_data, rng);
@@ -286,7 +281,7 @@ TEST(XfemCutter, NeighboursSplitAtDifferentTimesAgreeOnTheFaceTheyShare) {
   // overlaps, and no picture can follow it.
   const bool have_data = std::filesystem::exists(test::data_dir());
   std::size_t shared_faces = 0;
-  for (unsigned seed = 1; seed <= 12; ++seed) {
+  for (unsigned seed = 1; seed <= test::seed_count(12); ++seed) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     std::mt19937 rng(seed);
     TetMesh mesh = test::walk_mesh(seed, have_data, rng);
@@ -356,14 +351,14 @@ TEST(XfemCutter, NeighboursSplitAtDifferentTimesAgreeOnTheFaceTheyShare) {
 }
 
 TEST(XfemCutter, ACheckpointedCutterGoesOnAsIfNeverStopped) {
-  TetMesh first = bar();
+  TetMesh first = test::bar_8x2x2cm();
   XfemCutter cutter(first);
   sweep_bar(first, cutter, 0.0437, 0.011, 6);
   StateWriter out;
   first.save_state(out);
   cutter.save_state(out);
 
-  TetMesh second = bar();
+  TetMesh second = test::bar_8x2x2cm();
   XfemCutter resumed(second);
   StateReader in(out.bytes(), "memory");
   second.load_state(in);

@@ -16,7 +16,7 @@ namespace incise::app {
 
 namespace {
 
-constexpr double kMillimetre = 1e-3;  // m
+using planning::kMillimetre;
 constexpr double kDegree = 3.14159265358979323846 / 180.0;
 /// A nudge into contact is cut in half this many times, looking for the part that fits.
 constexpr int kContactHalvings = 5;

@@ -17,6 +17,9 @@
 
 namespace incise::planning {
 
+/// m: a plan's files give lengths in millimetres; this converts them.
+inline constexpr double kMillimetre = 1e-3;
+
 /// Skin points near a point are held by an instrument and carried by `translation`.
 struct Instrument {
   Vec3 near = Vec3::Zero();         ///< m
