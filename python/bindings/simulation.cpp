@@ -16,7 +16,6 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <mutex>
-#include <thread>
 
 #include "arrays.hpp"
 #include "bindings.hpp"
@@ -231,10 +230,9 @@ class Simulation {
     {
       const EngineLock lock(mutex_);
       py::gil_scoped_release release;
-      // An EGL context is current on the thread that made it: one renderer per thread.
-      if (!renderer_ || renderer_thread_ != std::this_thread::get_id()) {
+      // Made once; any thread may use it, one at a time (the engine's lock is held).
+      if (!renderer_) {
         renderer_ = std::make_unique<OffscreenRenderer>();
-        renderer_thread_ = std::this_thread::get_id();
       }
       const FrameScene scene = frame_scene(*engine_);
       RenderOptions options;
@@ -302,7 +300,6 @@ class Simulation {
   Mirror<Tet> tets_;
 #ifdef INCISE_HAVE_GL
   std::unique_ptr<OffscreenRenderer> renderer_;
-  std::thread::id renderer_thread_;
 #endif
   std::optional<Camera> camera_;
   double camera_aspect_ = 0.0;

@@ -208,8 +208,12 @@ def test_the_gil_is_released_by_cut_render_and_plan(source_dir, tmp_path):
     blade = [[0, 0.05, -0.02, -0.02, 0.05, -0.02, 0.12], [1, 0.05, 0.12, -0.02, 0.05, 0.12, 0.12]]
     assert _released_the_gil(lambda: incise.cut(box, blade))
     sim = incise.Simulation()
-    sim.render(64, 48)  # the context made once
-    assert _released_the_gil(lambda: [sim.render(640, 480) for _ in range(12)])
+    sim.render(64, 48)  # the context made once, on this thread
+    pictures = []
+    assert _released_the_gil(lambda: pictures.extend(sim.render(640, 480) for _ in range(12)))
+    # Drawn on the second thread by the renderer made on this one, and back here after.
+    assert len(pictures) == 12 and all(np.array_equal(p, pictures[0]) for p in pictures)
+    assert np.array_equal(sim.render(640, 480), pictures[0]) and pictures[0].std() > 0
     assert _released_the_gil(
         lambda: incise.plan(source_dir / "scenes" / "plan_headsq.json", out_dir=tmp_path))
 

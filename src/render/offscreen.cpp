@@ -72,6 +72,22 @@ struct OffscreenRenderer::Context {
     }
   }
 
+  /// Lets go of the context on this thread. EGL lets a context be current on one thread only:
+  /// held between calls, a renderer could not be used (nor deleted) from another thread.
+  void release() const { eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT); }
+
+  /// The context current on this thread for one call, released when it returns or throws.
+  class CurrentFor {
+   public:
+    explicit CurrentFor(const Context& context) : context_(context) { context_.make_current(); }
+    ~CurrentFor() { context_.release(); }
+    CurrentFor(const CurrentFor&) = delete;
+    CurrentFor& operator=(const CurrentFor&) = delete;
+
+   private:
+    const Context& context_;
+  };
+
   void resize(int new_width, int new_height) {
     if (new_width == width && new_height == height) {
       return;
@@ -153,7 +169,7 @@ OffscreenRenderer::OffscreenRenderer() : context_(std::make_unique<Context>()) {
   if (c.context == EGL_NO_CONTEXT) {
     fail("no OpenGL 3.3 core context");
   }
-  c.make_current();
+  const Context::CurrentFor current(c);
   c.device = gl_renderer_name();
   c.backend.emplace();
   c.renderer.emplace(*c.backend);
@@ -162,20 +178,21 @@ OffscreenRenderer::OffscreenRenderer() : context_(std::make_unique<Context>()) {
 OffscreenRenderer::~OffscreenRenderer() {
   Context& c = *context_;
   if (c.context != EGL_NO_CONTEXT) {
-    // GL objects go while their context is current; the display stays initialised, as other
+    // GL objects go while their context is current (released after every call, so it can be
+    // made current here, whichever thread this is); the display stays initialised, as other
     // renderers in the process may share it.
     eglMakeCurrent(c.display, EGL_NO_SURFACE, EGL_NO_SURFACE, c.context);
     c.renderer.reset();
     c.backend.reset();
     c.release_framebuffers();
-    eglMakeCurrent(c.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    c.release();
     eglDestroyContext(c.display, c.context);
   }
 }
 
 Image OffscreenRenderer::render(const RenderInput& input, const RenderOptions& options) {
   Context& c = *context_;
-  c.make_current();
+  const Context::CurrentFor current(c);
   c.resize(options.width, options.height);
   glBindFramebuffer(GL_FRAMEBUFFER, c.framebuffer);
   c.renderer->render(input, options);

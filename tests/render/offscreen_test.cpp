@@ -8,7 +8,10 @@
 
 #include <cstdlib>
 #include <memory>
+#include <string>
+#include <thread>
 
+#include "incise/render/camera.hpp"
 #include "incise/view/frame_scene.hpp"
 #include "incise/view/render_sink.hpp"
 #include "test_support.hpp"
@@ -89,6 +92,40 @@ TEST(Offscreen, TheDefaultSceneIsDrawnAndNotBlank) {
     EXPECT_GT(share, 0.15) << "the body fills too little of the picture";
     EXPECT_LT(share, 0.9);
   }
+}
+
+TEST(Offscreen, ARendererMovesBetweenThreadsOneAtATime) {
+  // Made on this thread, drawing on a second, then here again, deleted on a third (as Python's
+  // render() from any thread does). Before, its context stayed current on the thread that made
+  // it: the second thread could not take it, and a renderer made there deleted this one's GL
+  // objects by their names in its own context.
+  std::unique_ptr<OffscreenRenderer> renderer = make_renderer();
+  if (!renderer) {
+    GTEST_SKIP() << "no OpenGL 3.3 through EGL on this machine";
+  }
+  const Engine engine(default_scene());
+  const FrameScene scene = frame_scene(engine);
+  RenderOptions options;
+  options.width = 160;
+  options.height = 120;
+  options.camera = fit_camera(scene.bounds(), 160.0 / 120.0);
+  const Image here = renderer->render(scene.input(), options);
+  EXPECT_GT(body_pixels(here), 2000u);
+  Image there;
+  std::string error;
+  std::thread([&] {
+    try {
+      there = renderer->render(scene.input(), options);
+      OffscreenRenderer own;  // another renderer made and deleted on that thread meanwhile
+      (void)own.render(scene.input(), options);
+    } catch (const Error& failure) {
+      error = failure.what();
+    }
+  }).join();
+  EXPECT_EQ(error, "");
+  EXPECT_TRUE(there.pixels() == here.pixels());
+  EXPECT_TRUE(renderer->render(scene.input(), options).pixels() == here.pixels());
+  std::thread([&] { renderer.reset(); }).join();
 }
 
 TEST(Offscreen, CutModeShowsNoCutFaceBeforeTheCutAndTheWoundAfter) {

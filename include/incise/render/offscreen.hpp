@@ -3,7 +3,8 @@
 // platform (llvmpipe where there is no GPU), rendering into a multisampled framebuffer and
 // read back as an Image. For `incise run --render`, scripted pictures and CI.
 //
-// A context is current on the thread that made it; use one OffscreenRenderer per thread.
+// Its context is current only while one of its calls runs, so a renderer may be made, used and
+// deleted on any thread, one thread at a time (it has no lock of its own).
 
 #include <memory>
 #include <string>
