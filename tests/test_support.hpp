@@ -26,6 +26,9 @@ inline constexpr bool kSanitized = true;
 #else
 inline constexpr bool kSanitized = false;
 #endif
+#else
+inline constexpr bool kSanitized = false;
+#endif
 
 /// How many seeded repeats a randomised test makes: all `full` in the optimised build, half
 /// under AddressSanitizer, where each takes 10-20 times longer and the first half already
@@ -33,9 +36,6 @@ inline constexpr bool kSanitized = false;
 inline constexpr unsigned seed_count(unsigned full) {
   return kSanitized ? (full + 1) / 2 : full;
 }
-#else
-inline constexpr bool kSanitized = false;
-#endif
 
 /// A scene that diverges: symplectic Euler at 20 times its stability limit on a small block.
 inline constexpr const char* kDivergingScene = R"({

@@ -22,7 +22,7 @@ namespace incise::python {
 
 namespace {
 
-constexpr double kMillimetre = 1e-3;  // m
+using planning::kMillimetre;
 
 planning::PlanDescription describe(const py::object& plan,
                                    const std::optional<std::filesystem::path>& plan_file) {

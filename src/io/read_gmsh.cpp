@@ -3,7 +3,6 @@
 // Gmsh's global model state, and we want errors that name the line.
 
 #include <array>
-#include <limits>
 #include <map>
 
 #include "readers.hpp"

@@ -3,7 +3,6 @@
 // would parse this, but it is a 200 MB dependency for one function.
 
 #include <cmath>
-#include <limits>
 #include <set>
 #include <string>
 

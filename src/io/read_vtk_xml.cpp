@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <pugixml.hpp>
 
 #include "readers.hpp"

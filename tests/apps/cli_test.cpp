@@ -1337,8 +1337,8 @@ TEST(Cli, ServeAnswersSigtermWithinASecondEvenInTheMiddleOfALongFrame) {
       dir, (dir / "slow.json").string() + " --max-seconds 600 --out " + (dir / "out").string());
   ASSERT_FALSE(port.empty()) << test::file_bytes(dir / "serve.log");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // inside the first frame
-  const std::string pid =
-      test::file_bytes(dir / "pid").substr(0, test::file_bytes(dir / "pid").find('\n'));
+  const std::string pid_line = test::file_bytes(dir / "pid");
+  const std::string pid = pid_line.substr(0, pid_line.find('\n'));
   const auto signalled = std::chrono::steady_clock::now();
   ASSERT_EQ(std::system(("kill -TERM " + pid).c_str()), 0);
   // Its files written, and gone, long before the frame could have ended (the grace is 0.7 s;
