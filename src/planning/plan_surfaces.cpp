@@ -217,12 +217,22 @@ PlanSurfaces surfaces_from_image(const PlanDescription& plan, const PlanProgress
   const Kept skin_kept = keep_body(skin_parts);
   const Kept bone_kept = keep_bones(bone_parts, least_bone);
   const double smallest_meshed = std::pow(options.facet_size, 3);  // mm^3
-  const IsosurfaceDistance skin_distance =
-      measure_isosurface_distance(image, plan.skin_iso, skin.surface, skin_kept.keep,
-                                  kDistanceSamples, options.seed, smallest_meshed);
-  const IsosurfaceDistance bone_distance = measure_isosurface_distance(
-      image, plan.bone_iso, bone.surface, bone_kept.keep, kDistanceSamples, options.seed + 1,
-      std::max(least_bone, smallest_meshed));
+  // Side by side: each measurement's region scans (enclosed regions, specks) run on one core,
+  // so two of them fill both (the 512 phantom's check: 1.17 s -> 1.04 s, before the crossings'
+  // scan was made one pass).
+  IsosurfaceDistance skin_distance;
+  IsosurfaceDistance bone_distance;
+  tbb::parallel_invoke(
+      [&] {
+        skin_distance =
+            measure_isosurface_distance(image, plan.skin_iso, skin.surface, skin_kept.keep,
+                                        kDistanceSamples, options.seed, smallest_meshed);
+      },
+      [&] {
+        bone_distance = measure_isosurface_distance(
+            image, plan.bone_iso, bone.surface, bone_kept.keep, kDistanceSamples, options.seed + 1,
+            std::max(least_bone, smallest_meshed));
+      });
   result.skin = in_metres(select_triangles(skin.surface, skin_kept.keep));
   result.bone = in_metres(select_triangles(bone.surface, bone_kept.keep));
   result.seconds_check = seconds_since(stage);

@@ -605,6 +605,60 @@ TEST(Trilinear, SmallRegionsAboveIsoAreTheSpecksAModelCannotHold) {
   EXPECT_EQ(on_speck, 6U);  // the six edges out of the voxel
 }
 
+TEST(Trilinear, IsoCrossingsAreEveryEdgeThatCrossesVoxelByVoxel) {
+  // Rows of 37 and 13 voxels: not whole words of the scan's eight, so the row's last voxels
+  // and the missing +x edge at its end are exercised.
+  for (const std::array<std::size_t, 3>& size :
+       {std::array<std::size_t, 3>{37, 29, 23}, std::array<std::size_t, 3>{13, 5, 4}}) {
+    const VolumeImage image = random_blobs(size, Vec3(1.0, 1.5, 2.0), 9);
+    const double iso = 0.7;
+    const std::size_t nx = size[0];
+    const std::size_t ny = size[1];
+    const std::size_t nz = size[2];
+    std::vector<Vec3> expected;  // voxel by voxel, then axis: the order iso_crossings keeps
+    for (std::size_t k = 0; k < nz; ++k) {
+      for (std::size_t j = 0; j < ny; ++j) {
+        for (std::size_t i = 0; i < nx; ++i) {
+          const double a = image.at(i, j, k);
+          const std::array<std::array<std::size_t, 3>, 3> next{
+              {{i + 1, j, k}, {i, j + 1, k}, {i, j, k + 1}}};
+          for (std::size_t axis = 0; axis < 3; ++axis) {
+            const auto [ni, nj, nk] = next[axis];
+            if (ni >= nx || nj >= ny || nk >= nz) {
+              continue;
+            }
+            const double b = image.at(ni, nj, nk);
+            if ((a > iso) == (b > iso)) {
+              continue;
+            }
+            Vec3 p(static_cast<double>(i), static_cast<double>(j) * 1.5,
+                   static_cast<double>(k) * 2.0);
+            p[static_cast<Eigen::Index>(axis)] +=
+                (iso - a) / (b - a) * image.spacing[static_cast<Eigen::Index>(axis)];
+            expected.push_back(p);
+          }
+        }
+      }
+    }
+    const IsoCrossings all = iso_crossings(image, iso, expected.size() + 1);
+    EXPECT_EQ(all.total, expected.size());
+    ASSERT_EQ(all.points.size(), expected.size());
+    for (std::size_t c = 0; c < expected.size(); ++c) {
+      ASSERT_EQ(all.points[c], expected[c]) << "crossing " << c << " of " << expected.size();
+    }
+    // A sample: about the number wanted, every one a crossing, repeatable for its seed.
+    const std::size_t wanted = expected.size() / 4;
+    const IsoCrossings sample = iso_crossings(image, iso, wanted, 3);
+    EXPECT_EQ(sample.total, expected.size());
+    EXPECT_NEAR(static_cast<double>(sample.points.size()), static_cast<double>(wanted),
+                4.0 * std::sqrt(static_cast<double>(wanted)) + 2.0);
+    for (const Vec3& p : sample.points) {
+      EXPECT_NE(std::find(expected.begin(), expected.end(), p), expected.end());
+    }
+    EXPECT_EQ(iso_crossings(image, iso, wanted, 3).points, sample.points);
+  }
+}
+
 TEST(Isosurface, DirectionAndOriginPlaceThePointsInPatientSpace) {
   VolumeImage image = phantom(3.0);
   image.origin = Vec3(100.0, -20.0, 7.0);
