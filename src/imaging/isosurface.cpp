@@ -84,12 +84,15 @@ Isosurface extract_isosurface(const VolumeImage& image, double iso,
   // stop on an assertion; then the default seeding meshes what its rays find, and the result
   // says so.
   Complex complex;
-  try {
-    initialize_triangulation_from_gray_image(complex, domain, cgal_image, criteria,
-                                             static_cast<float>(iso), float{});
-  } catch (const CGAL::Failure_exception&) {
-    complex = Complex();
-    result.every_region_seeded = false;
+  result.every_region_seeded = options.seed_every_region;
+  if (options.seed_every_region) {
+    try {
+      initialize_triangulation_from_gray_image(complex, domain, cgal_image, criteria,
+                                               static_cast<float>(iso), float{});
+    } catch (const CGAL::Failure_exception&) {
+      complex = Complex();
+      result.every_region_seeded = false;
+    }
   }
   if (result.every_region_seeded) {
     CGAL::refine_mesh_3(complex, domain, criteria, params::no_perturb(), params::no_exude(),

@@ -1,10 +1,14 @@
 #include "incise/planning/decimate.hpp"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/distance.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Bounded_distance_placement.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Count_stop_predicate.h>
@@ -12,11 +16,17 @@
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/LindstromTurk_placement.h>
 #include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Polyhedral_envelope_filter.h>
 #include <CGAL/Surface_mesh_simplification/edge_collapse.h>
+#include <tbb/parallel_for.h>
 
-#include <map>
+#include <algorithm>
+#include <iostream>
+#include <sstream>
 
 #include "incise/core/error.hpp"
+#include "incise/imaging/isosurface.hpp"
 #include "incise/planning/surface_error.hpp"
+#include "incise/planning/surface_image.hpp"
+#include "nearest_triangle.hpp"
 
 namespace incise::planning {
 
@@ -48,9 +58,9 @@ Mesh to_cgal(const SurfaceMesh& surface) {
 
 SurfaceMesh from_cgal(const Mesh& mesh) {
   SurfaceMesh surface;
-  std::map<Mesh::Vertex_index, VertexId> index;
+  std::vector<VertexId> index(mesh.number_of_vertices() + mesh.number_of_removed_vertices(), -1);
   for (const Mesh::Vertex_index v : mesh.vertices()) {
-    index[v] = static_cast<VertexId>(surface.points.size());
+    index[v.idx()] = static_cast<VertexId>(surface.points.size());
     const auto& p = mesh.point(v);
     surface.points.emplace_back(p.x(), p.y(), p.z());
   }
@@ -59,7 +69,7 @@ SurfaceMesh from_cgal(const Mesh& mesh) {
     int k = 0;
     for (const Mesh::Vertex_index v : CGAL::vertices_around_face(mesh.halfedge(f), mesh)) {
       if (k < 3) {
-        t[static_cast<std::size_t>(k)] = index.at(v);
+        t[static_cast<std::size_t>(k)] = index[v.idx()];
       }
       ++k;
     }
@@ -120,6 +130,88 @@ DecimationResult decimate_surface(const SurfaceMesh& input, double max_error) {
       PMP::bounded_error_Hausdorff_distance<CGAL::Sequential_tag>(mesh, original, precision);
   result.hausdorff_from_input =
       PMP::bounded_error_Hausdorff_distance<CGAL::Sequential_tag>(original, mesh, precision);
+  return result;
+}
+
+RemeshResult remesh_within_bound(const SurfaceMesh& input, const RemeshOptions& options) {
+  if (!(options.max_error > 0.0) || !std::isfinite(options.max_error) ||
+      !(options.facet_size > 0.0) || !std::isfinite(options.facet_size)) {
+    throw InputError("remeshing needs a positive, finite max_error and facet_size");
+  }
+  RemeshResult result;
+  const SurfaceMesh largest = largest_component(input);
+  result.triangles_before = largest.triangles.size();
+
+  // Closed, so that inside is defined: each hole (where the tissue left the scan) is filled,
+  // and what the mesher puts over a fill is left out afterwards.
+  Mesh closed = to_cgal(largest);
+  if (!CGAL::is_triangle_mesh(closed) || closed.number_of_faces() == 0) {
+    throw InputError("remeshing needs a triangle surface CGAL can orient");
+  }
+  const std::size_t original_faces = closed.number_of_faces();
+  std::vector<Mesh::Halfedge_index> holes;
+  PMP::extract_boundary_cycles(closed, std::back_inserter(holes));
+  for (const Mesh::Halfedge_index hole : holes) {
+    std::vector<Mesh::Face_index> fill;
+    PMP::triangulate_hole(closed, hole, std::back_inserter(fill));
+  }
+  result.holes_filled = holes.size();
+  if (PMP::volume(closed) < 0.0) {
+    PMP::reverse_face_orientations(closed);  // outwards, so that inside is positive below
+  }
+  SurfaceMesh closed_surface = from_cgal(closed);
+  // from_cgal keeps CGAL's face order: the fills come after the original faces.
+  std::vector<char> is_fill(closed_surface.triangles.size(), 0);
+  std::fill(is_fill.begin() + static_cast<std::ptrdiff_t>(original_faces), is_fill.end(), 1);
+
+  // The surface as a level set, meshed as the CT's isosurfaces are: within the bound (the
+  // facet distance) and with triangles no larger than facet_size. Grid spacing: twice the
+  // bound. The level set of the trilinear field strays from the surface by about spacing^2 /
+  // (8 r) for a radius of curvature r (0.025 mm at r = 5 mm for a 0.5 mm bound); half the
+  // spacing measured no closer (p99 0.47 against 0.48 mm on a 212,000-triangle skin) at four
+  // times the time.
+  const imaging::VolumeImage image = signed_distance_image(closed_surface, 2.0 * options.max_error);
+  result.grid = image.size;
+  imaging::IsosurfaceOptions mesher;
+  mesher.facet_size = options.facet_size;
+  mesher.facet_distance = options.max_error;
+  mesher.open_at_scan_border = false;
+  // One region, which the mesher's rays from the middle meet: CGAL's search of the image for
+  // every region (a third of the time) is not needed.
+  mesher.seed_every_region = false;
+  mesher.seed = options.seed;
+  imaging::Isosurface level_set;
+  {
+    // CGAL's seeding prints its progress to std::cout, which belongs to the caller.
+    std::ostringstream cgal_chatter;
+    std::streambuf* const standard_output = std::cout.rdbuf(cgal_chatter.rdbuf());
+    struct Restore {
+      std::streambuf* buffer;
+      ~Restore() { std::cout.rdbuf(buffer); }
+    } restore{standard_output};
+    level_set = imaging::extract_isosurface(image, 0.0, mesher, "the surface's level set");
+  }
+
+  // What lies over a fill is left out: the surface stays open where the input was.
+  std::vector<char> keep(level_set.surface.triangles.size(), 1);
+  if (!holes.empty()) {
+    const NearestTriangle nearest(closed_surface.points, closed_surface.triangles);
+    tbb::parallel_for(std::size_t{0}, keep.size(), [&](std::size_t t) {
+      const Triangle& tri = level_set.surface.triangles[t];
+      const Vec3 centre = (level_set.surface.points[static_cast<std::size_t>(tri[0])] +
+                           level_set.surface.points[static_cast<std::size_t>(tri[1])] +
+                           level_set.surface.points[static_cast<std::size_t>(tri[2])]) /
+                          3.0;
+      keep[t] = is_fill[static_cast<std::size_t>(nearest.closest(centre).triangle)] != 0 ? 0 : 1;
+    });
+  }
+  result.triangles_over_holes = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 0));
+  // The largest piece: a plate thinner than the grid, or the rim around a fill, can leave
+  // specks apart.
+  const SurfaceMesh kept = select_triangles(level_set.surface, keep);
+  result.surface = largest_component(kept);
+  result.pieces_left_out_triangles = kept.triangles.size() - result.surface.triangles.size();
+  result.triangles_after = result.surface.triangles.size();
   return result;
 }
 

@@ -145,11 +145,23 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
     plan.bone = json::resolve(context, surfaces.string("bone", ""));
   }
   if (top.has("decimation")) {
-    const ObjectReader decimation(context, top.at("decimation"), "decimation", {"max_error"});
+    const ObjectReader decimation(context, top.at("decimation"), "decimation",
+                                  {"max_error", "method", "facet_size"});
     if (!decimation.has("max_error")) {
       context.fail("decimation", "needs 'max_error' (mm)");
     }
     plan.decimation_max_error = decimation.positive("max_error", 1.0) * kMillimetre;
+    const std::string how = decimation.string("method", "mesher");
+    if (how == "mesher") {
+      plan.decimation_method = DecimationMethod::kMesher;
+    } else if (how == "envelope") {
+      plan.decimation_method = DecimationMethod::kEnvelope;
+    } else {
+      context.fail("decimation.method", "unknown method '" + how + "' (known: mesher, envelope)");
+    }
+    if (decimation.has("facet_size")) {
+      plan.decimation_facet_size = decimation.positive("facet_size", 1.0) * kMillimetre;
+    }
   }
   if (top.has("min_segment_volume")) {
     plan.min_segment_volume =

@@ -31,6 +31,48 @@ OneSidedDistance summarize(std::vector<double> distances) {
   return result;
 }
 
+/// `samples` points uniform by area over the triangles with keep_triangle set (all when empty),
+/// repeatable for a seed; none when they have no area.
+std::vector<Vec3> sample_by_area(std::span<const Vec3> points, std::span<const Triangle> triangles,
+                                 std::span<const char> keep_triangle, std::size_t samples,
+                                 std::uint64_t seed) {
+  std::vector<double> cumulative;
+  std::vector<std::size_t> kept;
+  double total_area = 0.0;
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    if (!keep_triangle.empty() && keep_triangle[t] == 0) {
+      continue;
+    }
+    const Triangle& tri = triangles[t];
+    const Vec3& a = points[static_cast<std::size_t>(tri[0])];
+    total_area += 0.5 * (points[static_cast<std::size_t>(tri[1])] - a)
+                            .cross(points[static_cast<std::size_t>(tri[2])] - a)
+                            .norm();
+    cumulative.push_back(total_area);
+    kept.push_back(t);
+  }
+  std::vector<Vec3> starts;
+  if (kept.empty() || !(total_area > 0.0)) {
+    return starts;
+  }
+  std::mt19937_64 random(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  starts.resize(samples);
+  for (Vec3& start : starts) {
+    const double at = uniform(random) * total_area;
+    const auto index = static_cast<std::size_t>(std::min<std::ptrdiff_t>(
+        std::upper_bound(cumulative.begin(), cumulative.end(), at) - cumulative.begin(),
+        static_cast<std::ptrdiff_t>(kept.size()) - 1));
+    const Triangle& tri = triangles[kept[index]];
+    const double r1 = std::sqrt(uniform(random));
+    const double r2 = uniform(random);
+    start = (1.0 - r1) * points[static_cast<std::size_t>(tri[0])] +
+            r1 * (1.0 - r2) * points[static_cast<std::size_t>(tri[1])] +
+            r1 * r2 * points[static_cast<std::size_t>(tri[2])];
+  }
+  return starts;
+}
+
 }  // namespace
 
 SurfaceComponents surface_components(const SurfaceMesh& surface) {
@@ -182,37 +224,9 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
   }
 
   // Model to isosurface: points uniform by area over the kept triangles.
-  std::vector<double> cumulative;
-  std::vector<std::size_t> kept;
-  double total_area = 0.0;
-  for (std::size_t t = 0; t < surface.triangles.size(); ++t) {
-    if (keep_triangle[t] == 0) {
-      continue;
-    }
-    const Triangle& tri = surface.triangles[t];
-    const Vec3& a = grid_points[static_cast<std::size_t>(tri[0])];
-    total_area += 0.5 * (grid_points[static_cast<std::size_t>(tri[1])] - a)
-                            .cross(grid_points[static_cast<std::size_t>(tri[2])] - a)
-                            .norm();
-    cumulative.push_back(total_area);
-    kept.push_back(t);
-  }
-  if (!kept.empty() && total_area > 0.0) {
-    std::mt19937_64 random(seed);
-    std::uniform_real_distribution<double> uniform(0.0, 1.0);
-    std::vector<Vec3> starts(samples);
-    for (Vec3& start : starts) {
-      const double at = uniform(random) * total_area;
-      const auto index = static_cast<std::size_t>(std::min<std::ptrdiff_t>(
-          std::upper_bound(cumulative.begin(), cumulative.end(), at) - cumulative.begin(),
-          static_cast<std::ptrdiff_t>(kept.size()) - 1));
-      const Triangle& tri = surface.triangles[kept[index]];
-      const double r1 = std::sqrt(uniform(random));
-      const double r2 = uniform(random);
-      start = (1.0 - r1) * grid_points[static_cast<std::size_t>(tri[0])] +
-              r1 * (1.0 - r2) * grid_points[static_cast<std::size_t>(tri[1])] +
-              r1 * r2 * grid_points[static_cast<std::size_t>(tri[2])];
-    }
+  const std::vector<Vec3> starts =
+      sample_by_area(grid_points, surface.triangles, keep_triangle, samples, seed);
+  if (!starts.empty()) {
     std::vector<double> distance(samples, -1.0);
     tbb::parallel_for(std::size_t{0}, samples, [&](std::size_t i) {
       if (near_scan_border(image, starts[i])) {
@@ -235,6 +249,26 @@ IsosurfaceDistance measure_isosurface_distance(const imaging::VolumeImage& image
   }
   const std::size_t fewest = std::max<std::size_t>(
       1, std::min(result.model_to_isosurface.samples, result.isosurface_to_model.samples));
+  result.beyond_max_fraction = std::log(100.0) / static_cast<double>(fewest);
+  return result;
+}
+
+SurfaceDistance measure_surface_distance(const SurfaceMesh& model, const SurfaceMesh& reference,
+                                         std::size_t samples, std::uint64_t seed) {
+  SurfaceDistance result;
+  auto one_way = [samples](const SurfaceMesh& from, const SurfaceMesh& to, std::uint64_t draw) {
+    const std::vector<Vec3> starts = sample_by_area(from.points, from.triangles, {}, samples, draw);
+    const NearestTriangle nearest(to.points, to.triangles);
+    std::vector<double> distance(starts.size());
+    tbb::parallel_for(std::size_t{0}, starts.size(), [&](std::size_t i) {
+      distance[i] = (nearest.closest(starts[i]).point - starts[i]).norm();
+    });
+    return summarize(std::move(distance));
+  };
+  result.model_to_reference = one_way(model, reference, seed);
+  result.reference_to_model = one_way(reference, model, seed + 1);
+  const std::size_t fewest = std::max<std::size_t>(
+      1, std::min(result.model_to_reference.samples, result.reference_to_model.samples));
   result.beyond_max_fraction = std::log(100.0) / static_cast<double>(fewest);
   return result;
 }

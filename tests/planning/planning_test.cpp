@@ -23,6 +23,8 @@
 #include "incise/planning/plan.hpp"
 #include "incise/planning/plan_session.hpp"
 #include "incise/planning/prism.hpp"
+#include "incise/planning/surface_error.hpp"
+#include "incise/planning/surface_image.hpp"
 #include "incise/planning/tissue_energy.hpp"
 #include "tissue_support.hpp"
 
@@ -412,6 +414,95 @@ TEST(Decimation, TheDistanceBoundHolds) {
   }
 }
 
+/// Per edge (sorted pair of points), how many triangles share it.
+std::map<std::pair<VertexId, VertexId>, int> edge_use(const SurfaceMesh& surface) {
+  std::map<std::pair<VertexId, VertexId>, int> use;
+  for (const Triangle& t : surface.triangles) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      const VertexId a = t[c];
+      const VertexId b = t[(c + 1) % 3];
+      ++use[{std::min(a, b), std::max(a, b)}];
+    }
+  }
+  return use;
+}
+
+TEST(Remesh, ASurfaceFileIsMeshedWithinTheBoundOpenWhereItWasOpen) {
+  // A 40 mm sphere of 20,480 triangles (mm), closed, and the same with its cap above z = 30 mm
+  // cut away (an open border, as a scan's skin at the neck).
+  const SurfaceMesh closed = sphere(40.0, 5);
+  SurfaceMesh open = closed;
+  std::erase_if(open.triangles, [&](const Triangle& t) {
+    return (open.points[static_cast<std::size_t>(t[0])].z() +
+            open.points[static_cast<std::size_t>(t[1])].z() +
+            open.points[static_cast<std::size_t>(t[2])].z()) /
+               3.0 >
+           30.0;
+  });
+  RemeshOptions options;
+  options.max_error = 0.2;  // mm
+  options.facet_size = 4.0;
+  for (const SurfaceMesh* input : std::array<const SurfaceMesh*, 2>{&closed, &open}) {
+    const bool is_open = input == &open;
+    SCOPED_TRACE(is_open ? "open" : "closed");
+    const RemeshResult result = remesh_within_bound(*input, options);
+    EXPECT_EQ(result.holes_filled, is_open ? 1U : 0U);
+    EXPECT_LT(result.triangles_after, input->triangles.size() / 4);
+    EXPECT_GT(result.triangles_after, 200U);
+    // A 2-manifold: every edge on two triangles, or on one along the open border only, whose
+    // points lie at the cut (z = 30 mm, within a triangle of the mesher).
+    std::size_t border_edges = 0;
+    for (const auto& [edge, triangles] : edge_use(result.surface)) {
+      ASSERT_LE(triangles, 2);
+      if (triangles == 1) {
+        ++border_edges;
+        EXPECT_NEAR(result.surface.points[static_cast<std::size_t>(edge.first)].z(), 30.0, 4.0);
+      }
+    }
+    EXPECT_EQ(border_edges > 0, is_open);
+    EXPECT_EQ(surface_components(result.surface).components.size(), 1U);
+    // Measured both ways: within the bound nearly everywhere.
+    // Measured both ways: within the bound nearly everywhere. The open border's rim, a crease
+    // between the sphere and the hole's fill, is rounded by the mesher within about a triangle
+    // of it.
+    const SurfaceDistance distance = measure_surface_distance(result.surface, *input, 20000, 1);
+    EXPECT_LT(distance.model_to_reference.p99, options.max_error);
+    EXPECT_LT(distance.reference_to_model.p99, options.max_error);
+    EXPECT_LT(distance.model_to_reference.max, (is_open ? 8.0 : 3.0) * options.max_error);
+    // Points off the sphere by no more than the bound plus the input's chords (0.1 mm), away
+    // from the rim.
+    for (const Vec3& p : result.surface.points) {
+      if (!is_open || p.z() < 30.0 - options.facet_size) {
+        ASSERT_NEAR(p.norm(), 40.0, options.max_error + 0.1) << p.transpose();
+      }
+    }
+  }
+}
+
+TEST(Remesh, TheSignedDistanceImageIsPositiveInsideAndExactNearTheSurface) {
+  const SurfaceMesh closed = sphere(10.0, 4);  // mm; chords within 0.05 mm of the sphere
+  const imaging::VolumeImage image = signed_distance_image(closed, 0.5);
+  std::size_t near_surface = 0;
+  for (std::size_t k = 0; k < image.size[2]; ++k) {
+    for (std::size_t j = 0; j < image.size[1]; ++j) {
+      for (std::size_t i = 0; i < image.size[0]; ++i) {
+        const Vec3 p = image.position(
+            Vec3(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+        const double depth = 10.0 - p.norm();  // inside positive
+        const double value = image.at(i, j, k);
+        if (std::abs(depth) > 0.06) {
+          ASSERT_EQ(value > 0.0, depth > 0.0) << p.transpose();
+        }
+        if (std::abs(depth) < 0.9) {  // within the band: the distance itself
+          ASSERT_NEAR(value, depth, 0.06) << p.transpose();
+          ++near_surface;
+        }
+      }
+    }
+  }
+  EXPECT_GT(near_surface, 1000U);
+}
+
 TEST(Osteotomy, PlanesMakeSegmentsAndMovesIntoEachOtherAreRefused) {
   const SurfaceMesh bone = sphere(0.04, 3);
   const std::vector<CutPlane> planes = {{Vec3(0, 0, 0.01), Vec3(0, 0, 1)}};
@@ -575,6 +666,10 @@ TEST(Plan, MalformedPlansNameTheKey) {
             std::string::npos);
   EXPECT_NE(plan_error("{" + surfaces + R"(, "iso": {"skin": 1, "bone": 2}})").find("'image'"),
             std::string::npos);
+  EXPECT_NE(
+      plan_error("{" + surfaces + R"(, "decimation": {"max_error": 0.5, "method": "collapse"}})")
+          .find("decimation.method"),
+      std::string::npos);
   EXPECT_NE(plan_error("{" + surfaces + R"(, "osteotomies": [{"point": [0, 0, 0]}]})")
                 .find("osteotomies[0]"),
             std::string::npos);

@@ -28,6 +28,7 @@ struct Instrument {
 };
 
 enum class PredictionMethod { kEnergy, kForce };
+enum class DecimationMethod { kMesher, kEnvelope };
 
 struct PlanDescription {
   std::filesystem::path file;  ///< the plan (outputs and messages name it)
@@ -40,6 +41,14 @@ struct PlanDescription {
   std::filesystem::path skin;
   std::filesystem::path bone;
   std::optional<double> decimation_max_error;  ///< m
+  /// How surface files meet decimation_max_error: remeshed as a level set by the CT's mesher
+  /// (seconds; the bound at each triangle's centre, the distance measured both ways), or
+  /// decimated by edge collapse inside CGAL's polyhedral envelope (every point within the bound:
+  /// the seed's guarantee, minutes for a 200,000-triangle surface).
+  DecimationMethod decimation_method = DecimationMethod::kMesher;
+  /// m: with the mesher, the largest triangle circumradius; 0: the layer thickness
+  /// (max_thickness / layers), as for a CT.
+  double decimation_facet_size = 0.0;
   /// m: the skin remeshed isotropically to this edge length before the model is built
   /// (well-shaped prisms; a scan's slivers make the minimisation crawl).
   std::optional<double> skin_edge_length;

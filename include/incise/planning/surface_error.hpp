@@ -79,4 +79,19 @@ struct IsosurfaceDistance {
                                                              std::uint64_t seed = 0,
                                                              double least_region_mm3 = 0.0);
 
+struct SurfaceDistance {
+  OneSidedDistance model_to_reference;
+  OneSidedDistance reference_to_model;
+  /// With 99 % confidence, at most this fraction of each surface lies beyond its largest
+  /// sampled distance: ln(100) / samples.
+  double beyond_max_fraction = 0.0;
+};
+
+/// The distance between two surfaces, both ways, by `samples` points uniform by area on each,
+/// every one's distance to the nearest point of the other (in the surfaces' units). Parallel;
+/// repeats for a seed.
+[[nodiscard]] SurfaceDistance measure_surface_distance(const SurfaceMesh& model,
+                                                       const SurfaceMesh& reference,
+                                                       std::size_t samples, std::uint64_t seed = 0);
+
 }  // namespace incise::planning
