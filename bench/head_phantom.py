@@ -9,13 +9,16 @@ Patient frame (mm): x to the patient's left, y to the back (the face looks towar
 the crown; the volume's origin is its first voxel centre.
 
 usage: bench/head_phantom.py OUT_DIR [--size 512 512 300] [--spacing 0.5 0.5 0.8]
-                             [--noise 15] [--seed 1] [--dicom]
+                             [--noise 15] [--seed 1] [--dicom] [--surfaces]
 
 Writes OUT_DIR/head.mhd (+ head.raw) and, with --dicom, a CT series OUT_DIR/dicom/slice_NNNN.dcm
 (pydicom, Debian's python3-pydicom). The plan of the issue's benchmark is written beside it as
 OUT_DIR/plan.json: skin 500, bone 1600, three layers, a Le Fort I-like osteotomy through the
 maxilla and the maxilla advanced 5 mm along its own cut; with --dicom also
 OUT_DIR/plan_dicom.json, the same plan on the series, its iso values in Hounsfield units.
+With --surfaces, the skin and bone as a segmentation tool exports them (VTK's flying edges at
+the plan's iso values, the largest connected piece, unsmoothed: OUT_DIR/skin.stl, bone.stl;
+python3-vtk9) and OUT_DIR/plan_surfaces.json, the same plan on those files.
 """
 import argparse
 import json
@@ -217,6 +220,33 @@ def write_plan(out_dir, image_name, plan_name="plan.json", offset=0):
         json.dump(plan, f, indent=2)
 
 
+def write_surfaces(out_dir):
+    """Skin and bone as surface files and the plan on them (a surface-file plan's benchmark)."""
+    import vtk  # python3-vtk9, only for this option
+
+    reader = vtk.vtkMetaImageReader()
+    reader.SetFileName(os.path.join(out_dir, "head.mhd"))
+    for iso, name in ((500, "skin"), (1600, "bone")):
+        edges = vtk.vtkFlyingEdges3D()
+        edges.SetInputConnection(reader.GetOutputPort())
+        edges.SetValue(0, iso)
+        largest = vtk.vtkPolyDataConnectivityFilter()
+        largest.SetInputConnection(edges.GetOutputPort())
+        largest.SetExtractionModeToLargestRegion()
+        writer = vtk.vtkSTLWriter()
+        writer.SetInputConnection(largest.GetOutputPort())
+        writer.SetFileName(os.path.join(out_dir, f"{name}.stl"))
+        writer.SetFileTypeToBinary()
+        writer.Write()
+    with open(os.path.join(out_dir, "plan.json")) as f:
+        plan = json.load(f)
+    del plan["image"], plan["iso"]
+    plan["surfaces"] = {"skin": "skin.stl", "bone": "bone.stl"}
+    plan["description"] += " On surface files (VTK flying edges, unsmoothed), decimated to 0.5 mm."
+    with open(os.path.join(out_dir, "plan_surfaces.json"), "w") as f:
+        json.dump(plan, f, indent=2)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("out_dir")
@@ -225,6 +255,8 @@ def main():
     parser.add_argument("--noise", type=float, default=15.0, help="CT numbers, standard deviation")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--dicom", action="store_true", help="also write a DICOM series")
+    parser.add_argument("--surfaces", action="store_true",
+                        help="also write skin.stl and bone.stl and a plan on them")
     args = parser.parse_args()
     os.makedirs(args.out_dir, exist_ok=True)
     volume, origin = phantom(args.size, args.spacing, args.noise, args.seed)
@@ -234,6 +266,8 @@ def main():
     write_plan(args.out_dir, "head.mhd")
     if args.dicom:
         write_plan(args.out_dir, "dicom", "plan_dicom.json", -1024)
+    if args.surfaces:
+        write_surfaces(args.out_dir)
     print(f"{args.out_dir}/head.mhd: {args.size[0]} x {args.size[1]} x {args.size[2]} voxels of "
           f"{args.spacing[0]} x {args.spacing[1]} x {args.spacing[2]} mm")
 
