@@ -3,9 +3,7 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/distance.h>
-#include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
-#include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
@@ -19,14 +17,13 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <iostream>
-#include <sstream>
 
 #include "incise/core/error.hpp"
 #include "incise/imaging/isosurface.hpp"
 #include "incise/planning/surface_error.hpp"
 #include "incise/planning/surface_image.hpp"
 #include "nearest_triangle.hpp"
+#include "silenced_output.hpp"
 
 namespace incise::planning {
 
@@ -156,9 +153,6 @@ RemeshResult remesh_within_bound(const SurfaceMesh& input, const RemeshOptions& 
     PMP::triangulate_hole(closed, hole, std::back_inserter(fill));
   }
   result.holes_filled = holes.size();
-  if (PMP::volume(closed) < 0.0) {
-    PMP::reverse_face_orientations(closed);  // outwards, so that inside is positive below
-  }
   SurfaceMesh closed_surface = from_cgal(closed);
   // from_cgal keeps CGAL's face order: the fills come after the original faces.
   std::vector<char> is_fill(closed_surface.triangles.size(), 0);
@@ -182,13 +176,7 @@ RemeshResult remesh_within_bound(const SurfaceMesh& input, const RemeshOptions& 
   mesher.seed = options.seed;
   imaging::Isosurface level_set;
   {
-    // CGAL's seeding prints its progress to std::cout, which belongs to the caller.
-    std::ostringstream cgal_chatter;
-    std::streambuf* const standard_output = std::cout.rdbuf(cgal_chatter.rdbuf());
-    struct Restore {
-      std::streambuf* buffer;
-      ~Restore() { std::cout.rdbuf(buffer); }
-    } restore{standard_output};
+    const SilencedStandardOutput quiet;
     level_set = imaging::extract_isosurface(image, 0.0, mesher, "the surface's level set");
   }
 

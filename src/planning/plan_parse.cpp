@@ -151,14 +151,10 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
       context.fail("decimation", "needs 'max_error' (mm)");
     }
     plan.decimation_max_error = decimation.positive("max_error", 1.0) * kMillimetre;
-    const std::string how = decimation.string("method", "mesher");
-    if (how == "mesher") {
-      plan.decimation_method = DecimationMethod::kMesher;
-    } else if (how == "envelope") {
-      plan.decimation_method = DecimationMethod::kEnvelope;
-    } else {
-      context.fail("decimation.method", "unknown method '" + how + "' (known: mesher, envelope)");
-    }
+    constexpr std::array<std::pair<std::string_view, DecimationMethod>, 2> kDecimations{
+        {{"mesher", DecimationMethod::kMesher}, {"envelope", DecimationMethod::kEnvelope}}};
+    plan.decimation_method = decimation.choice<DecimationMethod>("method", plan.decimation_method,
+                                                                 kDecimations, "method");
     if (decimation.has("facet_size")) {
       plan.decimation_facet_size = decimation.positive("facet_size", 1.0) * kMillimetre;
     }
@@ -279,14 +275,9 @@ PlanDescription parse_plan(const std::string& text, const std::filesystem::path&
       plan.instruments.push_back(instrument);
     }
   }
-  const std::string method = top.string("method", "energy");
-  if (method == "energy") {
-    plan.method = PredictionMethod::kEnergy;
-  } else if (method == "force") {
-    plan.method = PredictionMethod::kForce;
-  } else {
-    context.fail("method", "unknown method '" + method + "' (known: energy, force)");
-  }
+  constexpr std::array<std::pair<std::string_view, PredictionMethod>, 2> kMethods{
+      {{"energy", PredictionMethod::kEnergy}, {"force", PredictionMethod::kForce}}};
+  plan.method = top.choice<PredictionMethod>("method", plan.method, kMethods, "method");
   // Newton's method where it applies (the energy), L-BFGS for the force objective.
   plan.solver.method =
       plan.method == PredictionMethod::kEnergy ? Minimizer::kNewton : Minimizer::kLbfgs;

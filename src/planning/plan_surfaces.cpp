@@ -5,14 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iostream>
-#include <sstream>
 #include <string>
 
 #include "incise/core/error.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/imaging/read_volume.hpp"
 #include "incise/planning/surface_error.hpp"
+#include "silenced_output.hpp"
 
 namespace incise::planning {
 
@@ -186,23 +185,19 @@ PlanSurfaces surfaces_from_image(const PlanDescription& plan, const PlanProgress
   imaging::Isosurface skin;
   imaging::Isosurface bone;
   // One mesher per surface, side by side: each stays sequential, so results repeat exactly.
-  // CGAL's seeding prints its progress to std::cout, which belongs to the caller (a script may
-  // read incise's standard output): it goes nowhere while the meshers run.
-  std::ostringstream cgal_chatter;
-  std::streambuf* const standard_output = std::cout.rdbuf(cgal_chatter.rdbuf());
-  struct Restore {
-    std::streambuf* buffer;
-    ~Restore() { std::cout.rdbuf(buffer); }
-  } restore{standard_output};
-  tbb::parallel_invoke(
-      [&] {
-        skin = imaging::extract_isosurface(image, plan.skin_iso, options,
-                                           plan.file.string() + ": plan key 'iso.skin'");
-      },
-      [&] {
-        bone = imaging::extract_isosurface(image, plan.bone_iso, options,
-                                           plan.file.string() + ": plan key 'iso.bone'");
-      });
+  // CGAL's seeding prints its progress to std::cout: it goes nowhere while the meshers run.
+  {
+    const SilencedStandardOutput quiet;
+    tbb::parallel_invoke(
+        [&] {
+          skin = imaging::extract_isosurface(image, plan.skin_iso, options,
+                                             plan.file.string() + ": plan key 'iso.skin'");
+        },
+        [&] {
+          bone = imaging::extract_isosurface(image, plan.bone_iso, options,
+                                             plan.file.string() + ": plan key 'iso.bone'");
+        });
+  }
   result.seconds_isosurface = seconds_since(stage);
 
   report_progress("checking the surfaces against the CT", 0.1);

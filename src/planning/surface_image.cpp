@@ -9,51 +9,9 @@
 #include <vector>
 
 #include "incise/core/error.hpp"
+#include "incise/mesh/predicates.hpp"
 
 namespace incise::planning {
-
-namespace {
-
-/// Squared distance from p to the triangle (a, b, c) (Ericson, Real-Time Collision Detection,
-/// 5.1.5).
-double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a;
-  const Vec3 ac = c - a;
-  const Vec3 ap = p - a;
-  const double d1 = ab.dot(ap);
-  const double d2 = ac.dot(ap);
-  if (d1 <= 0.0 && d2 <= 0.0) {
-    return ap.squaredNorm();
-  }
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp);
-  const double d4 = ac.dot(bp);
-  if (d3 >= 0.0 && d4 <= d3) {
-    return bp.squaredNorm();
-  }
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
-    return (ap - d1 / (d1 - d3) * ab).squaredNorm();
-  }
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp);
-  const double d6 = ac.dot(cp);
-  if (d6 >= 0.0 && d5 <= d6) {
-    return cp.squaredNorm();
-  }
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
-    return (ap - d2 / (d2 - d6) * ac).squaredNorm();
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-    return (bp - (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b)).squaredNorm();
-  }
-  const double denominator = 1.0 / (va + vb + vc);
-  return (ap - vb * denominator * ab - vc * denominator * ac).squaredNorm();
-}
-
-}  // namespace
 
 imaging::VolumeImage signed_distance_image(const SurfaceMesh& surface, double spacing) {
   if (surface.triangles.empty() || !(spacing > 0.0)) {
