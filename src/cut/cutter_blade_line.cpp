@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <set>
@@ -14,6 +15,7 @@
 #include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
 #include "incise/mesh/validate.hpp"
+#include "parallel_tests.hpp"
 #include "triangle_index.hpp"
 
 namespace incise {
@@ -28,15 +30,18 @@ void SubdivisionCutter::insert_blade_points(const BladePose& pose, const Vec3& n
     return;
   }
   grid_.query(pose.tip.cwiseMin(pose.base), pose.tip.cwiseMax(pose.base), scratch_);
-  std::vector<double> parameters;
-  for (TetId t : scratch_) {
+  struct Passage {
+    double enter = 0.0;
+    double leave = -1.0;  // leave < enter: the blade line does not pass through
+  };
+  std::vector<Passage> passages;
+  test_each<TetId>(scratch_, passages, [&](TetId t) {
     const Tet& v = mesh_.tet(t);
     const std::array<Vec3, 4> p{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
     if (!segment_intersects_tet(pose.tip, pose.base, p[0], p[1], p[2], p[3])) {
-      continue;
+      return Passage{};
     }
-    double enter = 0.0;
-    double leave = 1.0;
+    Passage passage{0.0, 1.0};
     for (int f = 0; f < 4; ++f) {
       const auto& face = tet_local::kFaces[f];
       Vec3 inward = (p[face[1]] - p[face[0]]).cross(p[face[2]] - p[face[0]]);
@@ -46,14 +51,18 @@ void SubdivisionCutter::insert_blade_points(const BladePose& pose, const Vec3& n
       const double at_tip = inward.dot(pose.tip - p[face[0]]);
       const double rate = inward.dot(direction);
       if (rate > 0.0) {
-        enter = std::max(enter, -at_tip / rate);
+        passage.enter = std::max(passage.enter, -at_tip / rate);
       } else if (rate < 0.0) {
-        leave = std::min(leave, -at_tip / rate);
+        passage.leave = std::min(passage.leave, -at_tip / rate);
       }
     }
-    if (enter <= leave) {
-      parameters.push_back(enter);
-      parameters.push_back(leave);
+    return passage.enter <= passage.leave ? passage : Passage{};
+  });
+  std::vector<double> parameters;
+  for (const Passage& passage : passages) {
+    if (passage.enter <= passage.leave) {
+      parameters.push_back(passage.enter);
+      parameters.push_back(passage.leave);
     }
   }
   std::sort(parameters.begin(), parameters.end());

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numeric>
 
@@ -12,6 +13,7 @@
 #include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
 #include "incise/mesh/validate.hpp"
+#include "parallel_tests.hpp"
 #include "triangle_index.hpp"
 
 namespace incise {
@@ -21,14 +23,20 @@ using namespace cutter_detail;  // NOLINT(google-build-using-namespace): the cut
 SubdivisionCutter::Contact SubdivisionCutter::detect(
     const std::vector<std::array<Vec3, 3>>& triangles) {
   Contact contact;
-  for (const auto& triangle : triangles) {
+  // Candidates: the tetrahedra in the grid cells of each swept triangle whose boxes meet its
+  // box (the exact test is the expensive part of collision detection), then tested exactly.
+  struct Candidate {
+    TetId tet;
+    std::uint32_t triangle;
+  };
+  std::vector<Candidate> candidates;
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
     Vec3 low;
     Vec3 high;
-    triangle_bounds(triangle, low, high);
+    triangle_bounds(triangles[i], low, high);
     grid_.query(low, high, scratch_);
     for (TetId t : scratch_) {
       const Tet& v = mesh_.tet(t);
-      // Bounding boxes first: the exact test is the expensive part of collision detection.
       Vec3 tet_low = position(v[0]);
       Vec3 tet_high = tet_low;
       for (int k = 1; k < 4; ++k) {
@@ -38,10 +46,21 @@ SubdivisionCutter::Contact SubdivisionCutter::detect(
       if ((tet_low.array() > high.array()).any() || (tet_high.array() < low.array()).any()) {
         continue;
       }
-      if (triangle_intersects_tet(triangle[0], triangle[1], triangle[2], position(v[0]),
-                                  position(v[1]), position(v[2]), position(v[3]))) {
-        contact.touched.push_back(t);
-      }
+      candidates.push_back({t, static_cast<std::uint32_t>(i)});
+    }
+  }
+  std::vector<std::uint8_t> touches;
+  test_each<Candidate>(candidates, touches, [&](const Candidate& candidate) -> std::uint8_t {
+    const Tet& v = mesh_.tet(candidate.tet);
+    const auto& triangle = triangles[candidate.triangle];
+    return triangle_intersects_tet(triangle[0], triangle[1], triangle[2], position(v[0]),
+                                   position(v[1]), position(v[2]), position(v[3]))
+               ? 1
+               : 0;
+  });
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    if (touches[i] != 0) {
+      contact.touched.push_back(candidates[i].tet);
     }
   }
   std::sort(contact.touched.begin(), contact.touched.end());
@@ -56,35 +75,63 @@ SubdivisionCutter::Contact SubdivisionCutter::detect(
   }
   std::sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-  for (const auto& [a, b] : edges) {
-    const Vec3& pa = position(a);
-    const Vec3& pb = position(b);
-    for (const auto& triangle : triangles) {
-      if (!segment_intersects_triangle(pa, pb, triangle[0], triangle[1], triangle[2])) {
-        continue;
-      }
-      const Vec3 normal = (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]);
-      const double da = normal.dot(pa - triangle[0]);
-      const double db = normal.dot(pb - triangle[0]);
-      if (da == db) {
-        // The edge lies in the blade's plane: its ends on the swept triangle are on the cut.
-        for (VertexId end : {a, b}) {
-          if (squared_distance_to_triangle(position(end), triangle[0], triangle[1], triangle[2]) <=
-              1e-24 * normal.norm()) {
-            contact.snapped.push_back(end);
+  // What the first swept triangle an edge meets does to it: nothing, a crossing at t, or its
+  // ends snapped onto the cut.
+  struct Meeting {
+    double t = 0.0;
+    std::uint8_t crossed = 0;
+    std::uint8_t snap_a = 0;
+    std::uint8_t snap_b = 0;
+  };
+  std::vector<Meeting> meetings;
+  test_each<std::pair<VertexId, VertexId>>(
+      edges, meetings, [&](const std::pair<VertexId, VertexId>& edge) {
+        const Vec3& pa = position(edge.first);
+        const Vec3& pb = position(edge.second);
+        Meeting meeting;
+        for (const auto& triangle : triangles) {
+          if (!segment_intersects_triangle(pa, pb, triangle[0], triangle[1], triangle[2])) {
+            continue;
           }
+          const Vec3 normal = (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]);
+          const double da = normal.dot(pa - triangle[0]);
+          const double db = normal.dot(pb - triangle[0]);
+          if (da == db) {
+            // The edge lies in the blade's plane: its ends on the swept triangle are on the cut.
+            const auto on_triangle = [&](const Vec3& end) -> std::uint8_t {
+              return squared_distance_to_triangle(end, triangle[0], triangle[1], triangle[2]) <=
+                             1e-24 * normal.norm()
+                         ? 1
+                         : 0;
+            };
+            meeting.snap_a = on_triangle(pa);
+            meeting.snap_b = on_triangle(pb);
+            break;
+          }
+          const double t = std::clamp(da / (da - db), 0.0, 1.0);
+          if (t <= options_.snap_fraction) {
+            meeting.snap_a = 1;
+          } else if (t >= 1.0 - options_.snap_fraction) {
+            meeting.snap_b = 1;
+          } else {
+            meeting.crossed = 1;
+            meeting.t = t;
+          }
+          break;
         }
-        break;
-      }
-      const double t = std::clamp(da / (da - db), 0.0, 1.0);
-      if (t <= options_.snap_fraction) {
-        contact.snapped.push_back(a);
-      } else if (t >= 1.0 - options_.snap_fraction) {
-        contact.snapped.push_back(b);
-      } else {
-        contact.crossings.push_back({a, b, t});
-      }
-      break;
+        return meeting;
+      });
+  for (std::size_t i = 0; i < edges.size(); ++i) {
+    const Meeting& meeting = meetings[i];
+    const auto [a, b] = edges[i];
+    if (meeting.snap_a != 0) {
+      contact.snapped.push_back(a);
+    }
+    if (meeting.snap_b != 0) {
+      contact.snapped.push_back(b);
+    }
+    if (meeting.crossed != 0) {
+      contact.crossings.push_back({a, b, meeting.t});
     }
   }
   return contact;
@@ -153,6 +200,7 @@ void SubdivisionCutter::classify(const Contact& contact, const BladePose& pose) 
   }
   std::sort(crossed.begin(), crossed.end());
   // The seed's per-move code and case of every tetrahedron this move crossed.
+  std::vector<std::pair<TetId, std::uint8_t>> coded;
   for (TetId t : contact.touched) {
     const Tet& v = mesh_.tet(t);
     std::uint8_t code = 0;
@@ -163,13 +211,22 @@ void SubdivisionCutter::classify(const Contact& contact, const BladePose& pose) 
         code = static_cast<std::uint8_t>(code | 1U << k);
       }
     }
-    if (code == 0) {
-      continue;
+    if (code != 0) {
+      coded.emplace_back(t, code);
     }
-    const bool partial = segment_intersects_tet(pose.tip, pose.base, position(v[0]), position(v[1]),
-                                                position(v[2]), position(v[3]));
+  }
+  std::vector<std::uint8_t> partial;
+  test_each<std::pair<TetId, std::uint8_t>>(
+      coded, partial, [&](const std::pair<TetId, std::uint8_t>& tet) -> std::uint8_t {
+        const Tet& v = mesh_.tet(tet.first);
+        return segment_intersects_tet(pose.tip, pose.base, position(v[0]), position(v[1]),
+                                      position(v[2]), position(v[3]))
+                   ? 1
+                   : 0;
+      });
+  for (std::size_t i = 0; i < coded.size(); ++i) {
     ++stats_.case_counts[static_cast<std::size_t>(
-        cut_case_table()[cut_state_key(code, partial)].kind)];
+        cut_case_table()[cut_state_key(coded[i].second, partial[i] != 0)].kind)];
   }
 }
 

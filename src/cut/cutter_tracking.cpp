@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numeric>
 
@@ -12,6 +13,7 @@
 #include "incise/mesh/operations.hpp"
 #include "incise/mesh/predicates.hpp"
 #include "incise/mesh/validate.hpp"
+#include "parallel_tests.hpp"
 #include "triangle_index.hpp"
 
 namespace incise {
@@ -139,11 +141,17 @@ void SubdivisionCutter::track_point_tet() {
 void SubdivisionCutter::update_active_tets() {
   active_.clear();
   grid_.query(pose_.tip.cwiseMin(pose_.base), pose_.tip.cwiseMax(pose_.base), scratch_);
-  for (TetId t : scratch_) {
+  std::vector<std::uint8_t> meets;
+  test_each<TetId>(scratch_, meets, [&](TetId t) -> std::uint8_t {
     const Tet& v = mesh_.tet(t);
-    if (segment_intersects_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]),
-                               position(v[2]), position(v[3]))) {
-      active_.push_back(t);
+    return segment_intersects_tet(pose_.tip, pose_.base, position(v[0]), position(v[1]),
+                                  position(v[2]), position(v[3]))
+               ? 1
+               : 0;
+  });
+  for (std::size_t i = 0; i < scratch_.size(); ++i) {
+    if (meets[i] != 0) {
+      active_.push_back(scratch_[i]);
     }
   }
 }

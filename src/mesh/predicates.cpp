@@ -334,6 +334,14 @@ std::optional<bool> segment_in_face_plane(const Vec3& p, const Vec3& q,
 
 bool segment_intersects_tet(const Vec3& p, const Vec3& q, const Vec3& p0, const Vec3& p1,
                             const Vec3& p2, const Vec3& p3) {
+  // Boxes apart along an axis: exact (comparisons of the inputs, no arithmetic), and the
+  // cheapest way out for most tetrahedra a grid returns around a long segment.
+  const Vec3 tet_low = p0.cwiseMin(p1).cwiseMin(p2).cwiseMin(p3);
+  const Vec3 tet_high = p0.cwiseMax(p1).cwiseMax(p2).cwiseMax(p3);
+  if ((tet_low.array() > p.cwiseMax(q).array()).any() ||
+      (tet_high.array() < p.cwiseMin(q).array()).any()) {
+    return false;
+  }
   if (p != q) {
     if (!segment_may_meet_tet(p, q, {p0, p1, p2, p3})) {
       return false;

@@ -164,9 +164,12 @@ void CorotationalFemModel::update_marked() {
   }
   std::sort(touched_tets_.begin(), touched_tets_.end());
   touched_tets_.erase(std::unique(touched_tets_.begin(), touched_tets_.end()), touched_tets_.end());
-  for (TetId t : touched_tets_) {
-    update_element(t);
-  }
+  // Each element's rest shape and mass are its own: worked out on worker threads.
+  parallel_for(0, touched_tets_.size(), 64, [&](std::size_t first, std::size_t last) {
+    for (std::size_t i = first; i != last; ++i) {
+      update_element(touched_tets_[i]);
+    }
+  });
   // Their rows: the vertex and every vertex of its tetrahedra (a vertex left without any
   // keeps only its diagonal).
   stiffness_.add_rows(mesh.vertex_count());
@@ -188,10 +191,13 @@ void CorotationalFemModel::update_marked() {
       }
     });
   } else {
-    // A row that changed holds blocks of its tetrahedra only, all touched.
-    for (TetId t : touched_tets_) {
-      update_slots(t);
-    }
+    // A row that changed holds blocks of its tetrahedra only, all touched. Each tetrahedron's
+    // slots are its own.
+    parallel_for(0, touched_tets_.size(), 64, [&](std::size_t first, std::size_t last) {
+      for (std::size_t i = first; i != last; ++i) {
+        update_slots(touched_tets_[i]);
+      }
+    });
   }
   incidences_.add_rows(mesh.vertex_count());
   std::vector<Incidence> row;
