@@ -172,17 +172,25 @@ void CorotationalFemModel::update_marked() {
   });
   // Their rows: the vertex and every vertex of its tetrahedra (a vertex left without any
   // keeps only its diagonal).
+  // Each row's columns are worked out on worker threads (they read the mesh only); the
+  // matrix takes them one row after another.
   stiffness_.add_rows(mesh.vertex_count());
-  std::vector<VertexId> columns;
-  for (VertexId v : marks_.marked()) {
-    columns.assign(1, v);
-    for (TetId t : mesh.vertex_tets(v)) {
-      const Tet& corners = mesh.tet(t);
-      columns.insert(columns.end(), corners.begin(), corners.end());
+  const std::span<const VertexId> marked = marks_.marked();
+  marked_columns_.resize(std::max(marked_columns_.size(), marked.size()));
+  parallel_for(0, marked.size(), 32, [&](std::size_t first, std::size_t last) {
+    for (std::size_t i = first; i != last; ++i) {
+      std::vector<VertexId>& columns = marked_columns_[i];
+      columns.assign(1, marked[i]);
+      for (TetId t : mesh.vertex_tets(marked[i])) {
+        const Tet& corners = mesh.tet(t);
+        columns.insert(columns.end(), corners.begin(), corners.end());
+      }
+      std::sort(columns.begin(), columns.end());
+      columns.erase(std::unique(columns.begin(), columns.end()), columns.end());
     }
-    std::sort(columns.begin(), columns.end());
-    columns.erase(std::unique(columns.begin(), columns.end()), columns.end());
-    stiffness_.edit_row(v, columns);
+  });
+  for (std::size_t i = 0; i < marked.size(); ++i) {
+    stiffness_.edit_row(marked[i], marked_columns_[i]);
   }
   if (stiffness_.compact_if_fragmented()) {
     parallel_for(0, mesh.tet_count(), 1024, [&](std::size_t first, std::size_t last) {

@@ -181,6 +181,8 @@ class CorotationalFemModel final : public ForceModel,
   bool rebuild_all_ = true;
   VertexMarks marks_;                ///< the vertices edits touched since the last refresh
   std::vector<TetId> touched_tets_;  ///< refresh()'s scratch
+  std::vector<std::vector<VertexId>>
+      marked_columns_;  ///< refresh()'s scratch: each marked row's columns
   /// Built from the mesh when neighbors() is first asked after an edit (explicit traversals
   /// only; implicit schemes never ask).
   mutable VertexGraph graph_;
