@@ -10,7 +10,7 @@
 // usage: cut_cost_bench [--cells 10,20,40] [--model corotational-fem|mass-spring]
 //                       [--cutter subdivision|xfem] [--blade-x 0.05] [--per-frame 1]
 //                       [--preconditioner block-jacobi|two-level] [--paired-every 3]
-//                       [--products single|double]
+//                       [--products single|double] [--tolerance 1e-6]
 // --paired-every K (0: off): every K-th cutting frame is also stepped from the same state with
 // the blade held still (the engine resumed from a checkpoint taken just before it), so the cut's
 // own extra is measured without the body's motion, which differs from frame to frame.
@@ -63,7 +63,8 @@ struct Means {
 };
 
 std::string scene_text(int cells, const std::string& model, const std::string& cutter, double x,
-                       const std::string& preconditioner, const std::string& products) {
+                       const std::string& preconditioner, const std::string& products,
+                       double tolerance) {
   // Frames 1-10: the blade waits outside (y < 0); 11-45: it moves 1 mm per frame to 3 cm deep
   // (5 mm of approach first); 46-65: it rests inside.
   return fmt::format(R"({{
@@ -71,7 +72,7 @@ std::string scene_text(int cells, const std::string& model, const std::string& c
     "material": {{"young_modulus": 3000, "poisson_ratio": 0.45, "density": 1000}},
     "model": {{"type": "{1}"}},
     "integrator": {{"type": "backward-euler", "dt": 0.01,
-                    "solver": {{"type": "cg", "preconditioner": "{4}", "tolerance": 1e-6,
+                    "solver": {{"type": "cg", "preconditioner": "{4}", "tolerance": {6},
                                 "products": "{5}"}}}},
     "fixed": [{{"box": [[-1, -1, -1], [1, 1, 0]]}}],
     "gravity": [0, 0, -9.81],
@@ -80,7 +81,7 @@ std::string scene_text(int cells, const std::string& model, const std::string& c
                         [0.45, {3}, 0.030, -0.01, {3}, 0.030, 0.11]]}},
     "cutter": {{"type": "{2}"}},
     "frames": 65, "frame_dt": 0.01}})",
-                     cells, model, cutter, x, preconditioner, products);
+                     cells, model, cutter, x, preconditioner, products, tolerance);
 }
 
 }  // namespace
@@ -94,6 +95,7 @@ int main(int argc, char** argv) {
   std::string products = "single";  // CG's matrix copy (the default), or "double"
   bool per_frame = false;           // --per-frame 1: every frame on stderr
   int paired_every = 3;
+  double tolerance = 1e-6;  // CG's relative residual (1e-3: the viewer's real-time bodies)
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
       sizes.clear();
@@ -116,6 +118,8 @@ int main(int argc, char** argv) {
       preconditioner = argv[i + 1];
     } else if (std::strcmp(argv[i], "--products") == 0) {
       products = argv[i + 1];
+    } else if (std::strcmp(argv[i], "--tolerance") == 0) {
+      tolerance = std::atof(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--paired-every") == 0) {
       paired_every = std::atoi(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--per-frame") == 0) {
@@ -132,7 +136,8 @@ int main(int argc, char** argv) {
       std::filesystem::temp_directory_path() / "cut_cost_bench.checkpoint";
   for (int n : sizes) {
     Engine engine(incise::parse_scene(
-        scene_text(n, model, cutter, blade_x, preconditioner, products), "cut_cost.json"));
+        scene_text(n, model, cutter, blade_x, preconditioner, products, tolerance),
+        "cut_cost.json"));
     const std::size_t tets = engine.mesh().tet_count();
     Means cutting;
     Means before;  // the whole body, not cut yet
