@@ -1,7 +1,8 @@
 // CG's preconditioners on the same matrices (issue 43, goal 4): incise's block-Jacobi and
 // two-level preconditioners against hypre's BoomerAMG (libhypre-dev) as the preconditioner of
-// hypre's PCG. The matrix is a backward-Euler step's, M + dt D + dt^2 K, of the peers' box
-// (0.1 m, n^3 cells, 6 tets per cell, corotational FEM, E = 3 kPa, nu = 0.45,
+// hypre's PCG, and PETSc's GAMG (libpetsc-real-dev, where found) under PETSc's CG with the six
+// rigid-body modes as its near-null space. The matrix is a backward-Euler step's, M + dt D + dt^2
+// K, of the peers' box (0.1 m, n^3 cells, 6 tets per cell, corotational FEM, E = 3 kPa, nu = 0.45,
 // rho = 1000 kg/m^3, z = 0 face held, gravity, dt = 0.01 s) linearised after five steps of
 // sagging; the right-hand side is that step's dt f. Every solve starts from zero and stops at
 // |r| / |b| <= 1e-6 (two-norm). incise's own CG is run through LinearizedSystemSolver exactly
@@ -19,6 +20,9 @@
 #include <HYPRE_parcsr_ls.h>
 #include <mpi.h>
 #include <tbb/global_control.h>
+#ifdef INCISE_WITH_PETSC
+#include <petscksp.h>
+#endif
 
 #include <algorithm>
 #include <chrono>
@@ -217,6 +221,74 @@ Row boomeramg(const ScalarMatrix& matrix, const std::vector<double>& rhs, bool n
   return row;
 }
 
+#ifdef INCISE_WITH_PETSC
+/// PETSc's CG preconditioned by GAMG (smoothed aggregation) with the rigid-body modes of the
+/// free vertices' positions (m) as its near-null space; the matrix in AIJ with block size 3.
+Row gamg(const ScalarMatrix& matrix, const std::vector<double>& rhs,
+         const std::vector<double>& coordinates) {
+  const PetscInt n = matrix.size();
+  const std::vector<PetscInt> row_start(matrix.row_start.begin(), matrix.row_start.end());
+  const std::vector<PetscInt> columns(matrix.columns.begin(), matrix.columns.end());
+  Mat a;
+  MatCreate(PETSC_COMM_SELF, &a);
+  MatSetSizes(a, n, n, n, n);
+  MatSetType(a, MATSEQAIJ);
+  MatSetBlockSize(a, 3);
+  MatSeqAIJSetPreallocationCSR(a, row_start.data(), columns.data(), matrix.values.data());
+  Vec coords;
+  VecCreateSeq(PETSC_COMM_SELF, n, &coords);
+  VecSetBlockSize(coords, 3);
+  std::vector<PetscInt> rows(static_cast<std::size_t>(n));
+  for (PetscInt i = 0; i < n; ++i) {
+    rows[static_cast<std::size_t>(i)] = i;
+  }
+  VecSetValues(coords, n, rows.data(), coordinates.data(), INSERT_VALUES);
+  VecAssemblyBegin(coords);
+  VecAssemblyEnd(coords);
+  MatNullSpace modes;
+  MatNullSpaceCreateRigidBody(coords, &modes);
+  MatSetNearNullSpace(a, modes);
+  Vec b;
+  Vec x;
+  VecDuplicate(coords, &b);
+  VecDuplicate(coords, &x);
+  VecSetValues(b, n, rows.data(), rhs.data(), INSERT_VALUES);
+  VecAssemblyBegin(b);
+  VecAssemblyEnd(b);
+  VecSet(x, 0.0);
+  KSP ksp;
+  KSPCreate(PETSC_COMM_SELF, &ksp);
+  KSPSetOperators(ksp, a, a);
+  KSPSetType(ksp, KSPCG);
+  KSPSetNormType(ksp, KSP_NORM_UNPRECONDITIONED);  // |r| / |b|, as the others
+  KSPSetTolerances(ksp, 1e-6, 0.0, PETSC_DEFAULT, 1000);
+  PC pc;
+  KSPGetPC(ksp, &pc);
+  PCSetType(pc, PCGAMG);
+  KSPSetFromOptions(ksp);  // -pc_gamg_* options may tune it
+  auto start = Clock::now();
+  KSPSetUp(ksp);
+  PCSetUp(pc);
+  const double setup_ms = 1e3 * seconds_since(start);
+  start = Clock::now();
+  KSPSolve(ksp, b, x);
+  const double solve_ms = 1e3 * seconds_since(start);
+  PetscInt iterations = 0;
+  KSPGetIterationNumber(ksp, &iterations);
+  std::vector<double> solution(rhs.size());
+  VecGetValues(x, n, rows.data(), solution.data());
+  Row row{"PETSc GAMG, rigid-body modes", setup_ms, solve_ms, static_cast<int>(iterations),
+          relative_residual(matrix, rhs, solution)};
+  KSPDestroy(&ksp);
+  VecDestroy(&x);
+  VecDestroy(&b);
+  MatNullSpaceDestroy(&modes);
+  VecDestroy(&coords);
+  MatDestroy(&a);
+  return row;
+}
+#endif
+
 void compare(int cells, const AmgSettings& settings) {
   BoxGridOptions grid;
   grid.cells = {cells, cells, cells};
@@ -304,6 +376,16 @@ void compare(int cells, const AmgSettings& settings) {
   }
   print(boomeramg(matrix, scalar_rhs, true, settings));
   print(boomeramg(matrix, scalar_rhs, false, settings));
+#ifdef INCISE_WITH_PETSC
+  std::vector<double> coordinates;  // m, the free vertices' positions where linearised
+  for (std::size_t v = 0; v < vertices; ++v) {
+    if (held[v] == 0) {
+      const Vec3& p = state.x.values()[v];
+      coordinates.insert(coordinates.end(), {p.x(), p.y(), p.z()});
+    }
+  }
+  print(gamg(matrix, scalar_rhs, coordinates));
+#endif
 }
 
 }  // namespace
@@ -311,6 +393,9 @@ void compare(int cells, const AmgSettings& settings) {
 int main(int argc, char** argv) {
   MPI_Init(&argc, &argv);
   HYPRE_Init();
+#ifdef INCISE_WITH_PETSC
+  PetscInitializeNoArguments();
+#endif
   std::vector<int> sizes{20, 40};
   AmgSettings settings;
   std::unique_ptr<tbb::global_control> threads;
@@ -341,6 +426,9 @@ int main(int argc, char** argv) {
   for (int cells : sizes) {
     compare(cells, settings);
   }
+#ifdef INCISE_WITH_PETSC
+  PetscFinalize();
+#endif
   HYPRE_Finalize();
   MPI_Finalize();
   return 0;

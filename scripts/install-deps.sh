@@ -25,9 +25,9 @@ packages=(
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
-  # the FEM peer in bench/ (Bullet's deformable solver), and the algebraic multigrid peer of
-  # CG's preconditioners (hypre's BoomerAMG, bench/amg_compare.cpp)
-  libbullet-dev libhypre-dev
+  # the FEM peer in bench/ (Bullet's deformable solver), and the algebraic multigrid peers of
+  # CG's preconditioners (hypre's BoomerAMG and PETSc's GAMG, bench/amg_compare.cpp)
+  libbullet-dev libhypre-dev libpetsc-real-dev
   # pictures: PNG files, OpenGL 3.3 offscreen through EGL on Mesa (llvmpipe without a GPU)
   libpng-dev libegl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
   # labels on pictures: stb_easy_font (a built-in font, no font file)
