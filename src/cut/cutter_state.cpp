@@ -73,6 +73,7 @@ void SubdivisionCutter::load_state(StateReader& in) {
   separated_.clear();
   move_sweep_ = -1;
   next_provisional_.clear();
+  blade_line_placed_.reset();  // not saved: the next move puts the blade line in again
 }
 
 }  // namespace incise

@@ -65,6 +65,7 @@ void SubdivisionCutter::start(const BladePose& pose) {
   pose_ = pose;
   started_ = true;
   provisional_.clear();  // a new stroke: the last one's blade-line vertices stay where they are
+  blade_line_placed_.reset();
   track_point_tet();
   update_active_tets();
   if (positions_ != nullptr) {
@@ -107,6 +108,7 @@ void SubdivisionCutter::move_to(const BladePose& pose) {
   if (positions_moved_) {
     grid_.refit();  // the body moved since the last cut
     positions_moved_ = false;
+    blade_line_placed_.reset();
   }
   place_blade_line(from, pose, triangles);
   double gc_seconds = seconds_since(start);
@@ -152,7 +154,14 @@ void SubdivisionCutter::place_blade_line(const BladePose& from, const BladePose&
   // a vertex the blade has left can be collapsed onto its crossing first.
   next_provisional_.clear();
   if (options_.open_under_blade && !triangles.empty()) {
-    if (provisional_.empty()) {
+    // The cut opened at every vertex of the last blade line (none slides on): that line is
+    // put in again, unless it is the one the last move put in, with the body unmoved. Then
+    // every point is a vertex on the cut already or lies on a feature of the cut, and nothing
+    // would change (found so on the data meshes, the 50k viewer body and the soak's walks:
+    // only a stroke's first move adds anything here).
+    const bool placed = blade_line_placed_ && blade_line_placed_->tip == from.tip &&
+                        blade_line_placed_->base == from.base;
+    if (provisional_.empty() && !placed) {
       insert_blade_points(from, unit_normal(triangles.front()));
     }
     if (options_.slide_blade_points) {
@@ -168,6 +177,7 @@ void SubdivisionCutter::insert_new_blade_line(const BladePose& pose,
     sliding_ = options_.slide_blade_points;
     insert_blade_points(pose, unit_normal(triangles.back()));
     sliding_ = false;
+    blade_line_placed_ = pose;
   }
 }
 

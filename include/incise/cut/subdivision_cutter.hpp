@@ -337,6 +337,9 @@ class SubdivisionCutter {
   /// Those of the last pose, and of this one (while insert_point records them).
   std::vector<Provisional> provisional_;
   std::vector<Provisional> next_provisional_;
+  /// The pose whose blade line the last move of this stroke put in, while the body has not
+  /// moved since: the next move starts from it and need not put it in again.
+  std::optional<BladePose> blade_line_placed_;
   /// Blade-line vertices whose feature the blade left this move, and the edge crossings this
   /// move split: collapse_left_behind's input.
   std::vector<Provisional> left_behind_;
