@@ -27,4 +27,9 @@ Runner add_device_command(CLI::App& app);
 Runner add_plan_command(CLI::App& app);
 Runner add_soak_command(CLI::App& app);
 
+/// Ends each command's help with its units and examples (after every command is added).
+void add_help_notes(CLI::App& app);
+/// What `incise` with no arguments prints: where to start.
+void print_start_here();
+
 }  // namespace incise::app

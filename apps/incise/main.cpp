@@ -32,6 +32,11 @@ int main(int argc, char** argv) {
   add(incise::app::add_serve_command);
   add(incise::app::add_device_command);
 #endif
+  incise::app::add_help_notes(app);
+  if (argc == 1) {
+    incise::app::print_start_here();
+    return incise::app::kExitError;  // a command is needed
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

@@ -59,6 +59,62 @@ TEST(Cli, HelpOnEveryCommand) {
   }
 }
 
+TEST(Cli, NoArgumentsSaysWhereToStart) {
+  const CommandResult run = incise("");
+  EXPECT_NE(run.code, 0);  // a command is needed
+  EXPECT_NE(run.out.find("Start here"), std::string::npos) << run.out;
+  for (const char* command : {"incise run", "incise view", "incise plan", "incise serve"}) {
+    EXPECT_NE(run.out.find(command), std::string::npos) << command;
+  }
+}
+
+/// Every command's help ends with its units and an example; the examples of the commands that
+/// need neither a display nor a device run, in order, in one folder (they use each other's
+/// files: the block generated first, the blade path the run records).
+TEST(Cli, EveryHelpExampleRuns) {
+  const auto dir = test::scratch_dir("help-examples");
+  std::filesystem::create_directory_symlink(std::filesystem::path(INCISE_SOURCE_DIR) / "scenes",
+                                            dir / "scenes");
+  const auto in_folder = [&](const std::string& arguments) {
+    const std::string command = "cd " + dir.string() + " && " + INCISE_EXECUTABLE + " " +
+                                arguments + " >" + (dir / "out.txt").string() + " 2>" +
+                                (dir / "err.txt").string();
+    const int status = std::system(command.c_str());
+    return std::pair{WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                     test::file_bytes(dir / "err.txt")};
+  };
+  int ran = 0;
+  for (const char* name : {"generate box", "info", "convert", "mesh", "run", "cut", "plan", "soak",
+                           "view", "serve", "device"}) {
+    const CommandResult help = incise(std::string(name) + " --help");
+    if (help.code != 0 && (std::string(name) == "serve" || std::string(name) == "device")) {
+      continue;  // built without OpenIGTLink
+    }
+    ASSERT_EQ(help.code, 0) << name;
+    EXPECT_NE(help.out.find("\nUnits: "), std::string::npos) << name << ":\n" << help.out;
+    std::istringstream lines(help.out);
+    std::vector<std::string> examples;
+    for (std::string line; std::getline(lines, line);) {
+      if (line.rfind("Example: incise ", 0) == 0) {
+        examples.push_back(line.substr(std::string("Example: incise ").size()));
+      }
+    }
+    ASSERT_FALSE(examples.empty()) << name << ":\n" << help.out;
+    const std::string command = name;
+    if (command == "view" || command == "serve" || command == "device") {
+      continue;  // a display, or a device and a server at once: run by their own tests
+    }
+    for (const std::string& example : examples) {
+      const auto [code, err] = in_folder(example);
+      EXPECT_EQ(code, 0) << "incise " << example << ":\n" << err;
+      ++ran;
+    }
+  }
+  EXPECT_GE(ran, 9);
+  EXPECT_TRUE(std::filesystem::exists(dir / "cut.vtu"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "plan" / "report.json"));
+}
+
 TEST(Cli, NoOrUnknownCommandFails) {
   EXPECT_NE(incise("").code, 0);
   const CommandResult run = incise("dissect");
