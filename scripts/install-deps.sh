@@ -23,8 +23,8 @@ packages=(
   libpugixml-dev zlib1g-dev
   # application plumbing
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests and benchmarks; the API reference (scripts/api-docs.sh)
+  libgtest-dev libgmock-dev libbenchmark-dev doxygen
   # the FEM peer in bench/ (Bullet's deformable solver), and the algebraic multigrid peers of
   # CG's preconditioners (hypre's BoomerAMG and PETSc's GAMG, bench/amg_compare.cpp)
   libbullet-dev libhypre-dev libpetsc-real-dev

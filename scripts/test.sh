@@ -5,7 +5,7 @@
 # the few that take a minute or more under it; the g++ run has them, and the Python tests,
 # since a sanitized module would need the runtime preloaded), replays every fuzz corpus in
 # both, runs the threaded parts (parallel element loops, engine snapshots, haptic loop, device
-# server) under ThreadSanitizer, checks formatting, and proves the installed package works
+# server) under ThreadSanitizer, checks formatting and the API reference's comments, and proves the installed package works
 # with find_package(incise) and the installed Python module with import incise.
 # Usage (as root on Debian 12): bash scripts/test.sh
 set -euo pipefail
@@ -16,6 +16,9 @@ bash scripts/install-deps.sh
 echo "== format check (clang-format)"
 mapfile -t sources < <(git ls-files '*.cpp' '*.hpp' 2>/dev/null || find include src apps tests bench -name '*.[ch]pp')
 clang-format --dry-run --Werror "${sources[@]}"
+
+echo "== API reference (Doxygen; undocumented entities in engine, mesh, io, scene are errors)"
+bash scripts/api-docs.sh
 
 echo "== build (CI preset: -Wall -Wextra -Werror)"
 cmake --preset ci >/dev/null

@@ -31,7 +31,7 @@ class Integrator;
 
 /// One frame: stage times (s) named after the seed's Table 1, and the state after it.
 struct FrameRecord {
-  int frame = 0;
+  int frame = 0;                      ///< frame number, from 1
   double time = 0.0;                  ///< simulated time at the end of the frame (s)
   double cd = 0.0;                    ///< collision detection (s)
   double gc = 0.0;                    ///< topology and geometry changes (s)
@@ -42,15 +42,15 @@ struct FrameRecord {
   /// the mesh's edits, forces with the linearisation, the system matrix and preconditioner,
   /// the solver's starting guess, its products and its vector updates. Implicit schemes only.
   struct RelaxationParts {
-    double refresh = 0.0;
-    double forces = 0.0;
-    double preconditioner = 0.0;
-    double start = 0.0;
-    double products = 0.0;
-    double vector_updates = 0.0;
-  } rx_parts;
-  std::size_t vertices = 0;
-  std::size_t tets = 0;
+    double refresh = 0.0;         ///< the model following the mesh's edits (s)
+    double forces = 0.0;          ///< forces and their linearisation (s)
+    double preconditioner = 0.0;  ///< the system matrix and the preconditioner (s)
+    double start = 0.0;           ///< the solver's starting guess (s)
+    double products = 0.0;        ///< matrix-vector products (s)
+    double vector_updates = 0.0;  ///< the solver's vector updates and dot products (s)
+  } rx_parts;                     ///< where rx went
+  std::size_t vertices = 0;       ///< vertices after the frame
+  std::size_t tets = 0;           ///< tetrahedra after the frame
   double kinetic_energy = 0.0;    ///< J
   double max_displacement = 0.0;  ///< m, from the rest position
   bool written = false;           ///< a sink wrote output for this frame
@@ -58,8 +58,13 @@ struct FrameRecord {
   bool edited = false;            ///< the mesh changed this frame (the cut advanced)
 };
 
+/// A scene stepped frame by frame: the tool moves (cd, gc: the cutters edit the mesh), the
+/// body relaxes (rx), the frame sinks write and a snapshot is published (rd). Not thread-safe:
+/// one thread steps it; other threads read the snapshots() channel only.
 class Engine {
  public:
+  /// Builds the body, models, integrator, cutters and tool source the scene describes.
+  /// Throws InputError naming the key when the scene cannot be built.
   explicit Engine(const SceneDescription& scene);
   ~Engine();
   Engine(const Engine&) = delete;
@@ -101,14 +106,17 @@ class Engine {
   /// otherwise shields from random changes.
   [[nodiscard]] static std::string checkpoint_with_state(std::string_view state);
 
-  [[nodiscard]] int frame() const;
-  [[nodiscard]] double time() const;  ///< s
-  [[nodiscard]] const FrameRecord& last_frame() const;
+  [[nodiscard]] int frame() const;                      ///< frames stepped so far
+  [[nodiscard]] double time() const;                    ///< s
+  [[nodiscard]] const FrameRecord& last_frame() const;  ///< the record of the last frame
+  /// Whether the simulation diverged (then step() refuses to go on).
   [[nodiscard]] bool diverged() const;
+  /// What diverged, and where (empty while it has not).
   [[nodiscard]] const std::string& divergence() const;
 
-  [[nodiscard]] const SceneDescription& scene() const;
-  [[nodiscard]] const TetMesh& mesh() const;
+  [[nodiscard]] const SceneDescription& scene() const;  ///< the scene as it was built
+  [[nodiscard]] const TetMesh& mesh() const;            ///< the body's mesh, cut as far as it is
+  /// Positions and velocities (m, m/s) and the simulated time.
   [[nodiscard]] const SimulationState& state() const;
   [[nodiscard]] std::span<const Vec3> positions() const;  ///< current (m)
   /// The subdivision cutter, or null when the scene has none: its cut faces are the cut
@@ -139,28 +147,30 @@ class Engine {
   /// The strokes' ends the blade passed through during the last frame, before blade(), in the
   /// same frame (ToolMotion::passed; empty but for a live source between two frames).
   [[nodiscard]] const std::vector<std::optional<BladePose>>& blade_passed() const;
-  [[nodiscard]] PoseFrame blade_frame() const;
+  [[nodiscard]] PoseFrame blade_frame() const;  ///< the frame blade() is given in
   /// The same blade in the body's rest frame: what the cutter cut with.
   [[nodiscard]] const std::optional<BladePose>& blade_rest() const;
   /// The same blade where the body is now (a rest-frame pose carried by the deformation around
   /// it): where pictures and snapshots draw it. Computed on first use per frame, so the
   /// engine's thread only (other threads take the snapshot's).
   [[nodiscard]] const std::optional<BladePose>& blade_world() const;
-  [[nodiscard]] const Integrator& integrator() const;
+  [[nodiscard]] const Integrator& integrator() const;  ///< with its last step's statistics
   /// The materials of the body (table and one per tetrahedron), or null if the model keeps none.
   [[nodiscard]] const MaterialMap* materials() const;
   [[nodiscard]] double total_mass() const;  ///< kg
   /// Tetrahedra the inversion guard (model.inversion_guard) pushed back right side out, summed
   /// over the steps so far, and the most in one step.
   [[nodiscard]] std::uint64_t guarded_tets() const;
-  [[nodiscard]] std::size_t guarded_tets_most() const;
+  [[nodiscard]] std::size_t guarded_tets_most() const;  ///< the most in one step
   /// Vertices its fallback moved back towards the start of their step: summed, most in a step.
   [[nodiscard]] std::uint64_t backtracked_vertices() const;
-  [[nodiscard]] std::size_t backtracked_vertices_most() const;
+  [[nodiscard]] std::size_t backtracked_vertices_most() const;  ///< the most in one step
   /// The integrator's largest stable step on this scene (s; infinity for implicit schemes).
   [[nodiscard]] double stability_limit() const;
   /// Warnings about the scene (e.g. a step beyond the stability limit).
   [[nodiscard]] const std::vector<std::string>& warnings() const;
+  /// Where each frame's snapshot is published: what another thread (a window, a server) may
+  /// read while this one steps.
   [[nodiscard]] const SnapshotChannel& snapshots() const;
 
  private:
@@ -171,6 +181,7 @@ class Engine {
 /// Writes a checkpoint every `every` frames and when the run ends (unless it diverged).
 class CheckpointSink final : public FrameSink {
  public:
+  /// Checkpoints go to `path` (written atomically), every `every` frames.
   CheckpointSink(std::filesystem::path path, int every);
   bool frame(const Engine& engine, const FrameRecord& record) override;
   void end(const Engine& engine) override;
@@ -183,9 +194,9 @@ class CheckpointSink final : public FrameSink {
 
 /// Frames run by run(): each frame's record, and how it ended.
 struct RunResult {
-  std::vector<FrameRecord> frames;
-  bool diverged = false;
-  std::string divergence;
+  std::vector<FrameRecord> frames;  ///< one record per frame run
+  bool diverged = false;            ///< the run stopped at a divergence
+  std::string divergence;           ///< what diverged (empty otherwise)
 };
 
 /// Steps `frames` frames (stopping at a divergence), calling `on_frame` after each, then

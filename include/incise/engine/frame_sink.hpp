@@ -24,6 +24,8 @@ void write_clipped_vtu(const std::filesystem::path& path, const ClippedElements&
                        std::optional<double> time = std::nullopt,
                        std::optional<double> length_unit_m = std::nullopt);
 
+/// What watches a running engine's frames (Engine::add_sink): a file series, a recorder, a
+/// checkpoint writer. Called on the engine's thread.
 class FrameSink {
  public:
   FrameSink() = default;
@@ -54,7 +56,9 @@ class VtuSeriesSink final : public FrameSink {
   void begin(const Engine& engine) override;
   bool frame(const Engine& engine, const FrameRecord& record) override;
   void end(const Engine& engine) override;
-  [[nodiscard]] const std::filesystem::path& pvd() const { return series_.path(); }
+  [[nodiscard]] const std::filesystem::path& pvd() const {
+    return series_.path();
+  }  ///< DIR/NAME.pvd
   /// The embedded visual surface's series (written only when the scene has one).
   [[nodiscard]] const std::filesystem::path& visual_pvd() const { return visual_series_.path(); }
   /// An XFEM body's virtual elements clipped to their sides (written only for XFEM scenes):
@@ -80,11 +84,12 @@ class VtuSeriesSink final : public FrameSink {
 /// lifted are left out (the CSV format has no gaps: a replay moves straight across them).
 class ToolPathRecorder final : public FrameSink {
  public:
+  /// The CSV is written at end().
   explicit ToolPathRecorder(std::filesystem::path csv);
   void begin(const Engine& engine) override;
   bool frame(const Engine& engine, const FrameRecord& record) override;
   void end(const Engine& engine) override;
-  [[nodiscard]] const std::vector<BladePose>& poses() const { return poses_; }
+  [[nodiscard]] const std::vector<BladePose>& poses() const { return poses_; }  ///< so far
 
  private:
   std::filesystem::path csv_;

@@ -21,8 +21,9 @@ enum class PoseFrame : std::uint8_t { kRest, kWorld };
 /// An affine map y = linear x + offset from one configuration of the mesh to another (m):
 /// current positions to rest ones, or back.
 struct RestMap {
-  Mat3 linear = Mat3::Identity();
-  Vec3 offset = Vec3::Zero();
+  Mat3 linear = Mat3::Identity();  ///< the linear part
+  Vec3 offset = Vec3::Zero();      ///< m
+  /// The map applied to a point (m).
   [[nodiscard]] Vec3 operator()(const Vec3& x) const { return linear * x + offset; }
 };
 

@@ -29,6 +29,7 @@ struct ToolMotion {
   std::optional<BladePose> pose;
 };
 
+/// Where the blade is, frame by frame: the engine asks once per frame (Engine::set_tool_source).
 class ToolPoseSource {
  public:
   ToolPoseSource() = default;
@@ -54,13 +55,14 @@ class ToolPoseSource {
 /// scripted path, or a recorded one replayed (`from_csv`).
 class ScriptedToolPath final : public ToolPoseSource {
  public:
+  /// Poses in time order (their `time` in s).
   explicit ScriptedToolPath(std::vector<BladePose> poses);
   /// A blade-path CSV (t,tip_x,tip_y,tip_z,base_x,base_y,base_z; s, m), as `incise cut` reads
   /// and ToolPathRecorder writes.
   [[nodiscard]] static std::unique_ptr<ScriptedToolPath> from_csv(
       const std::filesystem::path& path);
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override;
-  [[nodiscard]] const std::vector<BladePose>& poses() const { return poses_; }
+  [[nodiscard]] const std::vector<BladePose>& poses() const { return poses_; }  ///< the path
 
  private:
   std::vector<BladePose> poses_;

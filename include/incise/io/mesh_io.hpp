@@ -45,18 +45,18 @@ enum class MeshFormat {
 
 /// What a reader found: points, tetrahedra, triangles, and notes on anything it skipped.
 struct RawMesh {
-  std::vector<Vec3> points;
-  std::vector<Tet> tets;
+  std::vector<Vec3> points;     ///< in the file's own length unit
+  std::vector<Tet> tets;        ///< point ids
   std::vector<int> tet_labels;  ///< region label per tetrahedron (0 where the file has none)
   /// XFEM material fraction per tetrahedron (a .vtu's "fraction" cell array), else empty.
   std::vector<double> tet_fractions;
   /// Per point, its displacement from the rest shape (a .vtu frame's "displacement" point
   /// array), else empty.
   std::vector<Vec3> point_displacements;
-  std::vector<Triangle> triangles;
+  std::vector<Triangle> triangles;  ///< point ids
   /// Human-readable notes ("skipped 120 hexahedra"), one per kind of thing skipped.
   std::vector<std::string> notes;
-  MeshFormat format = MeshFormat::kUnknown;
+  MeshFormat format = MeshFormat::kUnknown;  ///< the format it was read as
 };
 
 /// Choices a reader cannot make from the file alone.
@@ -71,11 +71,12 @@ struct ReadOptions {
 [[nodiscard]] RawMesh read_raw_mesh(const std::filesystem::path& path,
                                     const ReadOptions& options = {});
 
+/// A tetrahedral mesh read from a file, with what the reader noted on the way.
 struct TetMeshReadResult {
-  TetMesh mesh;
-  MeshFormat format = MeshFormat::kUnknown;
-  std::vector<std::string> notes;
-  std::size_t dropped_vertices = 0;  ///< points used by no tetrahedron, removed
+  TetMesh mesh;                              ///< the mesh (the file's length unit)
+  MeshFormat format = MeshFormat::kUnknown;  ///< the format it was read as
+  std::vector<std::string> notes;            ///< what was skipped or dropped, one per kind
+  std::size_t dropped_vertices = 0;          ///< points used by no tetrahedron, removed
   /// The rest shape of a deformed frame (points minus their "displacement"), one per vertex of
   /// `mesh`, whose positions are the frame's; empty when the file gives none.
   std::vector<Vec3> rest_positions;
@@ -86,10 +87,11 @@ struct TetMeshReadResult {
 [[nodiscard]] TetMeshReadResult read_tet_mesh(const std::filesystem::path& path,
                                               const ReadOptions& options = {});
 
+/// A triangle surface read from a file.
 struct SurfaceMesh {
-  std::vector<Vec3> points;
-  std::vector<Triangle> triangles;
-  std::vector<std::string> notes;
+  std::vector<Vec3> points;         ///< in the file's own length unit
+  std::vector<Triangle> triangles;  ///< point ids
+  std::vector<std::string> notes;   ///< what was skipped or merged, one per kind
 };
 
 /// Reads a triangle surface (OBJ, STL, PLY, VTK polydata, or the triangles of any volume
@@ -99,14 +101,16 @@ struct SurfaceMesh {
 
 /// A named array for VTK output: `components` values per point or per cell.
 struct FieldArray {
-  std::string name;
-  int components = 1;
+  std::string name;    ///< as ParaView lists it
+  int components = 1;  ///< values per point or cell
+  /// components x count values, point (or cell) by point.
   std::variant<std::vector<double>, std::vector<std::int32_t>> values;
 };
 
+/// The arrays and field data written with a .vtu.
 struct VtuFields {
-  std::vector<FieldArray> point_data;
-  std::vector<FieldArray> cell_data;
+  std::vector<FieldArray> point_data;  ///< one value (tuple) per point
+  std::vector<FieldArray> cell_data;   ///< one value (tuple) per tetrahedron
   /// s: written as the file's TimeValue field data (a frame of a series), if given.
   std::optional<double> time;
   /// m per unit of the points' coordinates (1: metres, 1e-3: millimetres), written as the
@@ -126,6 +130,7 @@ void write_vtu(const std::filesystem::path& path, std::span<const Vec3> points,
 /// A ParaView time series: each add() writes the .pvd anew so a partial run stays readable.
 class PvdSeries {
  public:
+  /// The series' .pvd file; nothing is written before the first add().
   explicit PvdSeries(std::filesystem::path pvd_path);
   /// Continues the series already at the path (a resumed run): keeps its entries before
   /// `time` (s), so the next add() writes one series across both runs.
@@ -134,7 +139,7 @@ class PvdSeries {
   void add(double time, const std::string& file);
   /// m per unit of the files' coordinates, said in a comment in the .pvd (unset: not said).
   void set_length_unit(double metres) { length_unit_m_ = metres; }
-  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }  ///< the .pvd
 
  private:
   std::filesystem::path path_;

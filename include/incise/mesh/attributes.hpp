@@ -46,6 +46,7 @@ class AttributeBase : public MeshObserver {
  public:
   AttributeBase(const AttributeBase&) = delete;
   AttributeBase& operator=(const AttributeBase&) = delete;
+  /// Takes the other's values and its place among the mesh's observers.
   AttributeBase(AttributeBase&& other) noexcept
       : MeshObserver(other),
         mesh_(std::exchange(other.mesh_, nullptr)),
@@ -62,14 +63,18 @@ class AttributeBase : public MeshObserver {
     }
   }
 
-  [[nodiscard]] std::size_t size() const { return values_.size(); }
-  [[nodiscard]] T& operator[](std::int32_t id) { return values_[id]; }
+  [[nodiscard]] std::size_t size() const { return values_.size(); }     ///< one per entity
+  [[nodiscard]] T& operator[](std::int32_t id) { return values_[id]; }  ///< by entity id
+  /// By entity id.
   [[nodiscard]] const T& operator[](std::int32_t id) const { return values_[id]; }
-  [[nodiscard]] std::span<T> values() { return values_; }
+  [[nodiscard]] std::span<T> values() { return values_; }  ///< every value, by entity id
+  /// Every value, by entity id.
   [[nodiscard]] std::span<const T> values() const { return values_; }
+  /// What new entities get when their rule gives nothing else.
   [[nodiscard]] const T& default_value() const { return default_value_; }
   /// The mesh followed, or nullptr once it is destroyed.
   [[nodiscard]] const TetMesh* mesh() const { return mesh_; }
+  /// Sets every value.
   void fill(const T& value) { std::fill(values_.begin(), values_.end(), value); }
 
   void on_mesh_destroyed() override { mesh_ = nullptr; }
@@ -94,12 +99,14 @@ class AttributeBase : public MeshObserver {
   /// How many values the mesh needs (vertices, tetrahedra or edges).
   [[nodiscard]] virtual std::size_t count_in(const TetMesh& mesh) const = 0;
 
+  /// `count` values of `default_value`, following `mesh` from now on.
   AttributeBase(TetMesh& mesh, std::size_t count, T default_value)
       : mesh_(&mesh), values_(count, default_value), default_value_(std::move(default_value)) {
     reserve_for_edits(values_);
     mesh.add_observer(this);
   }
 
+  /// The mesh removed entity `removed` and moved its last one (`moved_from`) into its place.
   void swap_remove(std::int32_t removed, std::int32_t moved_from) {
     INCISE_ASSERT(static_cast<std::size_t>(moved_from) + 1 == values_.size(),
                   "attribute container out of step with its mesh");
@@ -109,9 +116,9 @@ class AttributeBase : public MeshObserver {
     values_.pop_back();
   }
 
-  TetMesh* mesh_;
-  std::vector<T> values_;
-  T default_value_;
+  TetMesh* mesh_;          ///< the mesh followed; null once it is destroyed
+  std::vector<T> values_;  ///< one per entity
+  T default_value_;        ///< for entities no rule fills
 };
 
 }  // namespace detail
@@ -120,15 +127,18 @@ class AttributeBase : public MeshObserver {
 template <typename T>
 class VertexData final : public detail::AttributeBase<T> {
  public:
+  /// Called after the rule fills a new or relocated vertex's value.
   using Hook = std::function<void(VertexData&, VertexId, const VertexOrigin&)>;
+  /// Interpolate what can be blended (numbers, vectors), copy the rest.
   static constexpr VertexRule kDefaultRule =
       Blendable<T> ? VertexRule::kInterpolate : VertexRule::kCopy;
 
+  /// One value per vertex of `mesh` (which must outlive it), following its edits by `rule`.
   explicit VertexData(TetMesh& mesh, T default_value = T{}, VertexRule rule = kDefaultRule)
       : detail::AttributeBase<T>(mesh, mesh.vertex_count(), std::move(default_value)),
         rule_(rule) {}
 
-  void set_hook(Hook hook) { hook_ = std::move(hook); }
+  void set_hook(Hook hook) { hook_ = std::move(hook); }  ///< see Hook
   [[nodiscard]] std::size_t count_in(const TetMesh& mesh) const override {
     return mesh.vertex_count();
   }
@@ -189,6 +199,7 @@ class TetData final : public detail::AttributeBase<T> {
   using Hook = std::function<void(TetData&, TetId parent, std::span<const TetId> children,
                                   const T& parent_value)>;
 
+  /// One value per tetrahedron of `mesh` (which must outlive it), following its edits by `rule`.
   explicit TetData(TetMesh& mesh, T default_value = T{}, TetRule rule = TetRule::kCopy)
       : detail::AttributeBase<T>(mesh, mesh.tet_count(), std::move(default_value)), rule_(rule) {}
 
@@ -196,8 +207,8 @@ class TetData final : public detail::AttributeBase<T> {
   /// with its value: e.g. adds its mass to `into`'s. Without one its value is dropped.
   using AbsorbHook = std::function<void(TetData&, TetId into, const T& removed_value)>;
 
-  void set_hook(Hook hook) { hook_ = std::move(hook); }
-  void set_absorb_hook(AbsorbHook hook) { absorb_hook_ = std::move(hook); }
+  void set_hook(Hook hook) { hook_ = std::move(hook); }                      ///< see Hook
+  void set_absorb_hook(AbsorbHook hook) { absorb_hook_ = std::move(hook); }  ///< see AbsorbHook
   [[nodiscard]] std::size_t count_in(const TetMesh& mesh) const override {
     return mesh.tet_count();
   }
@@ -244,12 +255,14 @@ class TetData final : public detail::AttributeBase<T> {
 template <typename T>
 class EdgeData final : public detail::AttributeBase<T> {
  public:
+  /// Called after the rule fills a new edge's value.
   using Hook = std::function<void(EdgeData&, const EdgeOrigin&)>;
 
+  /// One value per edge of `mesh` (which must outlive it), following its edits by `rule`.
   explicit EdgeData(TetMesh& mesh, T default_value = T{}, EdgeRule rule = EdgeRule::kCopy)
       : detail::AttributeBase<T>(mesh, mesh.edge_count(), std::move(default_value)), rule_(rule) {}
 
-  void set_hook(Hook hook) { hook_ = std::move(hook); }
+  void set_hook(Hook hook) { hook_ = std::move(hook); }  ///< see Hook
   [[nodiscard]] std::size_t count_in(const TetMesh& mesh) const override {
     return mesh.edge_count();
   }

@@ -10,9 +10,9 @@ namespace incise {
 
 /// One boundary triangle, outward oriented, with the tetrahedron face it comes from.
 struct BoundaryFace {
-  Triangle vertices;
-  TetId tet = kInvalidId;
-  int local_face = -1;  ///< tet_local::kFaces index
+  Triangle vertices;       ///< outward
+  TetId tet = kInvalidId;  ///< the tetrahedron whose face it is
+  int local_face = -1;     ///< tet_local::kFaces index
 };
 
 /// Faces that no other tetrahedron shares, oriented outward.

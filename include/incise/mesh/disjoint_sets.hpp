@@ -9,8 +9,10 @@
 
 namespace incise {
 
+/// Union-find over vertex ids 0..size-1, with path halving.
 class DisjointSets {
  public:
+  /// Every id in a set of its own.
   explicit DisjointSets(std::size_t size) : parent_(size) {
     std::iota(parent_.begin(), parent_.end(), VertexId{0});
   }

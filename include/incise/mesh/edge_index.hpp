@@ -16,13 +16,16 @@
 
 namespace incise {
 
+/// Edge key (two vertex ids side by side) to edge id: a flat table probed linearly from a
+/// Fibonacci hash, at most 3/4 full, erased by backward shift (no tombstones).
 class EdgeIndex {
  public:
   EdgeIndex() = default;
-  EdgeIndex(const EdgeIndex&) = default;
-  EdgeIndex& operator=(const EdgeIndex&) = default;
+  EdgeIndex(const EdgeIndex&) = default;             ///< a copy of the table
+  EdgeIndex& operator=(const EdgeIndex&) = default;  ///< a copy of the table
   /// The moved-from index is empty.
   EdgeIndex(EdgeIndex&& other) noexcept { *this = std::move(other); }
+  /// Takes the other's table; the moved-from index is empty.
   EdgeIndex& operator=(EdgeIndex&& other) noexcept {
     if (this == &other) {
       return *this;
@@ -43,10 +46,10 @@ class EdgeIndex {
   void assign(std::uint64_t key, EdgeId id);
   /// Removes `key`; false if it was not there.
   bool erase(std::uint64_t key);
-  void clear();
+  void clear();  ///< removes every key, keeping the table's room
   /// Room for `count` keys without growing.
   void reserve(std::size_t count);
-  [[nodiscard]] std::size_t size() const { return size_; }
+  [[nodiscard]] std::size_t size() const { return size_; }  ///< keys stored
 
  private:
   /// No edge key has its top bit set (vertex ids are non-negative 32-bit numbers).

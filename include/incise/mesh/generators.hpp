@@ -8,6 +8,7 @@
 
 namespace incise {
 
+/// A box of cells, each split into tetrahedra (make_box_grid).
 struct BoxGridOptions {
   std::array<int, 3> cells{1, 1, 1};  ///< cells along x, y, z (each >= 1)
   Vec3 size{1.0, 1.0, 1.0};           ///< edge lengths of the box (m), each > 0

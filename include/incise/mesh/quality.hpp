@@ -13,12 +13,13 @@ namespace incise {
 /// bound as the tetrahedron flattens; +inf for a flat one.
 [[nodiscard]] double aspect_ratio(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 
+/// Element quality over a mesh: dihedral angles (degrees) and aspect ratios (1: regular).
 struct QualitySummary {
-  double min_dihedral_deg = 0.0;
-  double max_dihedral_deg = 0.0;  ///< the largest of the per-tet minimum angles
-  double mean_min_dihedral_deg = 0.0;
-  double max_aspect_ratio = 0.0;
-  double mean_aspect_ratio = 0.0;
+  double min_dihedral_deg = 0.0;       ///< the smallest dihedral angle of any tetrahedron
+  double max_dihedral_deg = 0.0;       ///< the largest of the per-tet minimum angles
+  double mean_min_dihedral_deg = 0.0;  ///< the per-tet minimum angles' mean
+  double max_aspect_ratio = 0.0;       ///< the worst tetrahedron's
+  double mean_aspect_ratio = 0.0;      ///< over all tetrahedra
   /// Count of tets by minimum dihedral angle in 10-degree bins: [0,10), ..., [60,70), >= 70.
   std::vector<std::size_t> min_dihedral_histogram;
 };

@@ -14,13 +14,14 @@
 
 namespace incise {
 
+/// What repair_slivers found and did.
 struct SliverRepairResult {
   std::size_t flat_before = 0;     ///< zero-volume tetrahedra found
   std::size_t slivers_before = 0;  ///< positive but below the tolerance
   std::size_t collapses = 0;       ///< edges collapsed
-  std::size_t flat_after = 0;
-  std::size_t slivers_after = 0;  ///< those no collapse could remove
-  double boundary_shift = 0.0;    ///< largest distance the boundary moved (mesh units)
+  std::size_t flat_after = 0;      ///< zero-volume tetrahedra left
+  std::size_t slivers_after = 0;   ///< those no collapse could remove
+  double boundary_shift = 0.0;     ///< largest distance the boundary moved (mesh units)
 };
 
 /// Removes what it can of `mesh`'s flat tetrahedra and slivers (normalised volume below

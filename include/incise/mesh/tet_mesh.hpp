@@ -33,24 +33,26 @@ inline constexpr TetId kNonManifoldFace = -2;
 
 /// How a vertex came to be; attribute containers use it to fill in new values.
 struct VertexOrigin {
+  /// The ways a vertex is made.
   enum class Kind : std::uint8_t {
     kFresh,        ///< given a position directly (loaded, generated, add_vertex(position))
     kCombination,  ///< weighted combination of parent vertices (a point on an edge or face)
     kDuplicate,    ///< copy of one vertex, used to open a cut (parents[0] is the original)
   };
-  Kind kind = Kind::kFresh;
-  std::uint8_t parent_count = 0;
+  Kind kind = Kind::kFresh;       ///< how it came to be
+  std::uint8_t parent_count = 0;  ///< parents used (0 for a fresh vertex)
+  /// The vertices it combines or copies.
   std::array<VertexId, 4> parents{kInvalidId, kInvalidId, kInvalidId, kInvalidId};
-  std::array<double, 4> weights{0.0, 0.0, 0.0, 0.0};
+  std::array<double, 4> weights{0.0, 0.0, 0.0, 0.0};  ///< of the parents, summing to one
 };
 
 /// A new edge and, where it lies on an edge that existed before the edit (a piece of a split
 /// edge, or the copy of an edge at a duplicated vertex), that parent and the length fraction
 /// |new edge| / |parent edge| in rest coordinates.
 struct EdgeOrigin {
-  EdgeId edge = kInvalidId;
-  EdgeId parent = kInvalidId;
-  double fraction = 0.0;
+  EdgeId edge = kInvalidId;    ///< the new edge
+  EdgeId parent = kInvalidId;  ///< the edge it lies on, or kInvalidId
+  double fraction = 0.0;       ///< |new edge| / |parent edge| at rest
 };
 
 class TetMesh;
@@ -60,10 +62,11 @@ class TetMesh;
 class MeshObserver {
  public:
   MeshObserver() = default;
-  MeshObserver(const MeshObserver&) = default;
-  MeshObserver& operator=(const MeshObserver&) = default;
+  MeshObserver(const MeshObserver&) = default;             ///< copyable
+  MeshObserver& operator=(const MeshObserver&) = default;  ///< copyable
   virtual ~MeshObserver() = default;
 
+  /// A vertex appended (a fresh one, a point on an edge or face, or a copy).
   virtual void on_vertex_added(const TetMesh& /*mesh*/, VertexId /*vertex*/,
                                const VertexOrigin& /*origin*/) {}
   /// A tetrahedron appended with no parent.
@@ -133,35 +136,40 @@ class TetMesh {
 
   /// Copies geometry and adjacency, not observers.
   TetMesh(const TetMesh& other);
-  TetMesh& operator=(const TetMesh& other);
+  TetMesh& operator=(const TetMesh& other);  ///< copies geometry and adjacency, not observers
   /// Moves a mesh nobody observes yet (a reader's result into its place). The ownership
   /// rule: attributes and models attach to a mesh where it will stay; moving an observed
   /// mesh, or onto one, throws InternalError.
   TetMesh(TetMesh&& other);
-  TetMesh& operator=(TetMesh&& other);
+  TetMesh& operator=(TetMesh&& other);  ///< as the move constructor
   ~TetMesh();
 
   // ---- sizes and geometry ----------------------------------------------------------------
-  [[nodiscard]] std::size_t vertex_count() const { return rest_positions_.size(); }
-  [[nodiscard]] std::size_t tet_count() const { return tets_.size(); }
-  [[nodiscard]] std::size_t edge_count() const { return edges_.size(); }
+  [[nodiscard]] std::size_t vertex_count() const { return rest_positions_.size(); }  ///< vertices
+  [[nodiscard]] std::size_t tet_count() const { return tets_.size(); }               ///< tetrahedra
+  [[nodiscard]] std::size_t edge_count() const { return edges_.size(); }             ///< edges
 
+  /// A vertex's rest position (m, or the file's unit).
   [[nodiscard]] const Vec3& rest_position(VertexId vertex) const { return rest_positions_[vertex]; }
+  /// Every vertex's rest position, by id.
   [[nodiscard]] std::span<const Vec3> rest_positions() const { return rest_positions_; }
+  /// A tetrahedron's corners (vertex ids, positively oriented in a valid mesh).
   [[nodiscard]] const Tet& tet(TetId tet) const { return tets_[tet]; }
-  [[nodiscard]] std::span<const Tet> tets() const { return tets_; }
+  [[nodiscard]] std::span<const Tet> tets() const { return tets_; }  ///< every tetrahedron, by id
   /// Region label of a tetrahedron (a file's physical group, subdomain or reference; 0 when
   /// the file had none). Children of a split keep their parent's label.
   [[nodiscard]] int tet_label(TetId tet) const { return tet_labels_[tet]; }
-  [[nodiscard]] std::span<const int> tet_labels() const { return tet_labels_; }
-  void set_tet_label(TetId tet, int label) { tet_labels_[tet] = label; }
+  [[nodiscard]] std::span<const int> tet_labels() const { return tet_labels_; }  ///< by id
+  void set_tet_label(TetId tet, int label) { tet_labels_[tet] = label; }  ///< observers not told
   /// The share of a tetrahedron's rest volume that holds material, in [0, 1] (1 unless a
   /// cutter that keeps elements whole, such as XFEM's virtual elements, says otherwise). On the
   /// mesh, so any cutter can set it and every model sees it; children keep their parent's.
   [[nodiscard]] double material_fraction(TetId tet) const { return tet_fractions_[tet]; }
+  /// Every tetrahedron's material fraction, by id.
   [[nodiscard]] std::span<const double> material_fractions() const { return tet_fractions_; }
   /// Throws InputError outside [0, 1]; observers are told (models reweigh the element).
   void set_material_fraction(TetId tet, double fraction);
+  /// How a vertex came to be (fresh, a combination of parents, a copy).
   [[nodiscard]] const VertexOrigin& vertex_origin(VertexId vertex) const {
     return vertex_origins_[vertex];
   }
@@ -227,8 +235,11 @@ class TetMesh {
   void set_rest_position(VertexId vertex, const Vec3& rest_position);
 
   // ---- observers ------------------------------------------------------------------------
+  /// Tells `observer` of every edit from now on (it must unregister before it dies).
   void add_observer(MeshObserver* observer);
-  void remove_observer(MeshObserver* observer);
+  void remove_observer(MeshObserver* observer);  ///< no longer tells it
+  /// Puts `new_observer` in the old one's place in the order of notification (a moved
+  /// attribute container).
   void replace_observer(MeshObserver* old_observer, MeshObserver* new_observer);
 
   // ---- checkpoints -------------------------------------------------------------------------

@@ -14,8 +14,8 @@ namespace incise {
 /// cut's leftovers, which carry no mass and would stretch every point array's range), and how
 /// many there are.
 struct UsedPoints {
-  std::vector<VertexId> index;
-  std::size_t count = 0;
+  std::vector<VertexId> index;  ///< per point: its new number, or kInvalidId
+  std::size_t count = 0;        ///< points used
 };
 [[nodiscard]] UsedPoints used_points(std::span<const Tet> tets, std::size_t point_count);
 

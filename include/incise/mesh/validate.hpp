@@ -11,6 +11,7 @@
 
 namespace incise {
 
+/// How strict validate() is.
 struct ValidationOptions {
   /// A tetrahedron of positive volume (exact orientation) whose normalised volume (volume over
   /// that of the regular tetrahedron with the same root-mean-square edge length, 1 when
@@ -18,6 +19,7 @@ struct ValidationOptions {
   double degenerate_tolerance = 1e-6;
 };
 
+/// What validate() found, by kind of problem.
 struct ValidationReport {
   std::vector<VertexId> nonfinite_vertices;  ///< NaN or Inf coordinates
   std::vector<TetId> inverted_tets;          ///< exactly negative orientation
@@ -30,14 +32,14 @@ struct ValidationReport {
   /// Interior faces whose two tetrahedra lie on the same side (they overlap).
   std::vector<std::pair<TetId, TetId>> overlapping_tets;
   std::vector<std::pair<TetId, TetId>> duplicate_tets;  ///< same vertex set
-  std::vector<VertexId> unreferenced_vertices;
+  std::vector<VertexId> unreferenced_vertices;          ///< used by no tetrahedron
 
   /// True when nothing is wrong. Unreferenced vertices are reported but tolerated.
   [[nodiscard]] bool ok() const;
   /// True when nothing but slivers (and unreferenced vertices) is wrong: a mesh to simulate
   /// and cut, with a warning.
   [[nodiscard]] bool usable() const;
-  [[nodiscard]] std::size_t problem_count() const;
+  [[nodiscard]] std::size_t problem_count() const;  ///< problems of every kind, counted
   /// Human-readable list of problems, at most `max_listed` ids per kind.
   [[nodiscard]] std::string describe(std::size_t max_listed = 10) const;
 };

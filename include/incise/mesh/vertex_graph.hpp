@@ -9,13 +9,15 @@
 
 namespace incise {
 
+/// The mesh's vertices joined by its edges, in compressed rows (vertex_graph()).
 struct VertexGraph {
   /// Neighbours of v are vertex[row_start[v] .. row_start[v + 1]), joined by edge[...] (in
   /// edge order).
   std::vector<std::size_t> row_start;
-  std::vector<VertexId> vertex;
-  std::vector<EdgeId> edge;
+  std::vector<VertexId> vertex;  ///< neighbours, row by row
+  std::vector<EdgeId> edge;      ///< the edge to each neighbour
 
+  /// The neighbours of v.
   [[nodiscard]] std::span<const VertexId> neighbors(VertexId v) const {
     return std::span<const VertexId>(vertex).subspan(row_start[v], row_start[v + 1] - row_start[v]);
   }

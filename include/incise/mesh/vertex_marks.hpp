@@ -16,25 +16,30 @@
 
 namespace incise {
 
+/// The vertices the mesh's edits touched since the last clear(): a model's refresh() reads
+/// them to follow the edits locally. Marks itself from the mesh's events.
 class VertexMarks final : public MeshObserver {
  public:
+  /// Watches `mesh` (which must outlive it).
   explicit VertexMarks(TetMesh& mesh);
   VertexMarks(const VertexMarks&) = delete;
   VertexMarks& operator=(const VertexMarks&) = delete;
   ~VertexMarks() override;
 
-  void mark(VertexId vertex);
-  void mark(const Tet& tet);
+  void mark(VertexId vertex);  ///< marks one vertex (once)
+  void mark(const Tet& tet);   ///< marks a tetrahedron's corners
   /// Every vertex (a model built afresh, or restored).
   void mark_all();
-  void clear();
+  void clear();  ///< unmarks every vertex
+  /// The marked vertices, each once, in the order they were marked.
   [[nodiscard]] std::span<const VertexId> marked() const { return marked_; }
+  /// Whether `vertex` is marked.
   [[nodiscard]] bool is_marked(VertexId vertex) const {
     return static_cast<std::size_t>(vertex) < flags_.size() &&
            flags_[static_cast<std::size_t>(vertex)] != 0;
   }
-  [[nodiscard]] std::size_t size() const { return marked_.size(); }
-  [[nodiscard]] bool empty() const { return marked_.empty(); }
+  [[nodiscard]] std::size_t size() const { return marked_.size(); }  ///< vertices marked
+  [[nodiscard]] bool empty() const { return marked_.empty(); }       ///< none marked
 
   void on_vertex_added(const TetMesh& mesh, VertexId vertex, const VertexOrigin& origin) override;
   void on_tet_added(const TetMesh& mesh, TetId tet) override;

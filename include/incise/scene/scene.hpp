@@ -42,39 +42,42 @@ enum class CutterKind { kNone, kSubdivision, kXfem };
 /// A set of vertices: those whose rest position lies in a box, or explicit ids.
 struct RegionSpec {
   std::optional<std::pair<Vec3, Vec3>> box;  ///< [low, high] (m)
-  std::vector<VertexId> vertices;
-  std::string where;  ///< "fixed[1]": for error messages
+  std::vector<VertexId> vertices;            ///< explicit vertex ids (with or instead of the box)
+  std::string where;                         ///< "fixed[1]": for error messages
 };
 
 /// A material for the tetrahedra of a region: those whose rest centroid lies in a box (m), or
 /// those with a region label from the mesh file.
 struct MaterialRegionSpec {
-  Material material;
-  std::string name;  ///< preset name, or "custom"
-  std::optional<std::pair<Vec3, Vec3>> box;
-  std::optional<int> label;
-  std::string where;  ///< "materials[1]": for error messages
+  Material material;                         ///< Pa, kg/m^3
+  std::string name;                          ///< preset name, or "custom"
+  std::optional<std::pair<Vec3, Vec3>> box;  ///< [low, high] (m) for the rest centroids
+  std::optional<int> label;                  ///< the mesh file's region label
+  std::string where;                         ///< "materials[1]": for error messages
 };
 
+/// A prescribed displacement of a region (`displacements` key), ramped in over a time.
 struct DisplacementSpec {
-  RegionSpec region;
+  RegionSpec region;                 ///< the vertices moved
   Vec3 displacement = Vec3::Zero();  ///< m
   double ramp_time = 0.0;            ///< s
 };
 
+/// A constant force on a region (`forces` key), shared by its vertices.
 struct ForceSpec {
-  RegionSpec region;
+  RegionSpec region;          ///< the vertices pushed
   Vec3 force = Vec3::Zero();  ///< N, total over the region
 };
 
+/// The time integrator (`integrator` key) and each kind's options.
 struct IntegratorSpec {
-  IntegratorKind type = IntegratorKind::kHierarchicalRungeKutta4;
-  double dt = 1e-3;  ///< s
-  HierarchicalOptions hierarchical;
+  IntegratorKind type = IntegratorKind::kHierarchicalRungeKutta4;  ///< `type`
+  double dt = 1e-3;                                                ///< s
+  HierarchicalOptions hierarchical;  ///< the seed's hierarchical RK4 schemes
   /// Focus of the hierarchical traversal: a vertex id or the vertex nearest a point (m).
   std::variant<std::monostate, VertexId, Vec3> focus;
-  BackwardEulerOptions backward_euler;
-  StaticOptions static_solve;
+  BackwardEulerOptions backward_euler;  ///< implicit steps: Newton, the linear solver
+  StaticOptions static_solve;           ///< equilibrium solves
 };
 
 /// How the tool feels in a device's hand (`tool.haptics`; incise serve's haptic loop).
@@ -95,10 +98,10 @@ struct ToolSpec {
   std::vector<BladePose> poses;  ///< empty: no scripted path (a live tool may still cut)
   /// The blade in the tool's frame (`tool.blade`; else as long as the path's first pose).
   BladeGeometry blade;
-  std::string device = "Scalpel";  ///< the OpenIGTLink device name of the tool's pose
-  HapticSpec haptics;
-  CutterKind cutter = CutterKind::kNone;
-  double snap_fraction = 0.1;
+  std::string device = "Scalpel";         ///< the OpenIGTLink device name of the tool's pose
+  HapticSpec haptics;                     ///< how the tool feels in a device's hand
+  CutterKind cutter = CutterKind::kNone;  ///< `cutter.type`: none, subdivision or xfem
+  double snap_fraction = 0.1;  ///< crossings this close to an edge's end snap to it (of the edge)
   SplitMode split = SplitMode::kMinimal;  ///< kGeneric: the seed's 1:17 style, for comparison
   double quad_length = 0.0;    ///< m, xfem: longest swept piece tested at once (0: mean edge)
   double min_fraction = 1e-3;  ///< xfem: smallest material fraction of a virtual element
@@ -106,41 +109,43 @@ struct ToolSpec {
 
 /// Where pictures of the scene are taken from (`camera` key); absent: fitted to the body.
 struct CameraSpec {
-  Vec3 eye;     ///< m
-  Vec3 target;  ///< m
-  Vec3 up = Vec3::UnitZ();
+  Vec3 eye;                   ///< m
+  Vec3 target;                ///< m
+  Vec3 up = Vec3::UnitZ();    ///< the picture's up direction
   double fov_degrees = 35.0;  ///< vertical field of view
 };
 
+/// A scene file parsed (parse_scene, load_scene): what Engine builds. Keys, units and defaults:
+/// scenes/README.md.
 struct SceneDescription {
   std::filesystem::path file;  ///< empty for the built-in default scene
   std::string source_text;     ///< the JSON it was parsed from (checkpoints carry it)
-  std::string description;
-  std::optional<std::filesystem::path> mesh_file;
-  double mesh_scale = 1.0;    ///< metres per file unit (files carry no units)
+  std::string description;     ///< `description`: free text
+  std::optional<std::filesystem::path> mesh_file;  ///< `mesh` as a file; else `mesh.box`
+  double mesh_scale = 1.0;                         ///< metres per file unit (files carry no units)
   std::string mesh_labels;    ///< VTK cell array giving region labels (empty: the first integer)
   BoxGridOptions box;         ///< used when mesh_file is empty
   std::string material_name;  ///< preset name, or "custom"
   Material material;          ///< of every tetrahedron no entry of `materials` selects
-  std::vector<MaterialRegionSpec> materials;  ///< later entries win
-  ModelKind model_type = ModelKind::kMassSpring;
-  MassSpringParameters mass_spring;
-  CorotationalFemParameters fem;
-  DampingParameters damping;
+  std::vector<MaterialRegionSpec> materials;      ///< later entries win
+  ModelKind model_type = ModelKind::kMassSpring;  ///< `model.type`
+  MassSpringParameters mass_spring;               ///< the mass-spring model's options
+  CorotationalFemParameters fem;                  ///< the corotational FEM's options
+  DampingParameters damping;                      ///< mass and stiffness damping
   /// model.inversion_guard: a tetrahedron below half this share of its rest volume after a step
   /// is pushed back to it (0: off); on (0.05) by default for both models.
   InversionGuardParameters inversion_guard;
-  IntegratorSpec integrator;
-  std::vector<RegionSpec> fixed;
-  std::vector<DisplacementSpec> displacements;
-  std::vector<ForceSpec> forces;
-  Vec3 gravity = Vec3::Zero();  ///< m/s^2
-  int frames = 100;
-  double frame_dt = 0.0;  ///< s per frame; 0 means one integrator step per frame
-  ToolSpec tool;
-  std::filesystem::path output_dir = "out";
-  int vtu_every = 1;  ///< write every n-th frame (the first and last always)
-  std::optional<CameraSpec> camera;
+  IntegratorSpec integrator;                    ///< `integrator`
+  std::vector<RegionSpec> fixed;                ///< `fixed`: vertices held at rest
+  std::vector<DisplacementSpec> displacements;  ///< `displacements`
+  std::vector<ForceSpec> forces;                ///< `forces`
+  Vec3 gravity = Vec3::Zero();                  ///< m/s^2
+  int frames = 100;                             ///< frames to run
+  double frame_dt = 0.0;                     ///< s per frame; 0 means one integrator step per frame
+  ToolSpec tool;                             ///< `tool` and `cutter`
+  std::filesystem::path output_dir = "out";  ///< `output.dir`
+  int vtu_every = 1;                         ///< write every n-th frame (the first and last always)
+  std::optional<CameraSpec> camera;          ///< `camera`; absent: fitted to the body
   /// An embedded visual surface (`visual` key; OBJ, STL, PLY, VTP), written beside the frames.
   std::optional<std::filesystem::path> visual_file;
   double visual_scale = 1.0;  ///< metres per file unit (default: the mesh's)
