@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/physics/block_sparse.hpp"
 #include "incise/physics/boundary_conditions.hpp"
@@ -411,16 +412,7 @@ int main(int argc, char** argv) {
     } else if (std::strcmp(argv[i], "--strong") == 0) {
       settings.strong = std::atof(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--cells") == 0) {
-      sizes.clear();
-      for (const char* p = argv[i + 1]; *p != '\0';) {
-        sizes.push_back(std::atoi(p));
-        while (*p != '\0' && *p != ',') {
-          ++p;
-        }
-        if (*p == ',') {
-          ++p;
-        }
-      }
+      sizes = incise::bench::comma_separated_ints(argv[i + 1]);
     }
   }
   for (int cells : sizes) {

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "incise/engine/engine.hpp"
 #include "incise/engine/tool_pose_source.hpp"
 #include "incise/solve/integrators.hpp"
@@ -98,16 +99,7 @@ int main(int argc, char** argv) {
   double tolerance = 1e-6;  // CG's relative residual (1e-3: the viewer's real-time bodies)
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
-      sizes.clear();
-      for (const char* p = argv[i + 1]; *p != '\0';) {
-        sizes.push_back(std::atoi(p));
-        while (*p != '\0' && *p != ',') {
-          ++p;
-        }
-        if (*p == ',') {
-          ++p;
-        }
-      }
+      sizes = incise::bench::comma_separated_ints(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--model") == 0) {
       model = argv[i + 1];
     } else if (std::strcmp(argv[i], "--cutter") == 0) {
