@@ -12,23 +12,14 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/xfem/xfem_cutter.hpp"
 
 namespace {
 
 std::vector<double> parse_list(const char* text) {
-  std::vector<double> values;
-  for (const char* p = text; *p != '\0';) {
-    values.push_back(std::atof(p));
-    while (*p != '\0' && *p != ',') {
-      ++p;
-    }
-    if (*p == ',') {
-      ++p;
-    }
-  }
-  return values;
+  return incise::bench::comma_separated(text);
 }
 
 }  // namespace
