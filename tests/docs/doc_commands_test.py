@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Runs every command of the user guide's ```sh blocks (docs/*.md), in order, page by page, in
 a scratch folder that links to the repository's scenes/: each must exit 0. `incise` at the start
-of a line is the built program.
+of a line is the built program; a line ending in ` &` runs in the background (a server) and
+must have exited 0 within two minutes of the page's last command.
 
 usage: doc_commands_test.py INCISE SOURCE_DIR
 """
@@ -34,16 +35,32 @@ def main():
     for page in pages:
         with tempfile.TemporaryDirectory() as scratch:
             os.symlink(source / "scenes", os.path.join(scratch, "scenes"))
+            background = []
             for command in commands(page):
-                words = shlex.split(command)
+                in_background = command.endswith(" &")
+                words = shlex.split(command[:-2] if in_background else command)
                 if words[0] == "incise":
                     words[0] = incise
+                ran += 1
+                if in_background:
+                    background.append((command, subprocess.Popen(
+                        words, cwd=scratch, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                        text=True)))
+                    continue
                 result = subprocess.run(words, cwd=scratch, capture_output=True, text=True,
                                         timeout=600)
-                ran += 1
                 print(f"{page.name}: {command}: exit {result.returncode}", flush=True)
                 if result.returncode != 0:
                     failures.append(f"{page.name}: {command}\n{result.stderr[-2000:]}")
+            for command, process in background:
+                try:
+                    _, err = process.communicate(timeout=120)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+                    _, err = process.communicate()
+                print(f"{page.name}: {command}: exit {process.returncode}", flush=True)
+                if process.returncode != 0:
+                    failures.append(f"{page.name}: {command}\n{err[-2000:]}")
     if ran == 0:
         failures.append("no command found in docs/*.md")
     if failures:
