@@ -9,6 +9,7 @@
 #include <chrono>
 #include <fstream>
 #include <iostream>
+#include <thread>
 
 #include "commands.hpp"
 #include "incise/core/error.hpp"
@@ -25,6 +26,7 @@ struct DeviceOptions {
   std::string path;
   std::string host = "127.0.0.1";
   int port = 18944;
+  std::string port_file;  ///< read the port from here (incise serve --port-file), if given
   double rate = 1000.0;
   std::string log;
   std::string name = "Scalpel";
@@ -34,7 +36,24 @@ struct DeviceOptions {
   int header_version = 1;
 };
 
-int run_device(const DeviceOptions& options) {
+/// The port incise serve --port-file wrote (atomically) to `path`, waiting up to `timeout` s
+/// for the file: the server may still be starting.
+int port_from_file(const std::string& path, double timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout);
+  for (;;) {
+    std::ifstream in(path);
+    int port = 0;
+    if (in >> port && port >= 1 && port <= 65535) {
+      return port;
+    }
+    if (std::chrono::steady_clock::now() >= deadline) {
+      throw InputError(path, 0, "holds no server port (incise serve --port-file writes one)");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+int run_device(DeviceOptions options) {
   const std::vector<BladePose> path = read_blade_path(options.path);
   if (path.empty()) {
     throw InputError(options.path, 0, "the blade path has no poses");
@@ -54,6 +73,9 @@ int run_device(const DeviceOptions& options) {
     log << "t,fx,fy,fz\n";
   }
 
+  if (!options.port_file.empty()) {
+    options.port = port_from_file(options.port_file, options.connect_timeout);
+  }
   igtl::Socket socket = igtl::connect_to(options.host, options.port, options.connect_timeout);
   igtl::configure_stream(socket);
   igtl::Outbox outbox(socket.fd(), 1u << 20, {});
@@ -177,7 +199,13 @@ Runner add_device_command(CLI::App& app) {
   command->add_option("path", options->path, "Blade path CSV (t,tip_x,...,base_z; s, m)")
       ->required();
   command->add_option("--host", options->host, "Server address");
-  command->add_option("--port", options->port, "Server port")->check(CLI::Range(1, 65535));
+  auto* port =
+      command->add_option("--port", options->port, "Server port")->check(CLI::Range(1, 65535));
+  command
+      ->add_option("--port-file", options->port_file,
+                   "Read the server's port from this file (incise serve --port-file), waiting "
+                   "for it up to --connect-timeout")
+      ->excludes(port);
   command->add_option("--rate", options->rate, "Poses per second (Hz)")
       ->check(CLI::Range(1.0, 20000.0));
   command->add_option("--log", options->log, "Write the forces here (CSV: t,fx,fy,fz; s, N)");

@@ -70,8 +70,8 @@ def main():
     for page in pages:
         count, failed = run_page(incise, source, page)
         if failed:
-            # Once more before failing: a command that is wrong fails again, a machine that was
-            # busy (a port taken by another run) says so here and does not turn CI red.
+            # Once more before failing: a command that is wrong fails again; a machine that was
+            # momentarily too busy says so here and does not turn CI red.
             print("WARNING: a page failed once, run again:\n" + "\n".join(failed), flush=True)
             count, failed = run_page(incise, source, page)
         ran += count
