@@ -16,22 +16,14 @@
 #include "incise/mesh/generators.hpp"
 #include "incise/xfem/xfem_cutter.hpp"
 
-namespace {
-
-std::vector<double> parse_list(const char* text) {
-  return incise::bench::comma_separated(text);
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   std::vector<double> cells{10, 20, 40};
   std::vector<double> speeds{0.03, 0.06, 0.12, 0.24};  // m/s
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
-      cells = parse_list(argv[i + 1]);
+      cells = incise::bench::comma_separated(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--speeds") == 0) {
-      speeds = parse_list(argv[i + 1]);
+      speeds = incise::bench::comma_separated(argv[i + 1]);
     }
   }
   std::printf(

@@ -5,8 +5,9 @@
 # the few that take a minute or more under it; the g++ run has them, and the Python tests,
 # since a sanitized module would need the runtime preloaded), replays every fuzz corpus in
 # both, runs the threaded parts (parallel element loops, engine snapshots, haptic loop, device
-# server) under ThreadSanitizer, checks formatting and the API reference's comments, and proves the installed package works
-# with find_package(incise) and the installed Python module with import incise.
+# server) under ThreadSanitizer, checks formatting and the API reference's comments, and
+# proves the installed package works with find_package(incise) and the installed Python module
+# with import incise.
 # Usage (as root on Debian 12): bash scripts/test.sh
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

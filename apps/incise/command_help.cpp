@@ -48,7 +48,8 @@ const std::vector<HelpNotes>& help_notes() {
        "SI, as the scene; needs a display (Xvfb will do)",
        {"incise view scenes/default.json"}},
       {"serve",
-       "SI on the wire: poses in m (TRANSFORM), forces in N (the device's log); needs a device",
+       "the scene in SI; on the wire millimetres (TRANSFORM poses, POLYDATA surfaces), as Slicer, "
+       "and forces in N (SENSOR); needs a device",
        {"incise serve scenes/default.json --port 18944 --out served"}},
       {"device",
        "the blade path's t in s, positions in m; forces logged in N",

@@ -171,8 +171,7 @@ void CorotationalFemModel::update_marked() {
     }
   });
   // Their rows: the vertex and every vertex of its tetrahedra (a vertex left without any
-  // keeps only its diagonal).
-  // Each row's columns are worked out on worker threads (they read the mesh only); the
+  // keeps only its diagonal), worked out on worker threads (they read the mesh only); the
   // matrix takes them one row after another.
   stiffness_.add_rows(mesh.vertex_count());
   const std::span<const VertexId> marked = marks_.marked();
