@@ -32,8 +32,9 @@ packages=(
   libpng-dev libegl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
   # labels on pictures: stb_easy_font (a built-in font, no font file)
   libstb-dev
-  # the interactive viewer: a GLFW window with Dear ImGui panels; Xvfb runs it in CI
-  libglfw3-dev libimgui-dev xvfb xauth
+  # the interactive viewer: a GLFW window with Dear ImGui panels; Xvfb runs it in CI and
+  # xdotool moves its mouse there
+  libglfw3-dev libimgui-dev xvfb xauth xdotool
   # the Python module (import incise): pybind11 on Debian's Python 3 with numpy; pytest runs
   # its tests; pandas, Dask's distributed scheduler, matplotlib and scipy serve the sweep and
   # the examples

@@ -55,6 +55,22 @@ Vec3 point_on_anchor_plane(const Camera& camera, const Ray& cursor, const Vec3& 
   return cursor.origin + along * cursor.direction;
 }
 
+Vec3 towards_camera(const Camera& camera) {
+  return view_matrix(camera).block<1, 3>(2, 0).transpose();
+}
+
+double turn_on_screen(const Camera& camera, const Vec3& centre, const Ray& from, const Ray& to) {
+  const Vec3 axis = towards_camera(camera);
+  const Vec3 a = point_on_anchor_plane(camera, from, centre) - centre;
+  const Vec3 b = point_on_anchor_plane(camera, to, centre) - centre;
+  // A ray through the centre has no direction about it (to rounding, relative to the view).
+  const double tiny = 1e-9 * (camera.eye - centre).norm();
+  if (a.norm() <= tiny || b.norm() <= tiny) {
+    return 0.0;
+  }
+  return std::atan2(axis.dot(a.cross(b)), a.dot(b));
+}
+
 BladePose scalpel_pose(const Camera& camera, const Ray& cursor, const Vec3& anchor, double depth,
                        double handle) {
   const Vec3 up = view_matrix(camera).block<1, 3>(1, 0).transpose();

@@ -1072,7 +1072,7 @@ TEST(Cli, PlanViewNudgesSegmentsStopsThemAtContactAndSavesWhatPlanReproduces) {
   const CommandResult run = incise("plan " + saved + " --out " + (dir / "out").string());
   ASSERT_EQ(run.code, 0) << run.err;
   const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
-  const std::size_t at = out.find("largest skin displacement ");
+  const std::size_t at = out.rfind("largest skin displacement ");
   ASSERT_NE(at, std::string::npos);
   const double shown = std::stod(out.substr(at + 26));
   EXPECT_GT(shown, 0.5);
@@ -1146,7 +1146,7 @@ TEST(Cli, PlanViewCutsTheBoneByAPlanePlacedByHandAndSavesIt) {
   ASSERT_EQ(run.code, 0) << run.err;
   const auto report = nlohmann::json::parse(test::file_bytes(dir / "out" / "report.json"));
   EXPECT_EQ(report["segments"].get<int>(), 2);
-  const std::size_t at = out.find("largest skin displacement ");
+  const std::size_t at = out.rfind("largest skin displacement ");
   ASSERT_NE(at, std::string::npos);
   const double shown = std::stod(out.substr(at + 26));
   EXPECT_GT(shown, 0.5);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 
 #include "incise/mesh/validate.hpp"
 #include "incise/view/frame_scene.hpp"
@@ -74,6 +75,33 @@ TEST(MouseScalpel, ADragFollowsTheCursorOnThePlaneThroughWhereItStarted) {
     EXPECT_NEAR(back.x(), x, 1e-9);
     EXPECT_NEAR(back.y(), y, 1e-9);
   }
+}
+
+TEST(MouseScalpel, ATurnOnTheScreenIsTheAngleTheCursorSweptAboutTheCentre) {
+  const Camera camera = fit_camera(unit_box(), 1.5);
+  const Vec3 centre(0.4, 0.5, 0.6);
+  const Eigen::Vector2d at = to_screen(camera, 1.5, unit_box(), centre);
+  const auto ray = [&](double dx, double dy) {
+    return cursor_ray(camera, 1.5, at.x() + dx, at.y() + dy);
+  };
+  // From the right of the centre to above it: a quarter turn, counter-clockwise on the screen.
+  EXPECT_NEAR(turn_on_screen(camera, centre, ray(0.2, 0.0), ray(0.0, 0.3)), 0.5 * std::numbers::pi,
+              1e-9);
+  EXPECT_NEAR(turn_on_screen(camera, centre, ray(0.0, 0.3), ray(0.2, 0.0)), -0.5 * std::numbers::pi,
+              1e-9);
+  EXPECT_NEAR(turn_on_screen(camera, centre, ray(0.2, 0.0), ray(0.4, 0.0)), 0.0, 1e-9);
+  // Turned by that angle about the axis towards the camera, the press point lands under the
+  // cursor's ray again.
+  const Ray from = ray(0.1, -0.2);
+  const Ray to = ray(-0.3, 0.05);
+  const double angle = turn_on_screen(camera, centre, from, to);
+  const Vec3 pressed = point_on_anchor_plane(camera, from, centre);
+  const Vec3 turned =
+      centre + Eigen::AngleAxisd(angle, towards_camera(camera)) * (pressed - centre);
+  const Vec3 reached = point_on_anchor_plane(camera, to, centre);
+  EXPECT_NEAR((turned - centre).normalized().dot((reached - centre).normalized()), 1.0, 1e-12);
+  // The cursor on the centre itself: no turn.
+  EXPECT_EQ(turn_on_screen(camera, centre, ray(0.0, 0.0), ray(0.2, 0.1)), 0.0);
 }
 
 TEST(MouseScalpel, TheBladeCrossesTheAnchorPlaneUnderTheCursorWithItsDepth) {

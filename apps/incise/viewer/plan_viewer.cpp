@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 #include <thread>
 
@@ -357,18 +358,28 @@ void PlanViewer::handle_mouse() {
   }
   if (free && left && !dragging_ && !drag_anchor_ && bone_view_ && !placing_plane_ &&
       state_.ready && !state_.busy) {
-    // A press on the selected segment takes it.
+    // A press on the selected segment takes it: to move it, or with Shift to turn it.
     if (const auto hit = pick_bone(ray); hit && state_.bone_segment[hit->triangle] == selected_) {
       drag_anchor_ = hit->point;
       drag_offset_ = Vec3::Zero();
+      drag_turns_ = glfwGetKey(window_, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ||
+                    glfwGetKey(window_, GLFW_KEY_RIGHT_SHIFT) == GLFW_PRESS;
+      drag_from_ = ray;
+      drag_angle_ = 0.0;
     }
   }
   if (drag_anchor_) {
-    if (left) {
+    if (left && drag_turns_) {
+      drag_angle_ = turn_on_screen(render_.camera, selected_centre(), drag_from_, ray);
+    } else if (left) {
       drag_offset_ = point_on_anchor_plane(render_.camera, ray, *drag_anchor_) - *drag_anchor_;
     } else {
-      // Released: the drag is a nudge (mm), checked for contact and predicted.
-      if (drag_offset_.norm() > 0.0) {
+      // Released: the drag is a nudge (mm, or degrees about the axis towards the camera),
+      // checked for contact and predicted.
+      if (drag_turns_ && drag_angle_ != 0.0) {
+        nudge(Vec3::Zero(),
+              towards_camera(render_.camera) * (drag_angle_ * 180.0 / std::numbers::pi));
+      } else if (!drag_turns_ && drag_offset_.norm() > 0.0) {
         nudge(drag_offset_ * 1e3, Vec3::Zero());
       }
       drag_anchor_.reset();
@@ -409,6 +420,11 @@ void PlanViewer::handle_mouse() {
   }
   last_x_ = x;
   last_y_ = y;
+}
+
+Vec3 PlanViewer::selected_centre() const {
+  const auto s = static_cast<std::size_t>(selected_);
+  return state_.segment_centres[s] + state_.poses[s].translation_mm * 1e-3;  // mm to m
 }
 
 std::optional<SurfaceHit> PlanViewer::pick_bone(const Ray& ray) {
@@ -470,12 +486,18 @@ void PlanViewer::draw_scene() {
     input.rest_positions = state_.bone_corners;
     input.positions = state_.bone_corners;
     if (drag_anchor_) {
-      // The segment being dragged, where the cursor has taken it (checked on release).
+      // The segment being dragged, where the cursor has taken it (checked on release): moved,
+      // or turned about its centre as the nudge will turn it.
+      const Vec3 centre = selected_centre();
+      const Mat3 turn =
+          Eigen::AngleAxisd(drag_turns_ ? drag_angle_ : 0.0, towards_camera(render_.camera))
+              .toRotationMatrix();
       dragged_ = state_.bone_corners;
       for (std::size_t t = 0; t < soup.size(); ++t) {
         if (state_.bone_segment[t] == selected_) {
           for (std::size_t c = 0; c < 3; ++c) {
-            dragged_[3 * t + c] += drag_offset_;
+            Vec3& corner = dragged_[3 * t + c];
+            corner = drag_turns_ ? Vec3(centre + turn * (corner - centre)) : corner + drag_offset_;
           }
         }
       }
@@ -531,6 +553,7 @@ void PlanViewer::draw_panel() {
     ImGui::Separator();
     if (bone_view_) {
       ImGui::Text("bone: selected segment red, moved light, still blue-grey (B: the skin)");
+      ImGui::Text("drag the selected segment to move it, Shift+drag to turn it");
     } else {
       ImGui::Text("skin displacement (mm)  (B: the bone)");
       ImDrawList* draw = ImGui::GetWindowDrawList();

@@ -13,7 +13,9 @@
 // Enter cuts the bone there (the plan is prepared again with the plane: the worker's kCut), O
 // or Esc puts it away.
 //
-// Mouse (bone view): drag the selected segment to move it; click another to select it.
+// Mouse (bone view): drag the selected segment to move it, Shift+drag to turn it about its
+// centre (about the axis towards the camera); click another to select it. Each prediction
+// writes a line to the console.
 // Keys: Tab / Shift+Tab select the next / previous segment; arrows move it along x and y,
 // Page Up / Down along z (mm); with Shift they rotate it about those axes (degrees); B shows the
 // bone or the skin; 1, 2, 3 look from the front, the side, above; O places a plane; S saves;
@@ -62,6 +64,8 @@ class PlanViewer {
   void handle_keys();
   void handle_mouse();
   void draw_scene();
+  /// m: where the selected segment turns about (its centre, moved).
+  [[nodiscard]] Vec3 selected_centre() const;
   /// The bone triangle under the cursor's ray (bone view), if any.
   std::optional<SurfaceHit> pick_bone(const Ray& ray);
   void draw_panel();
@@ -105,10 +109,14 @@ class PlanViewer {
   std::vector<PlanRequest> recorded_;  ///< the session's requests, in order
 
   // Mouse: in the bone view a press on the selected segment drags it (on the plane facing the
-  // camera through where it was pressed; released, the drag is a nudge), a click on another
-  // picks it; elsewhere a drag turns the camera.
+  // camera through where it was pressed; released, the drag is a nudge), with Shift turns it
+  // about its centre (about the axis towards the camera), a click on another picks it;
+  // elsewhere a drag turns the camera.
   std::optional<Vec3> drag_anchor_;  ///< m, where the segment was pressed
   Vec3 drag_offset_ = Vec3::Zero();  ///< m, how far it has been dragged
+  bool drag_turns_ = false;          ///< the drag turns the segment (Shift was held)
+  Ray drag_from_;                    ///< the cursor's ray where the drag started
+  double drag_angle_ = 0.0;          ///< rad, how far it has been turned
   bool dragging_ = false;
   bool moved_while_pressed_ = false;
   double last_x_ = 0.0;

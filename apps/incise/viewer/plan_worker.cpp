@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <chrono>
 #include <fstream>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <utility>
 
@@ -105,6 +106,7 @@ void PlanWorker::prepare(const planning::PlanDescription& plan) {
       s.segment_volumes_mm3.push_back(v / std::pow(kMillimetre, 3));
     }
     s.poses = poses_;
+    s.segment_centres = centres_;
     s.osteotomies = static_cast<int>(plan.osteotomies.size());
     s.status = "predicting...";
   });
@@ -266,6 +268,11 @@ void PlanWorker::predict() {
     s.status = fmt::format("predicted in {:.2f} s ({} Newton steps{}), largest {:.2f} mm", seconds,
                            result.iterations, result.converged ? "" : ", NOT converged",
                            s.largest_displacement_mm);
+    // A line per prediction on the console, from this thread so that every one is there in
+    // order: the session's log, and what a script driving the window waits for.
+    std::cout << fmt::format("prediction {}: largest skin displacement {:.6f} mm\n", s.predictions,
+                             s.largest_displacement_mm)
+              << std::flush;
   });
 }
 

@@ -46,6 +46,8 @@ struct PlanState {
   std::vector<int> bone_segment;
   std::vector<double> segment_volumes_mm3;
   std::vector<SegmentPose> poses;
+  /// m, per segment: where its pose's rotation turns it about, before its translation.
+  std::vector<Vec3> segment_centres;
   int predictions = 0;
   int osteotomies = 0;  ///< the plan's planes, its own and those added by hand
 };

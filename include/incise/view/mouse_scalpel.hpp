@@ -39,6 +39,16 @@ struct SurfaceHit {
 [[nodiscard]] Vec3 point_on_anchor_plane(const Camera& camera, const Ray& cursor,
                                          const Vec3& anchor);
 
+/// A turn by the mouse: the angle (radians, counter-clockwise as seen from the camera) that
+/// the cursor has swept about `centre` on the screen, from the ray `from` (where the drag
+/// started) to the ray `to`; the turn is about the axis from `centre` towards the camera. Zero
+/// while either ray passes through the centre. Pure.
+[[nodiscard]] double turn_on_screen(const Camera& camera, const Vec3& centre, const Ray& from,
+                                    const Ray& to);
+
+/// The axis a turn on the screen is about: from the target towards the camera (unit).
+[[nodiscard]] Vec3 towards_camera(const Camera& camera);
+
 /// The blade for a cursor ray, with the stroke anchored at `anchor` (the picked point): it
 /// crosses the plane through the anchor facing the camera where the ray does, leaning away
 /// from the viewer along the ray and a little down the screen so it is seen as a line; the
