@@ -11,6 +11,8 @@ the buttons as a surgeon would, so what it checks is the window's own handling o
 Then: the recording holds the three nudges; the saved plan moves the cap up, turned, and
 incise plan runs it (it refuses segments that interpenetrate) to the prediction the window
 showed; the recording replays to that prediction bit for bit.
+A second session starts from a plan without osteotomies: O shows a plane, it follows the bone
+under the pointer, a click cuts there; the saved plan has that plane and makes two segments.
 
 Usage: plan_view_mouse_test.py INCISE          (starts its own X server with xvfb-run)
 Exit 77 (skipped) without xvfb-run or xdotool, unless INCISE_REQUIRE_GL is set.
@@ -83,16 +85,22 @@ def drag(points, shift=False):
         xdotool("keyup", "shift")
 
 
-def inner(incise, work):
-    """In the X server: the session by mouse and keys."""
-    log = open(os.path.join(work, "view.out"), "w")
+# Where the bone's cap is drawn: the camera looks from the front (-y), z up the screen; the
+# bone sphere (40 mm) is drawn about the window's centre, its cap (above z = 20 mm) at the top,
+# right of the panel.
+CAP = (WIDTH // 2 + 60, HEIGHT * 29 // 100)
+
+
+def open_window(incise, work, plan, name):
+    """incise plan PLAN --view, its console into NAME.out; the process and a reader of that."""
+    log = open(os.path.join(work, name + ".out"), "w")
     window = subprocess.Popen(
-        [incise, "plan", "plan.json", "--view", "--size", "%dx%d" % (WIDTH, HEIGHT),
-         "--record", "recorded.json", "--save", "saved.json"],
+        [incise, "plan", plan, "--view", "--size", "%dx%d" % (WIDTH, HEIGHT),
+         "--record", name + "_recorded.json", "--save", name + "_saved.json"],
         cwd=work, stdout=log, stderr=subprocess.STDOUT)
 
     def printed():
-        with open(os.path.join(work, "view.out")) as f:
+        with open(os.path.join(work, name + ".out")) as f:
             return f.read()
 
     def prediction(n):
@@ -101,14 +109,48 @@ def inner(incise, work):
         assert window.poll() is None, printed()
         time.sleep(0.5)  # the worker is idle again a moment after it has printed
 
+    return window, printed, prediction
+
+
+def save_and_close(work, name, window, printed):
+    xdotool("key", "s")
+    wait_for("the plan saved", lambda: os.path.exists(os.path.join(work, name + "_saved.json")))
+    time.sleep(0.5)
+    xdotool("key", "Escape")
+    assert window.wait(timeout=TIMEOUT_S) == 0, printed()
+
+
+def inner(incise, work):
+    """In the X server: the sessions by mouse and keys."""
+    move_by_mouse(incise, work)
+    cut_by_mouse(incise, work)
+    return 0
+
+
+def cut_by_mouse(incise, work):
+    window, printed, prediction = open_window(incise, work, "uncut.json", "cut")
     try:
         prediction(1)
-        # The camera looks from the front (-y), z up the screen; the bone sphere (40 mm) is
-        # drawn about the window's centre, its cap (above z = 20 mm) at the top, right of the
-        # panel.
+        xdotool("key", "o")  # the bone view, a plane through the bone under the pointer
+        time.sleep(0.3)
+        xdotool("mousemove", CAP[0], CAP[1] + 10)
+        time.sleep(0.5)
+        xdotool("click", 1)
+        prediction(2)
+        save_and_close(work, "cut", window, printed)
+    finally:
+        if window.poll() is None:
+            window.kill()
+
+
+def move_by_mouse(incise, work):
+    window, printed, prediction = open_window(incise, work, "plan.json", "move")
+
+    try:
+        prediction(1)
         xdotool("key", "b")
         time.sleep(0.3)
-        cx, cy = WIDTH // 2 + 60, HEIGHT * 29 // 100
+        cx, cy = CAP
         drag([(cx, cy)] + [(cx, cy - d) for d in range(5, 35, 5)])  # 30 pixels up
         prediction(2)
         # Shift+drag from the right of the cap's centre to its upper left: counter-clockwise.
@@ -117,15 +159,10 @@ def inner(incise, work):
         prediction(3)
         # Far down, through the rest of the skull: the cap stops at contact.
         drag([(cx, cy - 20)] + [(cx, cy - 20 + d) for d in range(20, 220, 20)])
-        xdotool("key", "s")
-        wait_for("the plan saved", lambda: os.path.exists(os.path.join(work, "saved.json")))
-        time.sleep(0.5)
-        xdotool("key", "Escape")
-        assert window.wait(timeout=TIMEOUT_S) == 0, printed()
+        save_and_close(work, "move", window, printed)
     finally:
         if window.poll() is None:
             window.kill()
-    return 0
 
 
 def summary_displacement(text):
@@ -151,16 +188,21 @@ def main():
     with open(os.path.join(work, "plan.json"), "w") as f:
         json.dump({"surfaces": {"skin": "skin.obj", "bone": "bone.obj"}, "layers": 2,
                    "osteotomies": [{"point": [0, 0, 20], "normal": [0, 0, 1]}]}, f)
+    with open(os.path.join(work, "uncut.json"), "w") as f:
+        json.dump({"surfaces": {"skin": "skin.obj", "bone": "bone.obj"}, "layers": 2}, f)
     x_server = ["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24"]
     session = subprocess.run(x_server + [sys.executable, os.path.abspath(__file__), incise,
                                          "--inner", work])
-    with open(os.path.join(work, "view.out")) as f:
+    with open(os.path.join(work, "move.out")) as f:
         shown = f.read()
     print(shown)
-    assert session.returncode == 0, "the session by mouse failed"
+    if os.path.exists(os.path.join(work, "cut.out")):
+        with open(os.path.join(work, "cut.out")) as f:
+            print(f.read())
+    assert session.returncode == 0, "the sessions by mouse failed"
 
     # The recording: three nudges of the cap, as the mouse made them.
-    with open(os.path.join(work, "recorded.json")) as f:
+    with open(os.path.join(work, "move_recorded.json")) as f:
         requests = json.load(f)["requests"]
     nudges = [r["nudge"] for r in requests if "nudge" in r]
     assert len(nudges) == 3, requests
@@ -175,11 +217,11 @@ def main():
     assert -30.0 < turn["rotate_deg"][1] < -1.0, turn
     assert abs(turn["rotate_deg"][0]) < 1e-9 and abs(turn["rotate_deg"][2]) < 1e-9, turn
     assert push["translate_mm"][2] < -2 * up["translate_mm"][2], push
-    assert {"save": "saved.json"} in requests, requests
+    assert {"save": "move_saved.json"} in requests, requests
 
     # The saved plan: the cap up (stopped at contact on the way down, so still above where it
     # was) and turned.
-    with open(os.path.join(work, "saved.json")) as f:
+    with open(os.path.join(work, "move_saved.json")) as f:
         moves = json.load(f)["moves"]
     assert len(moves) == 1, moves
     assert 0.0 < moves[0]["translate"][2] < up["translate_mm"][2], moves
@@ -190,7 +232,7 @@ def main():
     # incise plan runs the saved plan (it refuses segments that interpenetrate) to the
     # prediction the window showed, within the solver's tolerance.
     out = os.path.join(work, "out")
-    run = subprocess.run([incise, "plan", os.path.join(work, "saved.json"), "--out", out],
+    run = subprocess.run([incise, "plan", os.path.join(work, "move_saved.json"), "--out", out],
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     with open(os.path.join(out, "report.json")) as f:
@@ -201,12 +243,30 @@ def main():
 
     # The recording replays to the same prediction, bit for bit.
     replay = subprocess.run(x_server + [incise, "plan", "plan.json", "--view", "--size", "640x480",
-                                        "--replay", "recorded.json", "--save", "replayed.json"],
+                                        "--replay", "move_recorded.json"],
                             cwd=work, capture_output=True, text=True)
     assert replay.returncode == 0, replay.stdout + replay.stderr
     assert summary_displacement(replay.stdout) == last, (replay.stdout, shown)
+
+    # The plane placed by the mouse: through the bone point clicked (on the 40 mm sphere, in
+    # its upper half), level on the screen and tipped 30 degrees towards the camera; the saved
+    # plan cuts the skull in two.
+    with open(os.path.join(work, "cut_saved.json")) as f:
+        planes = json.load(f)["osteotomies"]
+    assert len(planes) == 1, planes
+    point, normal = planes[0]["point"], planes[0]["normal"]
+    assert abs(math.sqrt(sum(c * c for c in point)) - 40.0) < 1.0, point
+    assert 5.0 < point[2] < 40.0, point
+    assert abs(normal[0]) < 1e-6 and abs(abs(normal[1]) - 0.5) < 1e-6, normal
+    assert abs(normal[2] - math.sqrt(0.75)) < 1e-6, normal
+    cut = subprocess.run([incise, "plan", os.path.join(work, "cut_saved.json"), "--out",
+                          os.path.join(work, "cut_out")], capture_output=True, text=True)
+    assert cut.returncode == 0, cut.stderr
+    with open(os.path.join(work, "cut_out", "report.json")) as f:
+        assert json.load(f)["segments"] == 2
     shutil.rmtree(work)
-    print("ok: dragged, turned, stopped at contact, saved, run and replayed")
+    print("ok: dragged, turned, stopped at contact, saved, run and replayed; a plane placed "
+          "and clicked")
     return 0
 
 
