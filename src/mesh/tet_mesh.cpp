@@ -706,13 +706,14 @@ void TetMesh::collapse_vertex(VertexId vertex, VertexId target) {
   const auto exists = [&](VertexId v) {
     return v >= 0 && static_cast<std::size_t>(v) < rest_positions_.size();
   };
-  const std::string where =
-      "collapse_vertex(" + std::to_string(vertex) + ", " + std::to_string(target) + "): ";
+  const auto where = [&] {  // made only for a message: a collapse runs a hundred times a pose
+    return "collapse_vertex(" + std::to_string(vertex) + ", " + std::to_string(target) + "): ";
+  };
   if (!exists(vertex) || !exists(target) || vertex == target) {
-    throw InputError(where + "two distinct existing vertices needed");
+    throw InputError(where() + "two distinct existing vertices needed");
   }
   if (find_edge(vertex, target) == kInvalidId) {
-    throw InputError(where + "not an edge");
+    throw InputError(where() + "not an edge");
   }
   // Which tetrahedra go and which change, and who takes each one's material.
   const std::vector<TetId> star(vertex_tets_[vertex].begin(), vertex_tets_[vertex].end());
@@ -725,7 +726,7 @@ void TetMesh::collapse_vertex(VertexId vertex, VertexId target) {
   for (TetId t : removed) {
     const TetId across = tet_neighbors_[t][local_index(t, target)];
     if (across < 0 || contains(tets_[across], target)) {
-      throw InputError(where + "tetrahedron " + std::to_string(t) +
+      throw InputError(where() + "tetrahedron " + std::to_string(t) +
                        " has no neighbour to absorb it (the collapse would change the boundary)");
     }
     into.push_back(across);
@@ -759,26 +760,62 @@ void TetMesh::collapse_vertex(VertexId vertex, VertexId target) {
   std::sort(sets.begin(), sets.end());
   std::sort(faces.begin(), faces.end());
   if (std::adjacent_find(sets.begin(), sets.end()) != sets.end()) {
-    throw InputError(where + "a tetrahedron would be repeated");
+    throw InputError(where() + "a tetrahedron would be repeated");
   }
   for (std::size_t k = 2; k < faces.size(); ++k) {
     if (faces[k] == faces[k - 2]) {
-      throw InputError(where + "a face would be shared by three tetrahedra");
+      throw InputError(where() + "a face would be shared by three tetrahedra");
     }
   }
 
-  // The edit: detach everything that changes, reshape, attach, then drop the removed ones
-  // (highest id first, so the ids still to be dropped or absorbed into stay valid).
+  // The edit, as detaching the star and attaching the reshaped tetrahedra again would make it
+  // (the same lists in the same order, the same new edge ids), but touching only what runs
+  // through the vertex: the reshaped tetrahedra keep their edges and faces not through it, and
+  // only their faces through the target are matched again. A face not through the vertex
+  // keeps its neighbour: a removed tetrahedron holds the vertex and the target, so it meets a
+  // reshaped one only across a face through the vertex. The removed ones' faces opposite the
+  // vertex are matched with their absorbers' through the target.
   for (TetId t : star) {
-    detach(t);
+    for (VertexId v : tets_[t]) {
+      erase_one(vertex_tets_[v], t);
+    }
+    for (int k = 0; k < 6; ++k) {
+      const EdgeId edge = tet_edges_[t][k];
+      erase_one(edge_tets_[edge], t);
+      if (edge_tets_[edge].empty()) {
+        edit_unused_edges_.push_back(edge);
+      }
+    }
+  }
+  for (TetId t : removed) {
+    tet_edges_[t] = {kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId};
+    tet_neighbors_[t] = {kBoundaryFace, kBoundaryFace, kBoundaryFace, kBoundaryFace};
   }
   std::vector<Tet> old_vertices;
   for (TetId t : reshaped) {
     old_vertices.push_back(tets_[t]);
-    std::replace(tets_[t].begin(), tets_[t].end(), vertex, target);
+    const int at = local_index(t, vertex);
+    tets_[t][static_cast<std::size_t>(at)] = target;
+    const Tet& tet = tets_[t];
+    for (VertexId v : tet) {
+      vertex_tets_[v].push_back(t);
+    }
+    for (int k = 0; k < 6; ++k) {
+      const auto& e = tet_local::kEdges[k];
+      const EdgeId edge =
+          e[0] == at || e[1] == at ? find_or_create_edge(tet[e[0]], tet[e[1]]) : tet_edges_[t][k];
+      edge_tets_[edge].push_back(t);
+      tet_edges_[t][k] = edge;
+    }
   }
   for (TetId t : reshaped) {
-    attach(t);
+    const int at = local_index(t, target);
+    for (int f = 0; f < 4; ++f) {
+      if (f != at) {
+        const auto& face = tet_local::kFaces[f];
+        update_face(tets_[t][face[0]], tets_[t][face[1]], tets_[t][face[2]]);
+      }
+    }
   }
   for (std::size_t k = 0; k < reshaped.size(); ++k) {
     for (MeshObserver* observer : observers_) {
