@@ -591,14 +591,59 @@ VertexId TetMesh::duplicate_vertex(VertexId original, std::span<const TetId> tet
   const Vec3 position = rest_positions_[original];
   append_vertex(position, origin);
   const auto copy = static_cast<VertexId>(rest_positions_.size() - 1);
+  // As detaching the moved tetrahedra and attaching them again would (the same lists in the
+  // same order, the same new edge ids), touching only what runs through the vertex: their
+  // edges and faces not through it stay. A face through it between a moved tetrahedron and
+  // one that stays is no longer shared: both sides become boundary. A face held by more than
+  // two tetrahedra is matched by scanning as before.
   for (TetId t : tets_to_move) {
-    detach(t);
+    for (VertexId v : tets_[t]) {
+      erase_one(vertex_tets_[v], t);
+    }
+    for (int k = 0; k < 6; ++k) {
+      const EdgeId edge = tet_edges_[t][k];
+      erase_one(edge_tets_[edge], t);
+      if (edge_tets_[edge].empty()) {
+        edit_unused_edges_.push_back(edge);
+      }
+    }
   }
   for (TetId t : tets_to_move) {
-    std::replace(tets_[t].begin(), tets_[t].end(), original, copy);
+    const int at = local_index(t, original);
+    tets_[t][static_cast<std::size_t>(at)] = copy;
+    const Tet& tet = tets_[t];
+    for (VertexId v : tet) {
+      vertex_tets_[v].push_back(t);
+    }
+    for (int k = 0; k < 6; ++k) {
+      const auto& e = tet_local::kEdges[k];
+      const EdgeId edge =
+          e[0] == at || e[1] == at ? find_or_create_edge(tet[e[0]], tet[e[1]]) : tet_edges_[t][k];
+      edge_tets_[edge].push_back(t);
+      tet_edges_[t][k] = edge;
+    }
   }
   for (TetId t : tets_to_move) {
-    attach(t);
+    const int at = local_index(t, copy);
+    for (int f = 0; f < 4; ++f) {
+      const TetId neighbor = tet_neighbors_[t][f];
+      if (f == at || neighbor == kBoundaryFace ||
+          (neighbor >= 0 && contains(tets_[neighbor], copy))) {
+        continue;  // not through the vertex, open already, or shared with a moved one
+      }
+      const auto& face = tet_local::kFaces[f];
+      const std::array<VertexId, 3> now{tets_[t][face[0]], tets_[t][face[1]], tets_[t][face[2]]};
+      std::array<VertexId, 3> before = now;
+      std::replace(before.begin(), before.end(), copy, original);
+      if (neighbor >= 0) {
+        tet_neighbors_[t][f] = kBoundaryFace;
+        tet_neighbors_[neighbor][face_opposite(tets_[neighbor], before[0], before[1], before[2])] =
+            kBoundaryFace;
+      } else {
+        update_face(now[0], now[1], now[2]);
+        update_face(before[0], before[1], before[2]);
+      }
+    }
   }
   for (TetId t : tets_to_move) {
     Tet old_vertices = tets_[t];
