@@ -766,15 +766,19 @@ bool SubdivisionCutter::collapse_opened_behind(const std::vector<TetId>& around)
   }
   std::sort(points.begin(), points.end());
   points.erase(std::unique(points.begin(), points.end()), points.end());
+  std::vector<VertexId> sliding_vertices;  // sorted: hundreds of points against hundreds
+  sliding_vertices.reserve(provisional_.size());
+  for (const Provisional& blade_point : provisional_) {
+    sliding_vertices.push_back(blade_point.vertex);
+  }
+  std::sort(sliding_vertices.begin(), sliding_vertices.end());
   bool collapsed = false;
   for (const auto& [vertex, point] : points) {
     if (mesh_.vertex_tets(vertex).empty() || !opened_at(mesh_, marks_, vertex)) {
       continue;
     }
-    bool sliding = false;
-    for (const Provisional& blade_point : provisional_) {
-      sliding = sliding || blade_point.vertex == vertex;
-    }
+    const bool sliding =
+        std::binary_search(sliding_vertices.begin(), sliding_vertices.end(), vertex);
     const VertexOrigin& origin = mesh_.vertex_origin(point);
     const std::array<VertexId, 4> corners{origin.parents[0], origin.parents[1], origin.parents[2],
                                           kInvalidId};
