@@ -777,38 +777,43 @@ void TetMesh::collapse_vertex(VertexId vertex, VertexId target) {
     into.push_back(across);
   }
   // The link condition: no tetrahedron twice, no face on three tetrahedra, around the target.
-  std::vector<Tet> around;
+  // Every tetrahedron there holds the target, so it is its other three vertices (a triangle of
+  // the target's link) and a face through the target is an edge of that triangle.
+  std::vector<std::array<VertexId, 3>> triangles;
+  std::vector<std::uint64_t> link_edges;
+  const auto add_link = [&](const Tet& tet) {
+    std::array<VertexId, 3> triangle{};
+    std::size_t n = 0;
+    for (VertexId v : tet) {
+      if (v != target) {
+        triangle[n++] = v;
+      }
+    }
+    std::sort(triangle.begin(), triangle.end());
+    triangles.push_back(triangle);
+    link_edges.insert(link_edges.end(),
+                      {edge_key(triangle[0], triangle[1]), edge_key(triangle[0], triangle[2]),
+                       edge_key(triangle[1], triangle[2])});
+  };
+  triangles.reserve(vertex_tets_[target].size() + reshaped.size());
+  link_edges.reserve(3 * triangles.capacity());
   for (TetId t : vertex_tets_[target]) {
     if (!contains(tets_[t], vertex)) {
-      around.push_back(tets_[t]);
+      add_link(tets_[t]);
     }
   }
   for (TetId t : reshaped) {
     Tet moved = tets_[t];
     std::replace(moved.begin(), moved.end(), vertex, target);
-    around.push_back(moved);
+    add_link(moved);
   }
-  std::vector<std::array<VertexId, 4>> sets;
-  std::vector<std::array<VertexId, 3>> faces;
-  for (const Tet& tet : around) {
-    std::array<VertexId, 4> sorted = tet;
-    std::sort(sorted.begin(), sorted.end());
-    sets.push_back(sorted);
-    for (const auto& face : tet_local::kFaces) {
-      std::array<VertexId, 3> f{tet[face[0]], tet[face[1]], tet[face[2]]};
-      if (contains(tet, target) && std::find(f.begin(), f.end(), target) != f.end()) {
-        std::sort(f.begin(), f.end());
-        faces.push_back(f);
-      }
-    }
-  }
-  std::sort(sets.begin(), sets.end());
-  std::sort(faces.begin(), faces.end());
-  if (std::adjacent_find(sets.begin(), sets.end()) != sets.end()) {
+  std::sort(triangles.begin(), triangles.end());
+  std::sort(link_edges.begin(), link_edges.end());
+  if (std::adjacent_find(triangles.begin(), triangles.end()) != triangles.end()) {
     throw InputError(where() + "a tetrahedron would be repeated");
   }
-  for (std::size_t k = 2; k < faces.size(); ++k) {
-    if (faces[k] == faces[k - 2]) {
+  for (std::size_t k = 2; k < link_edges.size(); ++k) {
+    if (link_edges[k] == link_edges[k - 2]) {
       throw InputError(where() + "a face would be shared by three tetrahedra");
     }
   }
