@@ -49,6 +49,27 @@ void replace_one(std::vector<TetId>& list, TetId from, TetId to) {
   *it = to;
 }
 
+/// Where `vertex` is in `tet` (0-3), or -1.
+int local_index_in(const Tet& tet, VertexId vertex) {
+  for (int i = 0; i < 4; ++i) {
+    if (tet[i] == vertex) {
+      return i;
+    }
+  }
+  return -1;
+}
+
+/// The tet_local::kEdges index of the edge between local vertices a and b.
+int local_edge(int a, int b) {
+  for (int k = 0; k < 6; ++k) {
+    const auto& e = tet_local::kEdges[k];
+    if ((e[0] == a && e[1] == b) || (e[0] == b && e[1] == a)) {
+      return k;
+    }
+  }
+  return -1;
+}
+
 /// Local face index of `tet` whose vertices are {a, b, c}: the vertex not among them.
 int face_opposite(const Tet& tet, VertexId a, VertexId b, VertexId c) {
   for (int i = 0; i < 4; ++i) {
@@ -683,7 +704,65 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
     check_tet_ids(child);
   }
   const Tet parent_vertices = tets_[parent];
-  detach(parent);
+  const std::array<TetId, 4> parent_neighbors = tet_neighbors_[parent];
+  const std::array<EdgeId, 6> parent_edges = tet_edges_[parent];
+  // The parent's faces, and which child keeps each whole. Where each is kept by at most one
+  // child and none is non-manifold, the edit is the one detaching the parent and attaching
+  // the children would make (the same lists in the same order, the same new edge ids), with
+  // less work: a kept face takes the parent's neighbour without a scan, and an edge between
+  // two of the parent's vertices is the parent's (no hash probe).
+  std::array<std::array<VertexId, 3>, 4> parent_faces{};
+  for (int f = 0; f < 4; ++f) {
+    const auto& face = tet_local::kFaces[f];
+    parent_faces[f] = {parent_vertices[face[0]], parent_vertices[face[1]],
+                       parent_vertices[face[2]]};
+    std::sort(parent_faces[f].begin(), parent_faces[f].end());
+  }
+  const auto parent_face_of = [&](const Tet& tet, int f) {
+    const auto& face = tet_local::kFaces[f];
+    std::array<VertexId, 3> key{tet[face[0]], tet[face[1]], tet[face[2]]};
+    std::sort(key.begin(), key.end());
+    return static_cast<int>(std::find(parent_faces.begin(), parent_faces.end(), key) -
+                            parent_faces.begin());  // 4: none
+  };
+  std::array<int, 4> kept{};
+  for (const Tet& child : children) {
+    for (int f = 0; f < 4; ++f) {
+      const int p = parent_face_of(child, f);
+      if (p < 4) {
+        ++kept[p];
+      }
+    }
+  }
+  bool plain = true;
+  for (int f = 0; f < 4; ++f) {
+    plain =
+        plain && kept[f] <= 1 && (parent_neighbors[f] >= 0 || parent_neighbors[f] == kBoundaryFace);
+  }
+  if (!plain) {
+    detach(parent);
+  } else {
+    for (VertexId v : parent_vertices) {
+      erase_one(vertex_tets_[v], parent);
+    }
+    for (int k = 0; k < 6; ++k) {
+      erase_one(edge_tets_[parent_edges[k]], parent);
+      if (edge_tets_[parent_edges[k]].empty()) {
+        edit_unused_edges_.push_back(parent_edges[k]);
+      }
+      tet_edges_[parent][k] = kInvalidId;
+    }
+    // The neighbours' faces are open until a child takes them.
+    for (int f = 0; f < 4; ++f) {
+      const TetId neighbor = parent_neighbors[f];
+      if (neighbor >= 0) {
+        tet_neighbors_[neighbor][face_opposite(tets_[neighbor], parent_faces[f][0],
+                                               parent_faces[f][1], parent_faces[f][2])] =
+            kBoundaryFace;
+      }
+    }
+    tet_neighbors_[parent] = {kBoundaryFace, kBoundaryFace, kBoundaryFace, kBoundaryFace};
+  }
   std::vector<TetId> ids;
   ids.reserve(children.size());
   tets_[parent] = children[0];
@@ -697,7 +776,35 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
     tet_edges_.push_back({kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId});
   }
   for (TetId id : ids) {
-    attach(id);
+    if (!plain) {
+      attach(id);
+      continue;
+    }
+    const Tet& tet = tets_[id];
+    for (VertexId v : tet) {
+      vertex_tets_[v].push_back(id);
+    }
+    for (int k = 0; k < 6; ++k) {
+      const auto& e = tet_local::kEdges[k];
+      const int a = local_index_in(parent_vertices, tet[e[0]]);
+      const int b = local_index_in(parent_vertices, tet[e[1]]);
+      const EdgeId edge = a >= 0 && b >= 0 ? parent_edges[local_edge(a, b)]
+                                           : find_or_create_edge(tet[e[0]], tet[e[1]]);
+      edge_tets_[edge].push_back(id);
+      tet_edges_[id][k] = edge;
+    }
+    for (int f = 0; f < 4; ++f) {
+      const int p = parent_face_of(tet, f);
+      if (p == 4) {
+        const auto& face = tet_local::kFaces[f];
+        update_face(tet[face[0]], tet[face[1]], tet[face[2]]);
+      } else if (parent_neighbors[p] >= 0) {
+        const TetId neighbor = parent_neighbors[p];
+        tet_neighbors_[id][f] = neighbor;
+        tet_neighbors_[neighbor][face_opposite(tets_[neighbor], parent_faces[p][0],
+                                               parent_faces[p][1], parent_faces[p][2])] = id;
+      }
+    }
   }
   for (MeshObserver* observer : observers_) {
     observer->on_tet_replaced(*this, parent, ids, parent_vertices);
