@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Runs every command of the user guide's ```sh blocks (docs/*.md), in order, page by page, in
-a scratch folder that links to the repository's scenes/: each must exit 0. `incise` at the start
+a scratch folder that links to the repository's scenes/ and tests/, with ../shared beside it
+as in a checkout: each must exit 0. `incise` at the start
 of a line is the built program; a line ending in ` &` runs in the background (a server) and
 must have exited 0 within two minutes of the page's last command.
 
@@ -30,8 +31,15 @@ def commands(page):
 def run_page(incise, source, page):
     """Runs a page's commands in a fresh folder; returns (commands run, failures)."""
     ran, failures = 0, []
-    with tempfile.TemporaryDirectory() as scratch:
-        os.symlink(source / "scenes", os.path.join(scratch, "scenes"))
+    with tempfile.TemporaryDirectory() as root:
+        # As in a checkout: the repository's scenes/ and tests/ here, ../shared beside it (the
+        # scenes reach the data meshes as ../../shared/data).
+        scratch = os.path.join(root, "work")
+        os.mkdir(scratch)
+        for name in ("scenes", "tests"):
+            os.symlink(source / name, os.path.join(scratch, name))
+        if (source.parent / "shared").exists():
+            os.symlink(source.parent / "shared", os.path.join(root, "shared"))
         background = []
         for command in commands(page):
             in_background = command.endswith(" &")

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -26,6 +27,7 @@
 #include "incise/planning/surface_error.hpp"
 #include "incise/planning/surface_image.hpp"
 #include "incise/planning/tissue_energy.hpp"
+#include "test_support.hpp"
 #include "tissue_support.hpp"
 
 namespace {
@@ -894,3 +896,83 @@ TEST(Plan, RunsFromSurfacesToAPrediction) {
 }
 
 }  // namespace
+
+namespace incise::planning {
+namespace {
+
+/// The keys parse_plan accepts at one place of a plan: what its error for an unknown key
+/// there lists as valid.
+std::vector<std::string> plan_keys_accepted(const nlohmann::json& plan) {
+  const std::string file = std::string(INCISE_SOURCE_DIR) + "/scenes/plan_headsq.json";
+  try {
+    (void)parse_plan(plan.dump(), file);
+  } catch (const InputError& error) {
+    const std::string message = error.what();
+    const std::size_t at = message.find("(valid here: ");
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "no list of valid keys in: " << message;
+      return {};
+    }
+    std::vector<std::string> keys;
+    std::stringstream list(message.substr(at + 13, message.find(')', at) - at - 13));
+    for (std::string key; std::getline(list, key, ',');) {
+      keys.push_back(key.substr(key.find_first_not_of(' ')));
+    }
+    return keys;
+  }
+  ADD_FAILURE() << "an unknown key was accepted: " << plan.dump();
+  return {};
+}
+
+TEST(PlanReference, NamesEveryKeyTheParserAccepts) {
+  // The plan keys in scenes/README.md: every key parse_plan takes, at every place, is named
+  // there (as `key` or "key").
+  const std::string reference =
+      test::file_bytes(std::string(INCISE_SOURCE_DIR) + "/scenes/README.md");
+  std::ifstream in(std::string(INCISE_SOURCE_DIR) + "/scenes/plan_headsq.json");
+  const nlohmann::json base = nlohmann::json::parse(in);
+  nlohmann::json from_surfaces = base;
+  from_surfaces.erase("image");
+  from_surfaces.erase("iso");
+  from_surfaces.erase("isosurface");
+  from_surfaces["surfaces"] = {{"skin", "skin.obj"}, {"bone", "bone.obj"}};
+  const nlohmann::json unknown = {{"zz_unknown", 1}};
+  std::vector<std::pair<std::string, nlohmann::json>> probes;
+  const auto probe = [&](const std::string& where, nlohmann::json plan,
+                         const std::function<void(nlohmann::json&)>& put) {
+    put(plan);
+    probes.emplace_back(where, plan);
+  };
+  probe("top", base, [](nlohmann::json& p) { p["zz_unknown"] = 1; });
+  probe("iso", base, [](nlohmann::json& p) { p["iso"]["zz_unknown"] = 1; });
+  probe("isosurface", base, [](nlohmann::json& p) { p["isosurface"]["zz_unknown"] = 1; });
+  probe("surfaces", from_surfaces, [](nlohmann::json& p) { p["surfaces"]["zz_unknown"] = 1; });
+  probe("decimation", base, [&](nlohmann::json& p) { p["decimation"] = unknown; });
+  probe("materials", base, [](nlohmann::json& p) { p["materials"]["zz_unknown"] = 1; });
+  probe("materials[]", base, [&](nlohmann::json& p) { p["materials"] = {unknown}; });
+  probe("osteotomies", base, [](nlohmann::json& p) { p["osteotomies"][0]["zz_unknown"] = 1; });
+  probe("moves", base, [](nlohmann::json& p) { p["moves"][0]["zz_unknown"] = 1; });
+  probe("moves.rotate", base, [&](nlohmann::json& p) { p["moves"][0]["rotate"] = unknown; });
+  probe("instruments", base, [](nlohmann::json& p) {
+    p["instruments"] = {{{"near", {0, 0, 0}}, {"zz_unknown", 1}}};
+  });
+  probe("cuts", base, [](nlohmann::json& p) {
+    p["cuts"] = {{{"point", {0, 0, 0}}, {"normal", {0, 0, 1}}, {"zz_unknown", 1}}};
+  });
+  probe("solver", base, [](nlohmann::json& p) { p["solver"]["zz_unknown"] = 1; });
+  std::size_t checked = 0;
+  for (const auto& [where, plan] : probes) {
+    const std::vector<std::string> keys = plan_keys_accepted(plan);
+    EXPECT_GE(keys.size(), 1u) << where;
+    for (const std::string& key : keys) {
+      EXPECT_TRUE(reference.find("`" + key + "`") != std::string::npos ||
+                  reference.find("\"" + key + "\"") != std::string::npos)
+          << "scenes/README.md does not name the plan key " << where << "." << key;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 40u);
+}
+
+}  // namespace
+}  // namespace incise::planning

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "incise/core/error.hpp"
@@ -439,6 +441,95 @@ TEST(Simulation, MassIsConservedAndTheBlockSettles) {
   EXPECT_LT(last.kinetic_energy, 1e-12);
   EXPECT_GT(last.max_displacement, 1e-3);  // the press shows
   EXPECT_LT(last.max_displacement, 1e-2);  // and stays small against the 4 cm block
+}
+
+}  // namespace
+}  // namespace incise
+
+namespace incise {
+namespace {
+
+/// The keys the parser accepts at one place of a scene: what its error for an unknown key
+/// there lists as valid.
+std::vector<std::string> keys_the_parser_accepts(const nlohmann::json& scene) {
+  try {
+    (void)parse_scene(scene.dump(), "probe.json");
+  } catch (const InputError& error) {
+    const std::string message = error.what();
+    const std::size_t at = message.find("(valid here: ");
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "no list of valid keys in: " << message;
+      return {};
+    }
+    std::vector<std::string> keys;
+    std::stringstream list(message.substr(at + 13, message.find(')', at) - at - 13));
+    for (std::string key; std::getline(list, key, ',');) {
+      keys.push_back(key.substr(key.find_first_not_of(' ')));
+    }
+    return keys;
+  }
+  ADD_FAILURE() << "an unknown key was accepted: " << scene.dump();
+  return {};
+}
+
+TEST(SceneReference, NamesEveryKeyTheParserAccepts) {
+  // scenes/README.md is the scene reference: every key the parser takes, at every place, must
+  // be in it (as `key` or "key"), so the two cannot drift apart.
+  const std::string reference =
+      test::file_bytes(std::string(INCISE_SOURCE_DIR) + "/scenes/README.md");
+  const nlohmann::json base = nlohmann::json::parse(default_scene_text());
+  const nlohmann::json box = {{0, 0, 0}, {1, 1, 1}};
+  std::vector<std::pair<std::string, nlohmann::json>> probes;
+  const auto probe = [&](const std::string& where,
+                         const std::function<void(nlohmann::json&)>& put) {
+    nlohmann::json scene = base;
+    put(scene);
+    probes.emplace_back(where, scene);
+  };
+  const nlohmann::json unknown = {{"zz_unknown", 1}};
+  probe("top", [](nlohmann::json& s) { s["zz_unknown"] = 1; });
+  probe("mesh", [](nlohmann::json& s) { s["mesh"]["zz_unknown"] = 1; });
+  probe("mesh.box", [](nlohmann::json& s) { s["mesh"]["box"]["zz_unknown"] = 1; });
+  probe("material", [](nlohmann::json& s) {
+    s["material"] = {
+        {"young_modulus", 1e3}, {"poisson_ratio", 0.3}, {"density", 1e3}, {"zz_unknown", 1}};
+  });
+  probe("materials", [&](nlohmann::json& s) {
+    s["materials"] = {{{"material", "fat"}, {"region", {{"box", box}}}, {"zz_unknown", 1}}};
+  });
+  probe("materials.region", [&](nlohmann::json& s) {
+    s["materials"] = {{{"material", "fat"}, {"region", {{"box", box}, {"zz_unknown", 1}}}}};
+  });
+  probe("model", [](nlohmann::json& s) { s["model"]["zz_unknown"] = 1; });
+  probe("damping", [](nlohmann::json& s) { s["damping"]["zz_unknown"] = 1; });
+  probe("integrator", [](nlohmann::json& s) { s["integrator"]["zz_unknown"] = 1; });
+  probe("integrator.solver", [&](nlohmann::json& s) { s["integrator"]["solver"] = unknown; });
+  probe("fixed", [](nlohmann::json& s) { s["fixed"][0]["zz_unknown"] = 1; });
+  probe("displacements", [&](nlohmann::json& s) {
+    s["displacements"] = {{{"box", box}, {"displacement", {0, 0, 0}}, {"zz_unknown", 1}}};
+  });
+  probe("forces", [&](nlohmann::json& s) {
+    s["forces"] = {{{"box", box}, {"force", {0, 0, 0}}, {"zz_unknown", 1}}};
+  });
+  probe("tool", [](nlohmann::json& s) { s["tool"]["zz_unknown"] = 1; });
+  probe("tool.blade", [&](nlohmann::json& s) { s["tool"]["blade"] = unknown; });
+  probe("tool.haptics", [&](nlohmann::json& s) { s["tool"]["haptics"] = unknown; });
+  probe("cutter", [](nlohmann::json& s) { s["cutter"]["zz_unknown"] = 1; });
+  probe("output", [](nlohmann::json& s) { s["output"]["zz_unknown"] = 1; });
+  probe("camera", [&](nlohmann::json& s) { s["camera"] = unknown; });
+  probe("visual", [&](nlohmann::json& s) { s["visual"] = unknown; });
+  std::size_t checked = 0;
+  for (const auto& [where, scene] : probes) {
+    const std::vector<std::string> keys = keys_the_parser_accepts(scene);
+    EXPECT_GE(keys.size(), 1u) << where;
+    for (const std::string& key : keys) {
+      EXPECT_TRUE(reference.find("`" + key + "`") != std::string::npos ||
+                  reference.find("\"" + key + "\"") != std::string::npos)
+          << "scenes/README.md does not name the key " << where << "." << key;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 80u);
 }
 
 }  // namespace
