@@ -3,7 +3,8 @@
 a scratch folder that links to the repository's scenes/ and tests/, with ../shared beside it
 as in a checkout: each must exit 0. `incise` at the start
 of a line is the built program; a line ending in ` &` runs in the background (a server) and
-must have exited 0 within two minutes of the page's last command.
+must have exited 0 within two minutes of the page's last command. Every relative link of the
+README, the guide and the scene reference must lead to a file.
 
 usage: doc_commands_test.py INCISE SOURCE_DIR
 """
@@ -70,11 +71,24 @@ def run_page(incise, source, page):
     return ran, failures
 
 
+def broken_links(source):
+    """Relative links of the README, the guide and the scene reference that lead nowhere."""
+    broken = []
+    for page in [source / "README.md", *sorted((source / "docs").glob("*.md")),
+                 source / "scenes" / "README.md"]:
+        for match in re.finditer(r"\]\(([^)\s]+)\)", page.read_text()):
+            target = match.group(1).split("#")[0]
+            if target and not target.startswith(("http:", "https:", "mailto:")) and \
+                    not (page.parent / target).exists():
+                broken.append(f"{page.relative_to(source)}: a link to {match.group(1)}")
+    return broken
+
+
 def main():
     incise, source = sys.argv[1], pathlib.Path(sys.argv[2])
     pages = sorted((source / "docs").glob("*.md"))
     ran = 0
-    failures = []
+    failures = broken_links(source)
     for page in pages:
         count, failed = run_page(incise, source, page)
         if failed:
