@@ -10,6 +10,7 @@
 
 namespace incise {
 
+/// The blade at one instant: the segment from its tip to its base.
 struct BladePose {
   double time = 0.0;  ///< s
   Vec3 tip;           ///< m
@@ -25,8 +26,8 @@ struct BladeGeometry {
 
 /// A tool pose: rotation and translation (m) mapping tool-frame points into the world.
 struct ToolFrame {
-  Mat3 rotation = Mat3::Identity();
-  Vec3 translation = Vec3::Zero();
+  Mat3 rotation = Mat3::Identity();  ///< tool frame to world
+  Vec3 translation = Vec3::Zero();   ///< m, the tool frame's origin in the world
 };
 
 /// Where the blade is when the tool frame is `frame`.

@@ -15,8 +15,10 @@ enum class CutCase : std::uint8_t { kNone, kA, kB, kC, kD, kE, kInvalid };
 
 [[nodiscard]] const char* cut_case_name(CutCase kind);
 
+/// One state of a tetrahedron's cut: its case (A-E of the seed) and how the case's canonical
+/// tetrahedron maps onto it.
 struct CutCaseEntry {
-  CutCase kind = CutCase::kInvalid;
+  CutCase kind = CutCase::kInvalid;  ///< the seed's case, or kInvalid for a state none matches
   /// Vertex permutation taking the case's canonical tetrahedron to this one:
   /// canonical vertex i is this tetrahedron's vertex permutation[i].
   std::array<std::uint8_t, 4> permutation{0, 1, 2, 3};

@@ -16,13 +16,16 @@
 
 namespace incise {
 
+/// Which faces of the mesh lie on the cut, kept through every edit (a mesh observer).
 class CutFaceMarks final : public MeshObserver {
  public:
+  /// Follows `mesh`, which must outlive it; no face is marked yet.
   explicit CutFaceMarks(TetMesh& mesh);
   CutFaceMarks(const CutFaceMarks&) = delete;
   CutFaceMarks& operator=(const CutFaceMarks&) = delete;
   ~CutFaceMarks() override;
 
+  /// Whether the face opposite local vertex `local_face` of `tet` is on the cut.
   [[nodiscard]] bool is_cut(TetId tet, int local_face) const {
     return (bits_[static_cast<std::size_t>(tet)] >> local_face & 1U) != 0;
   }

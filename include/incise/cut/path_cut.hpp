@@ -9,6 +9,7 @@
 
 namespace incise {
 
+/// What cutting a mesh along a whole blade path gave (`incise cut`).
 struct PathCutResult {
   /// The report as JSON text (the keys `incise cut --report` writes; lengths in the mesh's
   /// unit). `mesh`, `blade` and `length_unit` name what was cut.

@@ -46,13 +46,14 @@ enum class SplitMode {
   kGeneric,
 };
 
+/// How the subdivision cutter splits and opens (scene key `cutter`).
 struct CutterOptions {
   /// A crossing within this fraction of an edge's length from an end snaps to that vertex
   /// instead of splitting the edge (and a blade point with a barycentric coordinate below it
   /// snaps onto the face, edge or vertex); a split child keeps at least this fraction of its
   /// parent's volume.
   double snap_fraction = 0.1;
-  SplitMode split = SplitMode::kMinimal;
+  SplitMode split = SplitMode::kMinimal;  ///< which tetrahedra a move splits, and how
   /// Insert vertices on the blade line (face crossings and the tip), so the tetrahedra holding
   /// the blade open up to it during the move rather than after the blade has left them.
   bool open_under_blade = true;
@@ -68,19 +69,20 @@ struct CutterOptions {
   bool slide_blade_points = true;
 };
 
+/// What the cutter did: the last move's times and counts, and totals over every move.
 struct CutStats {
   // Last move.
   double cd_seconds = 0.0;         ///< collision detection: finding tets and crossing edges (s)
   double gc_seconds = 0.0;         ///< topology and geometry changes: splits and separation (s)
   std::size_t candidate_tets = 0;  ///< tets the swept surface touched in the last move
   // Totals.
-  std::size_t moves = 0;
-  std::size_t sweeps = 0;  ///< moves that swept some surface inside the body (the blade moved)
-  std::size_t edges_split = 0;
-  std::size_t vertices_snapped = 0;
-  std::size_t vertices_duplicated = 0;
-  std::size_t blade_vertices = 0;  ///< vertices inserted on the blade line
-  std::size_t blade_slides = 0;    ///< blade-line vertices slid along with the blade
+  std::size_t moves = 0;        ///< blade moves (move_to calls)
+  std::size_t sweeps = 0;       ///< moves that swept some surface inside the body (the blade moved)
+  std::size_t edges_split = 0;  ///< edges split where the cut crosses them
+  std::size_t vertices_snapped = 0;     ///< crossings snapped to a vertex within the snap fraction
+  std::size_t vertices_duplicated = 0;  ///< vertex copies made where cut faces part tetrahedra
+  std::size_t blade_vertices = 0;       ///< vertices inserted on the blade line
+  std::size_t blade_slides = 0;         ///< blade-line vertices slid along with the blade
   /// Blade-line vertices the blade left behind, collapsed onto the edge crossing next to them.
   std::size_t blade_points_collapsed = 0;
   std::size_t blade_points_left_out = 0;  ///< not inserted: they would thin a tet below 1e-4
@@ -97,9 +99,9 @@ struct CutStats {
   std::size_t point_neighbor = 0;  ///< found among its face neighbours
   std::size_t point_global = 0;    ///< found through the spatial grid
   std::size_t point_outside = 0;   ///< tip outside the mesh
-  double total_cd_seconds = 0.0;
-  double total_gc_seconds = 0.0;
-  double max_move_seconds = 0.0;  ///< the most expensive move, cd + gc (s)
+  double total_cd_seconds = 0.0;   ///< collision detection over every move (s)
+  double total_gc_seconds = 0.0;   ///< topology and geometry changes over every move (s)
+  double max_move_seconds = 0.0;   ///< the most expensive move, cd + gc (s)
   /// Tetrahedra cut per move, by the seed's case (index: CutCase): the cut-edge code of the
   /// edges the move crossed, partial while the blade is still inside the tetrahedron.
   std::array<std::size_t, 7> case_counts{};
@@ -112,9 +114,13 @@ struct CutStats {
 struct Ancestry {
   std::int32_t id = -1;  ///< the original tetrahedron (-1 until first seen)
   double volume = 0.0;   ///< its rest volume (m^3)
+  /// Its rest corners (m).
   std::array<Vec3, 4> corners{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
 };
 
+/// The seed's progressive subdivision cutter: a blade moved pose by pose splits the tetrahedra
+/// it sweeps, crack-free, and opens the cut behind it (Bielser et al.). It edits the mesh it
+/// was given; models that observe the mesh follow each edit.
 class SubdivisionCutter {
  public:
   /// Cuts `mesh` where the blade meets its rest positions, or its current `positions` (m) when
@@ -138,23 +144,25 @@ class SubdivisionCutter {
   /// Runs a whole path: start at the first pose, then move through the others.
   void cut_along(const std::vector<BladePose>& path);
 
-  [[nodiscard]] const CutStats& stats() const { return stats_; }
+  [[nodiscard]] const CutStats& stats() const { return stats_; }  ///< what it did so far
   /// The tetrahedron holding the blade tip, or kInvalidId when the tip is outside.
   [[nodiscard]] TetId active_point_tet() const { return point_tet_; }
-  /// Tetrahedra the blade segment intersects now (the seed's active tetrahedra).
   /// Checkpoints: the cut so far (swept surface, blade, pending blade-line vertices,
   /// statistics). What follows the mesh (marks, grid, per-vertex and per-tet data) is saved
   /// with the mesh's observers.
   void save_state(StateWriter& out) const;
+  /// Restores what save_state() wrote, onto the same mesh restored from the same checkpoint.
   void load_state(StateReader& in);
+  /// Tetrahedra the blade segment intersects now (the seed's active tetrahedra).
   [[nodiscard]] const std::vector<TetId>& active_tets() const { return active_; }
   /// Whether a vertex lies on the cut surface.
   [[nodiscard]] bool on_cut(VertexId vertex) const { return on_cut_[vertex] != 0; }
+  /// The triangles the blade swept so far (m, where it met the body).
   [[nodiscard]] const std::vector<std::array<Vec3, 3>>& swept_surface() const { return surface_; }
   /// The faces found on the cut (opened, or still joined at the crack front).
   [[nodiscard]] const CutFaceMarks& cut_faces() const { return marks_; }
-  [[nodiscard]] bool started() const { return started_; }
-  [[nodiscard]] const BladePose& pose() const { return pose_; }
+  [[nodiscard]] bool started() const { return started_; }        ///< whether the blade was placed
+  [[nodiscard]] const BladePose& pose() const { return pose_; }  ///< the blade's last pose
   /// Cut-edge code (bit k: the original's local edge k was crossed) accumulated over all
   /// moves, per original tetrahedron id.
   [[nodiscard]] const std::vector<std::uint8_t>& accumulated_codes() const {

@@ -11,6 +11,8 @@
 
 namespace incise {
 
+/// A uniform grid of cells listing the tetrahedra whose bounding boxes reach into each, kept
+/// through every edit (a mesh observer): the cutters' spatial index.
 class TetGrid final : public MeshObserver {
  public:
   /// Cell size defaults to the mean edge length. `positions` (m), when given, must
@@ -23,7 +25,7 @@ class TetGrid final : public MeshObserver {
 
   /// Tetrahedra whose bounding box overlaps [low, high] (each once, unsorted).
   void query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) const;
-  [[nodiscard]] double cell_size() const { return cell_; }
+  [[nodiscard]] double cell_size() const { return cell_; }  ///< m
   /// Re-inserts every tetrahedron at its current bounds (after the positions moved).
   void refit();
   /// The position the grid uses for a vertex (m).

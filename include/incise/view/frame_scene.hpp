@@ -17,14 +17,15 @@ namespace incise {
 
 /// Owns (or shares) everything a RenderInput points to.
 struct FrameScene {
-  std::shared_ptr<const SurfaceTopology> surface;
-  std::span<const Vec3> positions;  ///< the engine's, `snapshot`'s, or `owned`
+  std::shared_ptr<const SurfaceTopology> surface;  ///< the triangles drawn, at rest
+  std::span<const Vec3> positions;                 ///< the engine's, `snapshot`'s, or `owned`
   /// Positions computed for this frame (an embedded visual surface's), shared by copies.
   std::shared_ptr<const std::vector<Vec3>> owned;
-  std::shared_ptr<const Snapshot> snapshot;
-  std::optional<std::array<Vec3, 2>> blade;
-  std::vector<std::array<Vec3, 2>> highlights;
-  std::vector<std::array<Vec3, 2>> cut_edges;
+  std::shared_ptr<const Snapshot> snapshot;     ///< the published frame drawn, if any
+  std::optional<std::array<Vec3, 2>> blade;     ///< the blade's tip and base (m), if on
+  std::vector<std::array<Vec3, 2>> highlights;  ///< edges outlined (the active tetrahedra)
+  std::vector<std::array<Vec3, 2>> cut_edges;   ///< edges drawn along the wound
+  /// The render input pointing into this frame (valid while it lives).
   [[nodiscard]] RenderInput input() const;
   /// The box around the surface's current positions (m).
   [[nodiscard]] Bounds bounds() const;

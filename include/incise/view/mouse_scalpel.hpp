@@ -14,8 +14,9 @@
 
 namespace incise {
 
+/// A ray from the eye into the scene.
 struct Ray {
-  Vec3 origin;
+  Vec3 origin;     ///< m
   Vec3 direction;  ///< unit
 };
 
@@ -23,10 +24,11 @@ struct Ray {
 /// (x right, y up, both in [-1, 1]).
 [[nodiscard]] Ray cursor_ray(const Camera& camera, double aspect, double x, double y);
 
+/// Where a ray meets a surface.
 struct SurfaceHit {
-  Vec3 point;
-  std::size_t triangle = 0;
-  double distance = 0.0;  ///< along the ray (m)
+  Vec3 point;                ///< m
+  std::size_t triangle = 0;  ///< the triangle met
+  double distance = 0.0;     ///< along the ray (m)
 };
 
 /// The nearest triangle the ray meets (either side), if any.
@@ -60,10 +62,12 @@ struct SurfaceHit {
 /// (lifted until the first press). take() and live() may be called from any thread.
 class HandOverTool final : public ToolPoseSource {
  public:
+  /// Plays `scripted` (may be null: no path) until take().
   explicit HandOverTool(std::unique_ptr<ToolPoseSource> scripted)
       : scripted_(std::move(scripted)) {}
-  void take() { taken_.store(true); }
-  [[nodiscard]] bool taken() const { return taken_.load(); }
+  void take() { taken_.store(true); }  ///< the user takes the blade (any thread)
+  [[nodiscard]] bool taken() const { return taken_.load(); }  ///< whether it was taken
+  /// The live pose the user sets once the blade is taken.
   [[nodiscard]] LiveToolPose& live() { return live_; }
   [[nodiscard]] std::optional<BladePose> pose(int frame, double time) override {
     if (taken_.load()) {

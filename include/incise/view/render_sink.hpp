@@ -12,24 +12,28 @@
 
 namespace incise {
 
+/// What `incise run --render` draws and where.
 struct PictureOptions {
   std::filesystem::path dir;  ///< pictures go to DIR/frame_NNNNNN.png
-  int every = 1;
-  int last_frame = -1;  ///< drawn even off the `every` grid (-1: unknown; end() draws it)
+  int every = 1;              ///< draw every this many frames
+  int last_frame = -1;        ///< drawn even off the `every` grid (-1: unknown; end() draws it)
   /// Size, mode, texture period; the camera is the scene's, else fitted to the body at the
   /// start and kept for the whole run.
   RenderOptions render;
-  bool highlight_active = false;  ///< outline the tetrahedra the blade is in
-  std::optional<std::filesystem::path> video;
-  double video_fps = 30.0;
+  bool highlight_active = false;               ///< outline the tetrahedra the blade is in
+  std::optional<std::filesystem::path> video;  ///< an MP4 of the pictures (needs ffmpeg)
+  double video_fps = 30.0;                     ///< the video's frames per second
 };
 
+/// A frame sink that draws frames to PNG files (and a video) with an offscreen renderer.
 class RenderSink final : public FrameSink {
  public:
+  /// Draws with `renderer`, which must outlive the sink.
   RenderSink(ImageRenderer& renderer, PictureOptions options);
   void begin(const Engine& engine) override;
   bool frame(const Engine& engine, const FrameRecord& record) override;
   void end(const Engine& engine) override;
+  /// The pictures written so far.
   [[nodiscard]] const std::vector<std::filesystem::path>& pictures() const { return pictures_; }
 
  private:

@@ -22,27 +22,31 @@
 
 namespace incise {
 
+/// Something the user did in the window (a button, a key) at a frame.
 struct SessionAction {
-  int frame = 0;
-  std::string name;  ///< play, pause, step, mode, highlight, screenshot, ...
-  std::string value;
+  int frame = 0;      ///< the engine's frame when it was done
+  std::string name;   ///< play, pause, step, mode, highlight, screenshot, ...
+  std::string value;  ///< its argument, if any (a mode's name, a file)
 };
 
+/// One engine's run in a session: its scene and the blade's pose at each frame (a reset in the
+/// window starts another segment).
 struct SessionSegment {
-  std::filesystem::path scene_file;  ///< empty: the built-in default scene
-  std::string scene_text;
+  std::filesystem::path scene_file;             ///< empty: the built-in default scene
+  std::string scene_text;                       ///< the scene's JSON as it was run
   std::vector<std::optional<BladePose>> poses;  ///< index: frame (0: the start)
   std::vector<std::uint8_t> world;              ///< per frame: the pose is in the world
   /// Per frame (may be shorter than poses: none after it): ToolMotion::passed.
   std::vector<std::vector<std::optional<BladePose>>> passed;
-  std::vector<SessionAction> actions;
+  std::vector<SessionAction> actions;  ///< in the order they were done
   /// The scene, parsed as it was run (relative paths against scene_file's folder).
   [[nodiscard]] SceneDescription scene() const;
-  [[nodiscard]] int frames() const { return static_cast<int>(poses.size()) - 1; }
+  [[nodiscard]] int frames() const { return static_cast<int>(poses.size()) - 1; }  ///< stepped
 };
 
+/// A viewer session, which `incise run --replay` and `incise view --replay` play bit for bit.
 struct SessionRecording {
-  std::vector<SessionSegment> segments;
+  std::vector<SessionSegment> segments;  ///< in the order they ran
 };
 
 /// Writes atomically; errors name the file.
@@ -54,6 +58,7 @@ void write_session(const std::filesystem::path& path, const SessionRecording& re
 /// and each frame's pose. Add one to each engine the viewer makes (a reset starts another).
 class SessionRecorder final : public FrameSink {
  public:
+  /// Adds to `recording`, which must outlive the recorder.
   explicit SessionRecorder(SessionRecording& recording) : recording_(&recording) {}
   void begin(const Engine& engine) override;
   bool frame(const Engine& engine, const FrameRecord& record) override;

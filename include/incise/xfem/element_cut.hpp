@@ -23,7 +23,7 @@ namespace incise {
 /// How a cut crosses one tetrahedron: the corners on the far side b, and where each edge that
 /// joins the two sides is crossed (fraction along tet_local::kEdges[k], from its first corner).
 struct ElementCut {
-  std::array<bool, 4> on_b{};
+  std::array<bool, 4> on_b{};        ///< per corner: on side b
   std::array<double, 6> crossing{};  ///< in (0, 1); read only for edges joining the sides
   /// Whether the cut separates the corners at all (some on each side).
   [[nodiscard]] bool splits() const;
@@ -35,10 +35,10 @@ struct ElementCut {
 
 /// Volumes (m^3) of a tetrahedron on each side of its cut.
 struct SideVolumes {
-  double a = 0.0;
-  double b = 0.0;
-  [[nodiscard]] double fraction_a() const { return a / (a + b); }
-  [[nodiscard]] double fraction_b() const { return b / (a + b); }
+  double a = 0.0;                                                  ///< m^3 on side a
+  double b = 0.0;                                                  ///< m^3 on side b
+  [[nodiscard]] double fraction_a() const { return a / (a + b); }  ///< side a's share
+  [[nodiscard]] double fraction_b() const { return b / (a + b); }  ///< side b's share
 };
 
 /// The cut surface inside the tetrahedron: 3 or 4 crossing points (m) in cyclic order, their
@@ -74,8 +74,8 @@ struct SideVolumes {
 /// element b the reverse. `copies[k]` is the copy of corner k (shared with neighbours on the
 /// same side, so a long cut separates the body).
 struct VirtualElements {
-  Tet a;
-  Tet b;
+  Tet a;  ///< the element holding side a
+  Tet b;  ///< the element holding side b
 };
 [[nodiscard]] VirtualElements virtual_elements(const Tet& real, const ElementCut& cut,
                                                const Tet& copies);

@@ -18,6 +18,8 @@
 
 namespace incise {
 
+/// A cut mesh as XFEM sees it: the uncut tetrahedra and, for each split one, two virtual
+/// elements over its whole rest shape, each with its share of the material.
 struct VirtualMesh {
   /// Rest positions (m) of every node: the mesh's vertices, then the copies (each at its
   /// original's rest position).
@@ -30,10 +32,11 @@ struct VirtualMesh {
   std::size_t tied = 0;               ///< vertices of split tetrahedra tied at the cut's front
   std::size_t raised = 0;             ///< fractions raised to the minimum fraction
 
+  /// Vertex copies the cut made.
   [[nodiscard]] std::size_t copies() const { return rest_positions.size() - first_copy; }
   /// Degrees of freedom the cut added (3 per copy).
   [[nodiscard]] std::size_t dofs_added() const { return 3 * copies(); }
-  std::size_t first_copy = 0;
+  std::size_t first_copy = 0;  ///< the first copy's node index (the mesh's vertex count)
 };
 
 /// The virtual mesh of `mesh` cut as `cuts` says (one entry per tetrahedron: the cut of those
@@ -51,8 +54,8 @@ struct VirtualMesh {
 /// the cut of those it crosses completely, and the front (those it reaches without crossing).
 /// Brute force over the tetrahedra with a bounding-box filter (no spatial index yet).
 struct SurfaceCuts {
-  std::vector<std::optional<ElementCut>> cuts;
-  std::vector<TetId> front;
+  std::vector<std::optional<ElementCut>> cuts;  ///< per tetrahedron: its cut, if crossed
+  std::vector<TetId> front;                     ///< tetrahedra reached but not crossed completely
 };
 [[nodiscard]] SurfaceCuts cuts_by_surface(const TetMesh& mesh,
                                           std::span<const std::array<Vec3, 3>> triangles);

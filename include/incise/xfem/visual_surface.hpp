@@ -40,10 +40,13 @@ class XfemCutter;
 
 /// A point carried by a tetrahedron of the physics mesh: x = sum weights[k] * x(nodes[k]).
 struct Embedding {
-  Tet nodes{};
-  std::array<double, 4> weights{};
+  Tet nodes{};                      ///< the physics nodes carrying the point
+  std::array<double, 4> weights{};  ///< barycentric weights, summing to 1
 };
 
+/// A triangle surface embedded in the physics mesh (scene `visual`, `collision`): it moves with
+/// the nodes that carry it and is cut along the polygons the XFEM cutter splits the elements by,
+/// each piece kept a closed 2-manifold.
 class VisualSurface {
  public:
   /// Embeds `points`/`triangles` (m, rest frame; outward, closed for a closed result) in the
@@ -60,10 +63,12 @@ class VisualSurface {
 
   /// Current positions (m) of the surface's points, from the physics nodes' positions.
   [[nodiscard]] std::vector<Vec3> positions(std::span<const Vec3> nodes) const;
-  [[nodiscard]] std::span<const Vec3> rest_points() const { return rest_points_; }
+  [[nodiscard]] std::span<const Vec3> rest_points() const { return rest_points_; }  ///< m
+  /// The surface's triangles now, cut faces included (outward).
   [[nodiscard]] std::span<const Triangle> triangles() const { return triangles_; }
   /// Per triangle: 1 when it lies on the cut surface, 0 on the original surface.
   [[nodiscard]] std::span<const std::uint8_t> on_cut() const { return on_cut_; }
+  /// Per point: the nodes that carry it.
   [[nodiscard]] std::span<const Embedding> embeddings() const { return embedding_; }
   /// Points of the original surface outside the physics mesh.
   [[nodiscard]] std::size_t outside_points() const { return outside_; }

@@ -46,6 +46,7 @@
 
 namespace incise {
 
+/// How the XFEM cutter works (scene key `cutter` with `"type": "xfem"`).
 struct XfemCutterOptions {
   /// m: the longest piece of swept surface tested at once (0: the mean edge length).
   double quad_length = 0.0;
@@ -55,8 +56,9 @@ struct XfemCutterOptions {
   double min_fraction = 1e-3;
 };
 
+/// What the XFEM cutter did, over every move unless said.
 struct XfemCutterStats {
-  std::size_t moves = 0;
+  std::size_t moves = 0;             ///< blade moves
   std::size_t quads = 0;             ///< swept pieces tested
   std::size_t elements_split = 0;    ///< rest tetrahedra split into virtual elements
   std::size_t copies = 0;            ///< vertex copies made (3 DOFs each)
@@ -68,14 +70,17 @@ struct XfemCutterStats {
   double min_fraction = 1.0;         ///< smallest fraction of any virtual element so far
   /// The physics' delay behind the blade, over every split: from the move that first reached
   /// a tetrahedron to the one that split it, in time (s) and in blade travel (m, midpoint).
-  double delay_sum = 0.0;
-  double delay_max = 0.0;
-  double delay_travel_sum = 0.0;
-  double delay_travel_max = 0.0;
-  double cd_seconds = 0.0;  ///< last move: finding the crossings (s)
-  double gc_seconds = 0.0;  ///< last move: splitting and tying (s)
+  double delay_sum = 0.0;         ///< s, summed over the splits
+  double delay_max = 0.0;         ///< s, the largest
+  double delay_travel_sum = 0.0;  ///< m, summed over the splits
+  double delay_travel_max = 0.0;  ///< m, the largest
+  double cd_seconds = 0.0;        ///< last move: finding the crossings (s)
+  double gc_seconds = 0.0;        ///< last move: splitting and tying (s)
 };
 
+/// The XFEM cutter (Gutierrez and Ramos): a tetrahedron the blade has crossed completely
+/// becomes two virtual elements over its unchanged rest shape (semi-progressive cutting), with
+/// vertex copies shared along the cut so that it separates the body.
 class XfemCutter {
  public:
   /// Cuts `mesh` from now on; its tetrahedra now are the rest elements (none may be virtual
@@ -87,11 +92,12 @@ class XfemCutter {
 
   /// Puts the blade down at `pose` without cutting (a new stroke).
   void start(const BladePose& pose);
-  [[nodiscard]] bool started() const { return started_; }
+  [[nodiscard]] bool started() const { return started_; }  ///< whether the blade was placed
   /// Moves the blade to `pose`, cutting what it sweeps.
   void move_to(const BladePose& pose);
 
-  [[nodiscard]] const XfemCutterStats& stats() const { return stats_; }
+  [[nodiscard]] const XfemCutterStats& stats() const { return stats_; }  ///< what it did
+  /// The rest tetrahedra (the mesh's when the cutter was made).
   [[nodiscard]] std::size_t rest_tet_count() const { return rest_tets_.size(); }
   /// The rest tetrahedron an element integrates over.
   [[nodiscard]] TetId rest_tet_of(TetId element) const;
@@ -111,7 +117,9 @@ class XfemCutter {
   /// Degrees of freedom the cut added (3 per vertex copy).
   [[nodiscard]] std::size_t dofs_added() const { return 3 * stats_.copies; }
 
+  /// Checkpoints: the cut so far (edge crossings, splits, ties, statistics).
   void save_state(StateWriter& out) const;
+  /// Restores what save_state() wrote, onto the same mesh restored from the same checkpoint.
   void load_state(StateReader& in);
 
  private:
