@@ -41,12 +41,16 @@ namespace incise {
 
 class DirectFactorization;
 
+/// The two-level preconditioner's coarse level: the free vertices grouped into aggregates
+/// that move rigidly (three translations, three rotations), the matrix restricted to those
+/// modes and factorised, kept across steps and followed locally after a cut.
 class AggregationCoarseSpace {
  public:
   AggregationCoarseSpace();
   /// Coarse unknowns above which a third level is used (default 1,000: on the cut 6k-tet box
   /// frames cost 10-15 % less than with 300, the exact solve's iterations outweighing its cost).
   void set_exact_limit(std::size_t unknowns) { exact_limit_ = unknowns; }
+  /// Whether the coarse system is itself solved through a third level.
   [[nodiscard]] bool three_level() const { return three_level_; }
   /// Calls of update() between factorisations (default 10; 1: every call).
   void set_refactor_every(int updates) { refactor_every_ = std::max(updates, 1); }
@@ -56,8 +60,8 @@ class AggregationCoarseSpace {
 
   /// Rigid modes per aggregate: three translations, three rotations.
   static constexpr int kModes = 6;
-  using Modes = Eigen::Matrix<double, kModes, 1>;
-  using ModeMatrix = Eigen::Matrix<double, kModes, kModes>;
+  using Modes = Eigen::Matrix<double, kModes, 1>;            ///< an aggregate's motion in its modes
+  using ModeMatrix = Eigen::Matrix<double, kModes, kModes>;  ///< one block of P^T A P
   /// A vertex's rows of the prolongation P, or of its raw rigid coordinates: its displacement
   /// (m) under each coarse mode.
   using VertexModes = Eigen::Matrix<double, 3, kModes>;
@@ -88,13 +92,13 @@ class AggregationCoarseSpace {
   /// z += P e: each aggregate's correction added to its members.
   void add_correction(std::span<Vec3> z) const;
 
-  [[nodiscard]] std::size_t aggregate_count() const { return members_.size(); }
+  [[nodiscard]] std::size_t aggregate_count() const { return members_.size(); }  ///< coarse
   /// Everything the next updates and solves depend on (a checkpoint): the aggregates and
   /// their modes, the coarse matrix as last factorised, how many updates ago, and which
   /// matrix patterns they were built from and last followed. The factor is made again from
   /// the saved matrix, so a resumed run solves exactly as it would have.
   void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void load_state(StateReader& in);  ///< restores what save_state() wrote
   /// The aggregate of each vertex, -1 for held ones.
   [[nodiscard]] std::span<const int> aggregate_of() const { return aggregate_of_; }
 

@@ -24,6 +24,7 @@
 
 namespace incise {
 
+/// How ClusterJacobi groups strongly coupled vertices.
 struct ClusterOptions {
   /// A block is strong when |A_ij| > threshold sqrt(|A_ii| |A_jj|). A regular tetrahedral
   /// mesh has couplings below 0.3; a sliver's corners about 1/3 and above.
@@ -31,8 +32,11 @@ struct ClusterOptions {
   std::size_t max_size = 8;  ///< vertices per cluster at most
 };
 
+/// Block-Jacobi over clusters: vertices strongly coupled to each other (a cut's slivers) are
+/// inverted together as one block; the two-level preconditioner's smoother.
 class ClusterJacobi {
  public:
+  /// Groups by `options` from the first update() on.
   explicit ClusterJacobi(const ClusterOptions& options = {});
 
   /// Groups the free vertices again when the pattern or the held rows changed, then inverts
@@ -46,15 +50,16 @@ class ClusterJacobi {
   /// returns their part of r.z, summed in a fixed order.
   double apply_clusters(std::span<const Vec3> r, std::span<Vec3> z) const;
 
-  [[nodiscard]] std::size_t cluster_count() const { return first_.size() - 1; }
+  [[nodiscard]] std::size_t cluster_count() const { return first_.size() - 1; }  ///< clusters
   /// Vertices in clusters of two or more.
   [[nodiscard]] std::size_t clustered_vertices() const { return clustered_vertices_; }
   /// The grouping, which follows the cuts step by step (a checkpoint): what update() then
   /// does next is what it would have done. The inverses are made again from the next matrix.
   void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void load_state(StateReader& in);  ///< restores what save_state() wrote
   /// Vertex lists of the clusters, packed: members()[first[c] .. first[c + 1]).
   [[nodiscard]] std::span<const VertexId> members() const { return members_; }
+  /// Where each cluster's members start in members(), and one past the last.
   [[nodiscard]] std::span<const std::size_t> first() const { return first_; }
 
  private:

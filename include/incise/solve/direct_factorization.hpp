@@ -13,9 +13,11 @@
 
 namespace incise {
 
+/// A sparse symmetric factorisation: CHOLMOD's supernodal Cholesky, else Eigen's simplicial
+/// LDL^T for indefinite matrices; the symbolic analysis is kept while the pattern is the same.
 class DirectFactorization {
  public:
-  using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+  using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;  ///< what it reads
   DirectFactorization();
   ~DirectFactorization();
   DirectFactorization(const DirectFactorization&) = delete;
@@ -28,6 +30,7 @@ class DirectFactorization {
   /// Factorises the matrix only if it is positive definite (no indefinite fallback): false
   /// otherwise, quickly, so that a caller can fall back to a convexified matrix.
   [[nodiscard]] bool factorize_positive_definite(const SparseMatrix& matrix);
+  /// The solution of the last factorised matrix for `rhs`.
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const;
   /// "cholmod-supernodal" or "simplicial-ldlt": which backend factorised last.
   [[nodiscard]] std::string backend() const;
@@ -36,10 +39,10 @@ class DirectFactorization {
   /// (CHOLMOD's count from its analysis; for LDL^T, the sum of its columns' squared lengths).
   /// What a caller weighs a new factorisation against more solves with this factor by.
   struct Cost {
-    double nonzeros = 0.0;
-    double flops = 0.0;
+    double nonzeros = 0.0;  ///< in the factor
+    double flops = 0.0;     ///< to make it
   };
-  [[nodiscard]] Cost cost() const;
+  [[nodiscard]] Cost cost() const;  ///< the last factor's
 
  private:
   struct Backends;

@@ -13,6 +13,7 @@
 
 namespace incise {
 
+/// What an integrator did: counts over every step and the last step's figures.
 struct IntegratorStats {
   std::uint64_t vertex_updates = 0;             ///< single-vertex integration steps (all steps)
   std::uint64_t force_evaluations = 0;          ///< whole-system force evaluations (all steps)
@@ -22,15 +23,16 @@ struct IntegratorStats {
   /// Where the last step's time went (s): forces together with the linearisation, building the
   /// system matrix and preconditioner or factorisation, matrix-vector products, the whole step.
   double seconds_forces = 0.0;
-  double seconds_preconditioner = 0.0;
-  double seconds_products = 0.0;
-  double seconds_vector_updates = 0.0;
-  double seconds_solver_start = 0.0;  ///< CG starting guesses from earlier solutions
+  double seconds_preconditioner = 0.0;  ///< the system matrix and preconditioner or factor
+  double seconds_products = 0.0;        ///< matrix-vector products
+  double seconds_vector_updates = 0.0;  ///< CG's vector updates and dot products
+  double seconds_solver_start = 0.0;    ///< CG starting guesses from earlier solutions
   /// The model following the last mesh edits (DynamicSystem::refresh) at the step's start.
   double seconds_refresh = 0.0;
-  double seconds_step = 0.0;
+  double seconds_step = 0.0;  ///< the whole step
 };
 
+/// A time-stepping scheme: advances positions and velocities of a DynamicSystem by one step.
 class Integrator {
  public:
   Integrator() = default;
@@ -38,7 +40,7 @@ class Integrator {
   Integrator& operator=(const Integrator&) = delete;
   virtual ~Integrator() = default;
 
-  [[nodiscard]] virtual std::string name() const = 0;
+  [[nodiscard]] virtual std::string name() const = 0;  ///< the scene's name for it
   /// Advances the state from time t to t + dt.
   virtual void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
                     double dt) = 0;
@@ -49,17 +51,17 @@ class Integrator {
   /// What the scheme asks of a force model beyond its core (ForceModel's optional
   /// capabilities): forces one vertex at a time, or a linearisation.
   [[nodiscard]] virtual bool needs_vertex_forces() const { return false; }
-  [[nodiscard]] virtual bool needs_linearization() const { return false; }
+  [[nodiscard]] virtual bool needs_linearization() const { return false; }  ///< a linearisation (K)
   /// Where the tool acts: schemes that relax locally start there (others ignore it).
   virtual void focus_on(VertexId /*vertex*/) {}
   /// Checkpoints: what a scheme carries from one step to the next (earlier solutions, time
   /// stamps); scratch space is not saved.
   virtual void save_state(StateWriter& /*out*/) const {}
-  virtual void load_state(StateReader& /*in*/) {}
-  [[nodiscard]] const IntegratorStats& stats() const { return stats_; }
+  virtual void load_state(StateReader& /*in*/) {}  ///< restores what save_state() wrote
+  [[nodiscard]] const IntegratorStats& stats() const { return stats_; }  ///< what it did
 
  protected:
-  IntegratorStats stats_;
+  IntegratorStats stats_;  ///< kept up to date by each scheme's step()
 };
 
 /// x += dt v, v += dt a(x, v): first order, gains energy; for comparison only.
@@ -99,6 +101,7 @@ class RungeKutta4 final : public Integrator {
   std::vector<Vec3> xs_, vs_, k_[4], l_[4], force_;
 };
 
+/// The hierarchical relaxation's reach (scene keys `integrator.iterations`, `max_depth`).
 struct HierarchicalOptions {
   /// I: RK4 sub-steps per step at the focus; a vertex s edges away gets ceil(I / 2^s).
   int iterations = 8;
@@ -113,6 +116,7 @@ struct HierarchicalOptions {
 /// their velocities. Without a focus every vertex is advanced every step (full relaxation).
 class HierarchicalRungeKutta4 final : public Integrator {
  public:
+  /// Relaxes as `options` say, with no focus (every vertex) until one is set.
   explicit HierarchicalRungeKutta4(const HierarchicalOptions& options = {});
   [[nodiscard]] std::string name() const override { return "rk4-hierarchical"; }
   void step(DynamicSystem& system, std::span<Vec3> x, std::span<Vec3> v, double t,
@@ -125,7 +129,7 @@ class HierarchicalRungeKutta4 final : public Integrator {
   [[nodiscard]] bool needs_vertex_forces() const override { return true; }
   void save_state(StateWriter& out) const override;
   void load_state(StateReader& in) override;
-  [[nodiscard]] VertexId focus() const { return focus_; }
+  [[nodiscard]] VertexId focus() const { return focus_; }  ///< kInvalidId: none
   /// Breadth-first depth of each vertex advanced by the last step (-1: not advanced).
   [[nodiscard]] const std::vector<int>& last_depths() const { return depth_; }
   /// Sub-steps for a vertex at depth s: ceil(I / 2^s) for s <= s_max, else 0.
@@ -146,10 +150,11 @@ class HierarchicalRungeKutta4 final : public Integrator {
   std::vector<VertexId> order_;
 };
 
+/// Backward Euler's Newton steps and linear solver (scene key `integrator`).
 struct BackwardEulerOptions {
   /// Newton steps per time step; 1 is the linearised step of Baraff and Witkin (1998).
   int newton_steps = 1;
-  LinearSolverOptions solver;
+  LinearSolverOptions solver;  ///< how each Newton step's system is solved
 };
 
 /// Backward (implicit) Euler: M (v1 - v0) = dt f(x0 + dt v1, v1), solved by Newton's method on
@@ -158,6 +163,7 @@ struct BackwardEulerOptions {
 /// by a direct factorisation. Stable at any step size; damps high frequencies.
 class BackwardEuler final : public Integrator {
  public:
+  /// Steps as `options` say.
   explicit BackwardEuler(const BackwardEulerOptions& options = {});
   [[nodiscard]] std::string name() const override { return "backward-euler"; }
   [[nodiscard]] bool implicit() const override { return true; }
@@ -177,6 +183,7 @@ class BackwardEuler final : public Integrator {
   std::vector<char> constrained_;
 };
 
+/// Static equilibrium's Newton iterations, tolerance and linear solver.
 struct StaticOptions {
   int max_iterations = 50;  ///< Newton iterations per solve
   /// Converged when the free vertices' force residual falls below this fraction of the load
@@ -193,6 +200,7 @@ struct StaticOptions {
 /// sequence.
 class StaticEquilibrium final : public Integrator {
  public:
+  /// Solves as `options` say.
   explicit StaticEquilibrium(const StaticOptions& options = {});
   [[nodiscard]] std::string name() const override { return "static"; }
   [[nodiscard]] bool implicit() const override { return true; }
@@ -202,12 +210,13 @@ class StaticEquilibrium final : public Integrator {
             double dt) override;
   /// Solves at time t; returns whether the tolerance was met.
   bool solve(DynamicSystem& system, std::span<Vec3> x, double t);
-  [[nodiscard]] int last_iterations() const { return last_iterations_; }
-  [[nodiscard]] double last_residual() const { return last_residual_; }
+  [[nodiscard]] int last_iterations() const { return last_iterations_; }  ///< Newton's, last solve
+  [[nodiscard]] double last_residual() const { return last_residual_; }   ///< relative, last solve
   /// The last solve's linear solves: CG iterations summed (one per factorisation), whether
   /// they were factorised, and their time (s) building preconditioners or factors.
   [[nodiscard]] long long last_linear_iterations() const { return last_linear_iterations_; }
-  [[nodiscard]] bool last_solve_direct() const { return last_solve_direct_; }
+  [[nodiscard]] bool last_solve_direct() const { return last_solve_direct_; }  ///< factorised
+  /// Time building preconditioners or factors in the last solve (s).
   [[nodiscard]] double last_factorization_seconds() const { return last_factorization_seconds_; }
 
  private:

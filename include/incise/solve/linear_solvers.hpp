@@ -35,11 +35,12 @@ enum class Preconditioner { kNone, kJacobi, kBlockJacobi, kIncompleteCholesky, k
 /// factor at most), 15,000 with the simplicial fallback.
 [[nodiscard]] std::size_t auto_direct_limit();
 
+/// How implicit steps solve their linear systems (scene key `integrator.solver`).
 struct LinearSolverOptions {
-  LinearSolverType type = LinearSolverType::kConjugateGradient;
-  Preconditioner preconditioner = Preconditioner::kBlockJacobi;
-  double tolerance = 1e-8;  ///< relative residual |r| / |rhs|
-  int max_iterations = 500;
+  LinearSolverType type = LinearSolverType::kConjugateGradient;  ///< cg, direct or auto
+  Preconditioner preconditioner = Preconditioner::kBlockJacobi;  ///< CG's
+  double tolerance = 1e-8;                                       ///< relative residual |r| / |rhs|
+  int max_iterations = 500;  ///< CG iterations at most per solve
   /// Start CG from the caller's x (the last solution) instead of zero.
   bool warm_start = true;
   /// Implicit integrators keep this many earlier solutions and start CG from their best
@@ -60,9 +61,10 @@ struct LinearSolverOptions {
 [[nodiscard]] Preconditioner parse_preconditioner(const std::string& name);
 [[nodiscard]] std::string to_string(Preconditioner preconditioner);
 
+/// What one linear solve did.
 struct LinearSolveStats {
-  int iterations = 0;
-  double relative_residual = 0.0;
+  int iterations = 0;              ///< CG iterations (1 for a direct solve)
+  double relative_residual = 0.0;  ///< |r| / |rhs| reached
   /// Restarts of CG on the residual formed in double after a run in single precision ended
   /// above the tolerance (iterative refinement).
   int refinements = 0;
@@ -70,12 +72,15 @@ struct LinearSolveStats {
   double seconds_products = 0.0;        ///< matrix-vector products
   double seconds_vector_updates = 0.0;  ///< the x, r, z updates and their dot products
   double seconds_start = 0.0;           ///< the starting guess from a basis
-  double seconds_total = 0.0;
+  double seconds_total = 0.0;           ///< the whole solve
   bool direct = false;  ///< solved by factorisation (kDirect, or kAuto below its limit)
 };
 
+/// Solves an implicit step's linear system (M + a D + b K) x = rhs of a DynamicSystem by
+/// preconditioned CG or a direct factorisation, keeping what the next solves can reuse.
 class LinearizedSystemSolver {
  public:
+  /// Solves as `options` say.
   explicit LinearizedSystemSolver(const LinearSolverOptions& options = {});
   ~LinearizedSystemSolver();
   LinearizedSystemSolver(const LinearizedSystemSolver&) = delete;
@@ -92,7 +97,7 @@ class LinearizedSystemSolver {
                          std::span<const char> constrained, std::span<const Vec3> rhs,
                          std::span<Vec3> x,
                          std::span<const std::span<const Vec3>> start_basis = {});
-  [[nodiscard]] const LinearSolverOptions& options() const { return options_; }
+  [[nodiscard]] const LinearSolverOptions& options() const { return options_; }  ///< as given
   /// Where the next solve's system is linearised (m, one per vertex; empty: unknown): the
   /// two-level preconditioner's coarse modes rotate about these positions, else translate
   /// only. Read by the next solve() only, so the span must stay valid until then.
@@ -100,7 +105,7 @@ class LinearizedSystemSolver {
   /// What the next solves depend on beyond their arguments (a checkpoint): the two-level
   /// preconditioner's clusters and coarse level, which follow the steps and cuts.
   void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void load_state(StateReader& in);  ///< restores what save_state() wrote
 
  private:
   using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
