@@ -12,8 +12,8 @@ class CutLog final : public incise::FrameSink {
  public:
   bool frame(const incise::Engine& /*engine*/, const incise::FrameRecord& record) override {
     if (record.edited) {
-      std::printf("frame %d: %zu tetrahedra, cd %.2f ms, gc %.2f ms\n", record.frame,
-                  record.tets, 1e3 * record.cd, 1e3 * record.gc);
+      std::printf("frame %d: %zu tetrahedra, cd %.2f ms, gc %.2f ms\n", record.frame, record.tets,
+                  1e3 * record.cd, 1e3 * record.gc);
     }
     return false;  // it wrote no file
   }
@@ -22,7 +22,7 @@ class CutLog final : public incise::FrameSink {
 }  // namespace
 
 int main() {
-  incise::Engine engine(incise::default_scene());  // or incise::load_scene("scene.json")
+  incise::Engine engine(incise::default_scene());        // or incise::load_scene("scene.json")
   auto live = std::make_unique<incise::LiveToolPose>();  // poses in the body's rest frame
   incise::LiveToolPose& blade = *live;
   engine.set_tool_source(std::move(live));

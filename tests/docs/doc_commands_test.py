@@ -4,7 +4,8 @@ a scratch folder that links to the repository's scenes/ and tests/, with ../shar
 as in a checkout: each must exit 0. `incise` at the start
 of a line is the built program; a line ending in ` &` runs in the background (a server) and
 must have exited 0 within two minutes of the page's last command. Every relative link of the
-README, the guide and the scene reference must lead to a file.
+README, the guide and the scene reference must lead to a file, and every example of
+docs/examples/ (compiled and run by CTest) must be shown whole on a page.
 
 usage: doc_commands_test.py INCISE SOURCE_DIR
 """
@@ -84,11 +85,19 @@ def broken_links(source):
     return broken
 
 
+def examples_not_shown(source):
+    """docs/examples/ files (compiled and run in CI) that no page shows as they are."""
+    shown = "".join(page.read_text() for page in (source / "docs").glob("*.md"))
+    return [f"docs/examples/{example.name} is not shown whole in a ```cpp block of a page"
+            for example in sorted((source / "docs" / "examples").glob("*.cpp"))
+            if "```cpp\n" + example.read_text() + "```" not in shown]
+
+
 def main():
     incise, source = sys.argv[1], pathlib.Path(sys.argv[2])
     pages = sorted((source / "docs").glob("*.md"))
     ran = 0
-    failures = broken_links(source)
+    failures = broken_links(source) + examples_not_shown(source)
     for page in pages:
         count, failed = run_page(incise, source, page)
         if failed:
