@@ -120,6 +120,9 @@ SurfaceBuffers build_surface_buffers(const RenderInput& input, double texture_pe
     }
   }
   // Slots were checked above: every triangle's vertices have finite rest positions.
+  for (VertexId v : buffers.vertices) {
+    buffers.positions_needed = std::max(buffers.positions_needed, static_cast<std::size_t>(v) + 1);
+  }
   buffers.closed_outward = closed_and_facing_out(input.triangles, input.rest_positions);
   return buffers;
 }
@@ -144,7 +147,11 @@ Bounds surface_bounds(std::span<const Triangle> triangles, std::span<const Vec3>
 }
 
 void Renderer::render(const RenderInput& input, const RenderOptions& options) {
+  // Built again when the surface changed, and when this frame's positions do not reach every
+  // vertex of the buffers in hand (a caller that changed the surface under the same revision:
+  // reading on would be out of bounds).
   if (!uploaded_ || buffers_.revision != input.surface_revision ||
+      input.positions.size() < buffers_.positions_needed ||
       uploaded_period_ != options.texture_period ||
       buffers_.colour_mapped != !input.scalars.empty() ||
       (buffers_.colour_mapped && uploaded_range_ != options.scalar_range)) {

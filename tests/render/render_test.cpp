@@ -261,6 +261,35 @@ TEST(Renderer, ATriangleOutsideThePositionsIsAnErrorNamingIt) {
   }
 }
 
+TEST(Renderer, ASurfaceThatLostVerticesUnderTheSameRevisionIsBuiltAgainNotReadPastItsEnd) {
+  // The planning window drew a plane's disc after the bone's corners, then the bone alone
+  // under the same revision: the buffers in hand still held the disc's vertices, and the
+  // positions were read past their end (here, into a NaN the span does not include).
+  const std::vector<Vec3> storage{Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ(),
+                                  Vec3::Constant(std::nan(""))};
+  const std::vector<Triangle> with_disc{{0, 1, 2}, {1, 2, 3}};
+  const std::vector<Triangle> without{{0, 1, 2}};
+  const std::vector<std::uint8_t> on_cut{0, 0};
+  NullBackend backend;
+  Renderer renderer(backend);
+  RenderOptions options;
+  options.camera = fit_camera(Bounds{Vec3::Zero(), Vec3::Ones()}, 1.0);
+  RenderInput input;
+  input.surface_revision = 7;
+  input.triangles = with_disc;
+  input.on_cut = on_cut;
+  input.positions = std::span<const Vec3>(storage).first(4);
+  input.rest_positions = input.positions;
+  renderer.render(input, options);
+  EXPECT_EQ(backend.surface_uploads, 1);
+  input.triangles = without;
+  input.on_cut = std::span<const std::uint8_t>(on_cut).first(1);
+  input.positions = std::span<const Vec3>(storage).first(3);
+  input.rest_positions = input.positions;
+  EXPECT_NO_THROW(renderer.render(input, options));
+  EXPECT_EQ(backend.surface_uploads, 2);
+}
+
 TEST(ColourMap, CoolToWarmRunsFromBlueThroughGreyToRedAndClamps) {
   EXPECT_EQ(cool_to_warm(0.0), (Rgba{59, 76, 192, 255}));
   EXPECT_EQ(cool_to_warm(0.5), (Rgba{221, 221, 221, 255}));

@@ -455,12 +455,15 @@ void PlanViewer::draw_scene() {
   if (selected_ >= segments) {
     selected_ = 0;  // a plane made fewer segments... or another plan
   }
+  // The disc of a plane being placed is part of the surface: its frames, and the first after
+  // it, are new surfaces.
   if (state_.revision != drawn_revision_ || selected_ != drawn_selection_ ||
-      bone_view_ != drawn_bone_view_ || placing_plane_) {
+      bone_view_ != drawn_bone_view_ || placing_plane_ || drawn_placing_plane_) {
     ++surface_revision_;
     drawn_revision_ = state_.revision;
     drawn_selection_ = selected_;
     drawn_bone_view_ = bone_view_;
+    drawn_placing_plane_ = placing_plane_;
   }
   // Spans into state_ and these members, which stay until the next draw.
   std::vector<Triangle>& soup = soup_;

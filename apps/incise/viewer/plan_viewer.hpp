@@ -91,6 +91,7 @@ class PlanViewer {
   std::uint64_t surface_revision_ = 0;
   int drawn_selection_ = -1;
   bool drawn_bone_view_ = false;
+  bool drawn_placing_plane_ = false;  ///< the last frame drew a plane being placed
 
   std::vector<Triangle> soup_;   ///< the bone view's triangles (three corners each)
   std::vector<double> scalars_;  ///< per drawn vertex

@@ -66,7 +66,9 @@ struct RenderOptions {
 /// The CPU side of the surface's buffers: built once per surface revision.
 struct SurfaceBuffers {
   std::uint64_t revision = 0;
-  std::vector<VertexId> vertices;      ///< the surface's mesh vertices, in buffer order
+  std::vector<VertexId> vertices;  ///< the surface's mesh vertices, in buffer order
+  /// One past the largest of `vertices`: the positions a frame must give to be drawn with them.
+  std::size_t positions_needed = 0;
   std::vector<std::uint32_t> indices;  ///< into `vertices`: exterior triangles, then cut ones
   std::size_t exterior_triangles = 0;
   std::size_t cut_triangles = 0;
