@@ -417,19 +417,37 @@ void TetMesh::attach(TetId t) {
   }
 }
 
-void TetMesh::detach(TetId t) {
-  const Tet& tet = tets_[t];
-  for (VertexId v : tet) {
+void TetMesh::leave_lists(TetId t) {
+  for (VertexId v : tets_[t]) {
     erase_one(vertex_tets_[v], t);
   }
-  for (int k = 0; k < 6; ++k) {
-    const EdgeId edge = tet_edges_[t][k];
+  for (const EdgeId edge : tet_edges_[t]) {
     erase_one(edge_tets_[edge], t);
     if (edge_tets_[edge].empty()) {
       edit_unused_edges_.push_back(edge);
     }
-    tet_edges_[t][k] = kInvalidId;
   }
+}
+
+void TetMesh::move_corner(TetId t, int at, VertexId with) {
+  tets_[t][static_cast<std::size_t>(at)] = with;
+  const Tet& tet = tets_[t];
+  for (VertexId v : tet) {
+    vertex_tets_[v].push_back(t);
+  }
+  for (int k = 0; k < 6; ++k) {
+    const auto& e = tet_local::kEdges[k];
+    const EdgeId edge =
+        e[0] == at || e[1] == at ? find_or_create_edge(tet[e[0]], tet[e[1]]) : tet_edges_[t][k];
+    edge_tets_[edge].push_back(t);
+    tet_edges_[t][k] = edge;
+  }
+}
+
+void TetMesh::detach(TetId t) {
+  const Tet& tet = tets_[t];
+  leave_lists(t);
+  tet_edges_[t] = {kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId};
   for (const auto& face : tet_local::kFaces) {
     update_face(tet[face[0]], tet[face[1]], tet[face[2]]);
   }
@@ -618,31 +636,10 @@ VertexId TetMesh::duplicate_vertex(VertexId original, std::span<const TetId> tet
   // one that stays is no longer shared: both sides become boundary. A face held by more than
   // two tetrahedra is matched by scanning as before.
   for (TetId t : tets_to_move) {
-    for (VertexId v : tets_[t]) {
-      erase_one(vertex_tets_[v], t);
-    }
-    for (int k = 0; k < 6; ++k) {
-      const EdgeId edge = tet_edges_[t][k];
-      erase_one(edge_tets_[edge], t);
-      if (edge_tets_[edge].empty()) {
-        edit_unused_edges_.push_back(edge);
-      }
-    }
+    leave_lists(t);
   }
   for (TetId t : tets_to_move) {
-    const int at = local_index(t, original);
-    tets_[t][static_cast<std::size_t>(at)] = copy;
-    const Tet& tet = tets_[t];
-    for (VertexId v : tet) {
-      vertex_tets_[v].push_back(t);
-    }
-    for (int k = 0; k < 6; ++k) {
-      const auto& e = tet_local::kEdges[k];
-      const EdgeId edge =
-          e[0] == at || e[1] == at ? find_or_create_edge(tet[e[0]], tet[e[1]]) : tet_edges_[t][k];
-      edge_tets_[edge].push_back(t);
-      tet_edges_[t][k] = edge;
-    }
+    move_corner(t, local_index(t, original), copy);
   }
   for (TetId t : tets_to_move) {
     const int at = local_index(t, copy);
@@ -742,16 +739,8 @@ std::vector<TetId> TetMesh::replace_tet(TetId parent, std::span<const Tet> child
   if (!plain) {
     detach(parent);
   } else {
-    for (VertexId v : parent_vertices) {
-      erase_one(vertex_tets_[v], parent);
-    }
-    for (int k = 0; k < 6; ++k) {
-      erase_one(edge_tets_[parent_edges[k]], parent);
-      if (edge_tets_[parent_edges[k]].empty()) {
-        edit_unused_edges_.push_back(parent_edges[k]);
-      }
-      tet_edges_[parent][k] = kInvalidId;
-    }
+    leave_lists(parent);
+    tet_edges_[parent] = {kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId};
     // The neighbours' faces are open until a child takes them.
     for (int f = 0; f < 4; ++f) {
       const TetId neighbor = parent_neighbors[f];
@@ -933,16 +922,7 @@ void TetMesh::collapse_vertex(VertexId vertex, VertexId target) {
   // reshaped one only across a face through the vertex. The removed ones' faces opposite the
   // vertex are matched with their absorbers' through the target.
   for (TetId t : star) {
-    for (VertexId v : tets_[t]) {
-      erase_one(vertex_tets_[v], t);
-    }
-    for (int k = 0; k < 6; ++k) {
-      const EdgeId edge = tet_edges_[t][k];
-      erase_one(edge_tets_[edge], t);
-      if (edge_tets_[edge].empty()) {
-        edit_unused_edges_.push_back(edge);
-      }
-    }
+    leave_lists(t);
   }
   for (TetId t : removed) {
     tet_edges_[t] = {kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId, kInvalidId};
@@ -951,19 +931,7 @@ void TetMesh::collapse_vertex(VertexId vertex, VertexId target) {
   std::vector<Tet> old_vertices;
   for (TetId t : reshaped) {
     old_vertices.push_back(tets_[t]);
-    const int at = local_index(t, vertex);
-    tets_[t][static_cast<std::size_t>(at)] = target;
-    const Tet& tet = tets_[t];
-    for (VertexId v : tet) {
-      vertex_tets_[v].push_back(t);
-    }
-    for (int k = 0; k < 6; ++k) {
-      const auto& e = tet_local::kEdges[k];
-      const EdgeId edge =
-          e[0] == at || e[1] == at ? find_or_create_edge(tet[e[0]], tet[e[1]]) : tet_edges_[t][k];
-      edge_tets_[edge].push_back(t);
-      tet_edges_[t][k] = edge;
-    }
+    move_corner(t, local_index(t, vertex), target);
   }
   for (TetId t : reshaped) {
     const int at = local_index(t, target);

@@ -262,6 +262,12 @@ class TetMesh {
   static TetMesh& unobserved(TetMesh& mesh);
   void attach(TetId tet);
   void detach(TetId tet);
+  /// Takes `tet` off its vertices' and edges' lists (edges left with none are noted for
+  /// finish_edit); its vertices, edge ids and neighbours stay as they were.
+  void leave_lists(TetId tet);
+  /// Puts `with` at local corner `at` of a tetrahedron that left its lists, and puts it back on
+  /// them: its edges through that corner are found or made, the others kept. Faces untouched.
+  void move_corner(TetId tet, int at, VertexId with);
   /// Drops a detached tetrahedron: the last one takes its id. Returns the id that moved.
   TetId erase_detached(TetId tet);
   void update_face(VertexId a, VertexId b, VertexId c);
