@@ -10,7 +10,9 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <vector>
 
+#include "incise/core/error.hpp"
 #include "incise/mesh/generators.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
@@ -100,6 +102,37 @@ inline std::string file_bytes(const std::filesystem::path& path) {
   std::ostringstream bytes;
   bytes << in.rdbuf();
   return bytes.str();
+}
+
+/// The keys a parser lists as valid where it refuses an unknown one: `parse` must throw an
+/// InputError whose message says "(valid here: a, b, c)". A failure is added when it throws
+/// no such list, or nothing.
+template <typename Parse>
+std::vector<std::string> keys_listed_as_valid(Parse parse, const std::string& what) {
+  try {
+    parse();
+  } catch (const InputError& error) {
+    const std::string message = error.what();
+    const std::size_t at = message.find("(valid here: ");
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "no list of valid keys in: " << message;
+      return {};
+    }
+    std::vector<std::string> keys;
+    std::stringstream list(message.substr(at + 13, message.find(')', at) - at - 13));
+    for (std::string key; std::getline(list, key, ',');) {
+      keys.push_back(key.substr(key.find_first_not_of(' ')));
+    }
+    return keys;
+  }
+  ADD_FAILURE() << "an unknown key was accepted: " << what;
+  return {};
+}
+
+/// Whether a reference text names `key`, as `key` or "key".
+inline bool names_key(const std::string& reference, const std::string& key) {
+  return reference.find("`" + key + "`") != std::string::npos ||
+         reference.find("\"" + key + "\"") != std::string::npos;
 }
 
 }  // namespace incise::test

@@ -182,19 +182,13 @@ INSTANTIATE_TEST_SUITE_P(Seeds, RandomEdits,
                          ::testing::Combine(::testing::Values(1u, 2u, 3u),
                                             ::testing::Values(5, 6)));
 
-TEST(RandomEdits, CollapsesKeepTheAdjacencyExact) {
-  // A grid split up at random, then random edges collapsed (the cutter's blade-line vertices
-  // are collapsed a hundred times a pose): after each collapse the adjacency the edit kept
-  // equals the one rebuilt from scratch, and a refused one changes nothing.
-  std::mt19937 rng(7);
-  BoxGridOptions options;
-  options.cells = {3, 3, 2};
-  TetMesh mesh = make_box_grid(options);
-  for (int step = 0; step < 400; ++step) {
+/// `steps` random splits (of an edge at `edge_fraction`, a face or a tetrahedron).
+void split_at_random(TetMesh& mesh, std::mt19937& rng, int steps, double edge_fraction) {
+  for (int step = 0; step < steps; ++step) {
     const auto t = static_cast<TetId>(rng() % mesh.tet_count());
     switch (rng() % 3) {
       case 0:
-        (void)split_edge(mesh, mesh.tet_edges(t)[rng() % 6], 0.3);
+        (void)split_edge(mesh, mesh.tet_edges(t)[rng() % 6], edge_fraction);
         break;
       case 1:
         (void)split_face(mesh, t, static_cast<int>(rng() % 4), {0.3, 0.3, 0.4});
@@ -203,6 +197,17 @@ TEST(RandomEdits, CollapsesKeepTheAdjacencyExact) {
         (void)split_tet(mesh, t, {0.25, 0.25, 0.25, 0.25});
     }
   }
+}
+
+TEST(RandomEdits, CollapsesKeepTheAdjacencyExact) {
+  // A grid split up at random, then random edges collapsed (the cutter's blade-line vertices
+  // are collapsed a hundred times a pose): after each collapse the adjacency the edit kept
+  // equals the one rebuilt from scratch, and a refused one changes nothing.
+  std::mt19937 rng(7);
+  BoxGridOptions options;
+  options.cells = {3, 3, 2};
+  TetMesh mesh = make_box_grid(options);
+  split_at_random(mesh, rng, 400, 0.3);
   int collapsed = 0;
   int refused = 0;
   for (int step = 0; step < 600; ++step) {
@@ -231,19 +236,7 @@ TEST(RandomEdits, SplitsKeepTheMeshValid) {
   options.cells = {2, 2, 2};
   TetMesh mesh = make_box_grid(options);
   const double volume = total_volume(mesh);
-  for (int step = 0; step < 300; ++step) {
-    const auto t = static_cast<TetId>(rng() % mesh.tet_count());
-    switch (rng() % 3) {
-      case 0:
-        (void)split_edge(mesh, mesh.tet_edges(t)[rng() % 6], 0.5);
-        break;
-      case 1:
-        (void)split_face(mesh, t, static_cast<int>(rng() % 4), {0.3, 0.3, 0.4});
-        break;
-      default:
-        (void)split_tet(mesh, t, {0.25, 0.25, 0.25, 0.25});
-    }
-  }
+  split_at_random(mesh, rng, 300, 0.5);
   const auto report = validate(mesh, {.degenerate_tolerance = 0.0});
   EXPECT_TRUE(report.ok()) << report.describe();
   EXPECT_NEAR(total_volume(mesh), volume, 1e-12);

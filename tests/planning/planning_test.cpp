@@ -900,36 +900,13 @@ TEST(Plan, RunsFromSurfacesToAPrediction) {
 namespace incise::planning {
 namespace {
 
-/// The keys parse_plan accepts at one place of a plan: what its error for an unknown key
-/// there lists as valid.
-std::vector<std::string> plan_keys_accepted(const nlohmann::json& plan) {
-  const std::string file = std::string(INCISE_SOURCE_DIR) + "/scenes/plan_headsq.json";
-  try {
-    (void)parse_plan(plan.dump(), file);
-  } catch (const InputError& error) {
-    const std::string message = error.what();
-    const std::size_t at = message.find("(valid here: ");
-    if (at == std::string::npos) {
-      ADD_FAILURE() << "no list of valid keys in: " << message;
-      return {};
-    }
-    std::vector<std::string> keys;
-    std::stringstream list(message.substr(at + 13, message.find(')', at) - at - 13));
-    for (std::string key; std::getline(list, key, ',');) {
-      keys.push_back(key.substr(key.find_first_not_of(' ')));
-    }
-    return keys;
-  }
-  ADD_FAILURE() << "an unknown key was accepted: " << plan.dump();
-  return {};
-}
-
 TEST(PlanReference, NamesEveryKeyTheParserAccepts) {
   // The plan keys in scenes/README.md: every key parse_plan takes, at every place, is named
   // there (as `key` or "key").
   const std::string reference =
       test::file_bytes(std::string(INCISE_SOURCE_DIR) + "/scenes/README.md");
-  std::ifstream in(std::string(INCISE_SOURCE_DIR) + "/scenes/plan_headsq.json");
+  const std::string file = std::string(INCISE_SOURCE_DIR) + "/scenes/plan_headsq.json";
+  std::ifstream in(file);
   const nlohmann::json base = nlohmann::json::parse(in);
   nlohmann::json from_surfaces = base;
   from_surfaces.erase("image");
@@ -962,11 +939,11 @@ TEST(PlanReference, NamesEveryKeyTheParserAccepts) {
   probe("solver", base, [](nlohmann::json& p) { p["solver"]["zz_unknown"] = 1; });
   std::size_t checked = 0;
   for (const auto& [where, plan] : probes) {
-    const std::vector<std::string> keys = plan_keys_accepted(plan);
+    const std::vector<std::string> keys =
+        test::keys_listed_as_valid([&] { (void)parse_plan(plan.dump(), file); }, plan.dump());
     EXPECT_GE(keys.size(), 1u) << where;
     for (const std::string& key : keys) {
-      EXPECT_TRUE(reference.find("`" + key + "`") != std::string::npos ||
-                  reference.find("\"" + key + "\"") != std::string::npos)
+      EXPECT_TRUE(test::names_key(reference, key))
           << "scenes/README.md does not name the plan key " << where << "." << key;
       ++checked;
     }

@@ -449,29 +449,6 @@ TEST(Simulation, MassIsConservedAndTheBlockSettles) {
 namespace incise {
 namespace {
 
-/// The keys the parser accepts at one place of a scene: what its error for an unknown key
-/// there lists as valid.
-std::vector<std::string> keys_the_parser_accepts(const nlohmann::json& scene) {
-  try {
-    (void)parse_scene(scene.dump(), "probe.json");
-  } catch (const InputError& error) {
-    const std::string message = error.what();
-    const std::size_t at = message.find("(valid here: ");
-    if (at == std::string::npos) {
-      ADD_FAILURE() << "no list of valid keys in: " << message;
-      return {};
-    }
-    std::vector<std::string> keys;
-    std::stringstream list(message.substr(at + 13, message.find(')', at) - at - 13));
-    for (std::string key; std::getline(list, key, ',');) {
-      keys.push_back(key.substr(key.find_first_not_of(' ')));
-    }
-    return keys;
-  }
-  ADD_FAILURE() << "an unknown key was accepted: " << scene.dump();
-  return {};
-}
-
 TEST(SceneReference, NamesEveryKeyTheParserAccepts) {
   // scenes/README.md is the scene reference: every key the parser takes, at every place, must
   // be in it (as `key` or "key"), so the two cannot drift apart.
@@ -520,11 +497,11 @@ TEST(SceneReference, NamesEveryKeyTheParserAccepts) {
   probe("visual", [&](nlohmann::json& s) { s["visual"] = unknown; });
   std::size_t checked = 0;
   for (const auto& [where, scene] : probes) {
-    const std::vector<std::string> keys = keys_the_parser_accepts(scene);
+    const std::vector<std::string> keys = test::keys_listed_as_valid(
+        [&] { (void)parse_scene(scene.dump(), "probe.json"); }, scene.dump());
     EXPECT_GE(keys.size(), 1u) << where;
     for (const std::string& key : keys) {
-      EXPECT_TRUE(reference.find("`" + key + "`") != std::string::npos ||
-                  reference.find("\"" + key + "\"") != std::string::npos)
+      EXPECT_TRUE(test::names_key(reference, key))
           << "scenes/README.md does not name the key " << where << "." << key;
       ++checked;
     }
