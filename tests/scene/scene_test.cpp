@@ -496,7 +496,8 @@ TEST(SceneReference, NamesEveryKeyTheParserAccepts) {
   probe("camera", [&](nlohmann::json& s) { s["camera"] = unknown; });
   probe("visual", [&](nlohmann::json& s) { s["visual"] = unknown; });
   std::size_t checked = 0;
-  for (const auto& [where, scene] : probes) {
+  for (const auto& [where, probed] : probes) {
+    const nlohmann::json& scene = probed;  // clang 14 cannot capture a structured binding
     const std::vector<std::string> keys = test::keys_listed_as_valid(
         [&] { (void)parse_scene(scene.dump(), "probe.json"); }, scene.dump());
     EXPECT_GE(keys.size(), 1u) << where;
