@@ -344,6 +344,16 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
         current[local] = now;
         ok = orient3d(current[0], current[1], current[2], current[3]) == Sign::kPositive;
       }
+      if (ok && deformed_ != nullptr) {
+        // Where the simulation has the body: the vertex moves to the same combination there.
+        const VertexData<Vec3>& x = *deformed_;
+        std::array<Vec3, 4> current{x[v[0]], x[v[1]], x[v[2]], x[v[3]]};
+        current[local] = Vec3::Zero();
+        for (int k = 0; k < point.count; ++k) {
+          current[local] += weights[k] * x[point.corners[k]];
+        }
+        ok = orient3d(current[0], current[1], current[2], current[3]) == Sign::kPositive;
+      }
       if (!ok) {
         break;
       }
@@ -543,6 +553,15 @@ bool SubdivisionCutter::try_collapse(VertexId vertex, VertexId target) {
       const Tet& v = mesh_.tet(t);
       std::array<Vec3, 4> now{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
       now[local] = position(target);
+      if (orient3d(now[0], now[1], now[2], now[3]) != Sign::kPositive) {
+        return false;
+      }
+    }
+    if (deformed_ != nullptr) {
+      const VertexData<Vec3>& x = *deformed_;
+      const Tet& v = mesh_.tet(t);
+      std::array<Vec3, 4> now{x[v[0]], x[v[1]], x[v[2]], x[v[3]]};
+      now[local] = x[target];
       if (orient3d(now[0], now[1], now[2], now[3]) != Sign::kPositive) {
         return false;
       }

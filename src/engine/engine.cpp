@@ -241,6 +241,8 @@ Engine::Engine(const SceneDescription& scene) : parts_(std::make_unique<Parts>(s
     // positions (SubdivisionCutter's deformed configuration) does not yet carry the swept
     // surface with a wound that opens non-affinely behind the blade.
     p.cutter = std::make_unique<SubdivisionCutter>(p.mesh, options);
+    // The inversion guard can only push back what a step turned inside out: the edit must not.
+    p.cutter->keep_right_side_out_in(&p.state.x);
   } else if (scene.tool.cutter == CutterKind::kXfem) {
     XfemCutterOptions options;
     options.quad_length = scene.tool.quad_length;

@@ -134,6 +134,12 @@ class SubdivisionCutter {
   /// Tells the cutter that the current positions moved (after a physics step): its spatial
   /// index is refitted before the next move. Not needed when cutting on rest positions.
   void positions_changed() { positions_moved_ = positions_ != nullptr; }
+  /// Also keeps every tetrahedron right side out in `deformed` (m; a VertexData of the same
+  /// mesh that outlives the cutter, or null), when the cutter cuts other positions (its rest
+  /// positions, as the engine's does): a blade-line slide or a collapse that would turn a
+  /// tetrahedron inside out there is not made. The split itself cannot: its points are the
+  /// same combinations of corners in every configuration. The cutter only reads `deformed`.
+  void keep_right_side_out_in(const VertexData<Vec3>* deformed) { deformed_ = deformed; }
   /// The position the cutter intersects for a vertex (m).
   [[nodiscard]] const Vec3& position(VertexId vertex) const { return grid_.position(vertex); }
 
@@ -324,6 +330,7 @@ class SubdivisionCutter {
   TetMesh& mesh_;
   CutterOptions options_;
   const VertexData<Vec3>* positions_;
+  const VertexData<Vec3>* deformed_ = nullptr;  ///< see keep_right_side_out_in
   TetGrid grid_;
   bool positions_moved_ = false;
   /// The blade's tip and base at the last pose, carried by the body as it moves (deformed
