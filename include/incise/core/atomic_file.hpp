@@ -11,6 +11,8 @@
 
 namespace incise {
 
+/// A file written whole or not at all: bytes go to a temporary beside the target, renamed
+/// over it by commit(), so a reader never sees half a file and a failed write loses nothing.
 class AtomicFile {
  public:
   /// Opens a temporary beside `path`; throws InputError naming `path` if it cannot.
@@ -20,7 +22,9 @@ class AtomicFile {
   /// Removes the temporary if commit() was never reached: the old file stays as it was.
   ~AtomicFile();
 
+  /// The temporary's stream, for formatted writes.
   std::ostream& stream() { return stream_; }
+  /// Appends bytes to the temporary.
   void write(std::string_view bytes);
   /// Flushes and renames into place; throws InputError (disk full, file too large, rename
   /// refused) and leaves the target untouched.

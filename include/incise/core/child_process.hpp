@@ -10,12 +10,14 @@
 
 namespace incise {
 
+/// How a child process of run_in_child ended, and what it wrote.
 struct ChildOutcome {
   std::string output;       ///< every byte the child wrote to its descriptor
   std::string start_error;  ///< non-empty: no child was started (pipe or fork failed)
   bool timed_out = false;   ///< killed after the time limit
   int signal = 0;           ///< the signal that ended the child; 0 if it exited
   int exit_code = 0;        ///< its exit status, when it exited
+  /// Started, not timed out, not signalled, exit status 0.
   [[nodiscard]] bool exited_cleanly() const {
     return start_error.empty() && !timed_out && signal == 0 && exit_code == 0;
   }

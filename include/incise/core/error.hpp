@@ -19,9 +19,12 @@ class InputError : public Error {
  public:
   /// `line` is 1-based; 0 means "no line" (binary data or whole-file problems).
   InputError(std::string file, std::size_t line, const std::string& message);
+  /// An error about no file in particular.
   explicit InputError(const std::string& message);
 
+  /// The file it names ("" when none).
   [[nodiscard]] const std::string& file() const { return file_; }
+  /// The 1-based line it names (0: none).
   [[nodiscard]] std::size_t line() const { return line_; }
 
  private:

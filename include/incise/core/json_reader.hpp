@@ -62,15 +62,19 @@ class Context {
   Context(std::string text, std::filesystem::path file, std::string what = "scene")
       : text_(std::move(text)), file_(std::move(file)), what_(std::move(what)) {}
 
+  /// Throws an InputError naming the file, the line of `path` (a dotted key) and the key.
   [[noreturn]] void fail(const std::string& path, const std::string& message) const {
     throw InputError(name(), line_of(path), what_ + " key '" + path + "': " + message);
   }
+  /// Throws an InputError naming the file and a line.
   [[noreturn]] void fail_line(std::size_t line, const std::string& message) const {
     throw InputError(name(), line, message);
   }
+  /// The file's name in messages ("<default scene>" when there is none).
   [[nodiscard]] std::string name() const {
     return file_.empty() ? "<default " + what_ + ">" : file_.string();
   }
+  /// The file (empty for built-in text).
   [[nodiscard]] const std::filesystem::path& file() const { return file_; }
 
   /// The text parsed as JSON. Any failure of the parser (bad syntax, and also a number too
@@ -128,6 +132,8 @@ class Context {
 /// Reads one JSON object, refusing keys it does not know.
 class ObjectReader {
  public:
+  /// Reads `object` found at `path` (dotted, "" at the top); a key not in `allowed` fails
+  /// with the closest allowed one suggested.
   ObjectReader(const Context& context, const Json& object, std::string path,
                std::vector<std::string> allowed)
       : context_(context), object_(object), path_(std::move(path)), allowed_(std::move(allowed)) {
@@ -158,12 +164,16 @@ class ObjectReader {
     }
   }
 
+  /// Whether the object has `key`.
   [[nodiscard]] bool has(const std::string& key) const { return object_.contains(key); }
+  /// The value of `key`, which must be there.
   [[nodiscard]] const Json& at(const std::string& key) const { return object_.at(key); }
+  /// The dotted path of `key` in this object, for messages.
   [[nodiscard]] std::string child(const std::string& key) const {
     return path_.empty() ? key : path_ + "." + key;
   }
 
+  /// A finite number, or `fallback` when the key is absent.
   double number(const std::string& key, double fallback) const {
     if (!has(key)) {
       return fallback;
@@ -178,6 +188,7 @@ class ObjectReader {
     }
     return result;
   }
+  /// The same, and > 0.
   double positive(const std::string& key, double fallback) const {
     const double value = number(key, fallback);
     if (!(value > 0.0)) {
@@ -185,6 +196,7 @@ class ObjectReader {
     }
     return value;
   }
+  /// The same, and >= 0.
   double non_negative(const std::string& key, double fallback) const {
     const double value = number(key, fallback);
     if (!(value >= 0.0)) {
@@ -192,6 +204,7 @@ class ObjectReader {
     }
     return value;
   }
+  /// An integer in [low, high], or `fallback` when the key is absent.
   int integer(const std::string& key, int fallback, int low, int high) const {
     if (!has(key)) {
       return fallback;
@@ -207,6 +220,7 @@ class ObjectReader {
     }
     return static_cast<int>(result);
   }
+  /// true or false, or `fallback` when the key is absent.
   bool boolean(const std::string& key, bool fallback) const {
     if (!has(key)) {
       return fallback;
@@ -217,6 +231,7 @@ class ObjectReader {
     }
     return value.get<bool>();
   }
+  /// A string, or `fallback` when the key is absent.
   std::string string(const std::string& key, const std::string& fallback) const {
     if (!has(key)) {
       return fallback;
@@ -245,10 +260,12 @@ class ObjectReader {
     }
     context_.fail(child(key), "unknown " + what + " '" + name + "' (known: " + known + ")");
   }
+  /// Three finite numbers [x, y, z], or `fallback` when the key is absent.
   Vec3 vec3(const std::string& key, const Vec3& fallback) const {
     return has(key) ? parse_vec3(context_, at(key), child(key)) : fallback;
   }
 
+  /// `value` as three finite numbers; fails naming `path` otherwise.
   static Vec3 parse_vec3(const Context& context, const Json& value, const std::string& path) {
     if (!value.is_array() || value.size() != 3 ||
         !std::all_of(value.begin(), value.end(), [](const Json& c) { return c.is_number(); })) {

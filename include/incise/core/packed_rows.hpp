@@ -15,6 +15,8 @@
 
 namespace incise {
 
+/// Rows of values of varying length packed in one array, each with room to grow: an edit
+/// rewrites only the rows it touched, and a row that outgrows its place moves to the end.
 template <typename T>
 class PackedRows {
  public:
@@ -91,7 +93,9 @@ class PackedRows {
     return true;
   }
 
+  /// The number of rows.
   [[nodiscard]] std::size_t rows() const { return begin_.size(); }
+  /// Row i's values.
   [[nodiscard]] std::span<const T> row(std::size_t i) const {
     return std::span<const T>(values_).subspan(begin_[i], end_[i] - begin_[i]);
   }
@@ -99,7 +103,9 @@ class PackedRows {
   [[nodiscard]] std::size_t live() const { return live_; }
   /// The whole array: row i is storage()[begin()[i] .. end()[i]).
   [[nodiscard]] std::span<const T> storage() const { return values_; }
+  /// Each row's first index in storage().
   [[nodiscard]] std::span<const std::size_t> begin() const { return begin_; }
+  /// Each row's end in storage().
   [[nodiscard]] std::span<const std::size_t> end() const { return end_; }
 
  private:

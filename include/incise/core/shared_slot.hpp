@@ -14,6 +14,8 @@
 
 namespace incise {
 
+/// One shared_ptr handed from thread to thread under a mutex held only for a pointer copy
+/// (libstdc++ 12's std::atomic<std::shared_ptr> orders its load wrongly; see the file's top).
 template <typename T>
 class SharedSlot {
  public:

@@ -21,13 +21,17 @@ namespace incise {
 template <typename T>
 concept RawState = std::is_standard_layout_v<T> && !std::is_pointer_v<T>;
 
+/// Writes a checkpoint's state as bytes: values, lists, texts and section tags, in the order
+/// StateReader reads them back.
 class StateWriter {
  public:
+  /// One value, as its bytes.
   template <RawState T>
   void value(const T& v) {
     const auto* bytes = reinterpret_cast<const char*>(&v);
     buffer_.append(bytes, sizeof(T));
   }
+  /// A list: its length, then its values.
   template <RawState T>
   void values(const std::vector<T>& v) {
     value<std::uint64_t>(v.size());
@@ -35,6 +39,7 @@ class StateWriter {
       buffer_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
     }
   }
+  /// A list of lists.
   template <RawState T>
   void nested(const std::vector<std::vector<T>>& v) {
     value<std::uint64_t>(v.size());
@@ -42,24 +47,29 @@ class StateWriter {
       values(inner);
     }
   }
+  /// A text: its length, then its bytes.
   void text(std::string_view s) {
     value<std::uint64_t>(s.size());
     buffer_.append(s);
   }
   /// A name that the reader checks, so parts read back in a different order are caught.
   void tag(std::string_view name) { text(name); }
+  /// Everything written so far.
   [[nodiscard]] const std::string& bytes() const { return buffer_; }
 
  private:
   std::string buffer_;
 };
 
+/// Reads what StateWriter wrote, checking every length against the bytes left and every tag:
+/// a corrupt or foreign checkpoint fails with an InputError naming the byte and the part.
 class StateReader {
  public:
   /// `source` names the checkpoint in errors.
   StateReader(std::string_view bytes, std::string source)
       : bytes_(bytes), source_(std::move(source)) {}
 
+  /// One value; `what` names it in errors.
   template <RawState T>
   T value(const char* what) {
     need(sizeof(T), what);
@@ -77,6 +87,7 @@ class StateReader {
     offset_ += sizeof(T);
     return v;
   }
+  /// A list.
   template <RawState T>
   std::vector<T> values(const char* what) {
     const auto count = value<std::uint64_t>(what);
@@ -91,6 +102,7 @@ class StateReader {
     }
     return v;
   }
+  /// A list of lists.
   template <RawState T>
   std::vector<std::vector<T>> nested(const char* what) {
     const auto count = value<std::uint64_t>(what);
@@ -103,6 +115,7 @@ class StateReader {
     }
     return v;
   }
+  /// A text.
   std::string text(const char* what) {
     const auto size = value<std::uint64_t>(what);
     need(size, what);
@@ -110,6 +123,7 @@ class StateReader {
     offset_ += static_cast<std::size_t>(size);
     return s;
   }
+  /// Checks that the next section is `name`.
   void tag(std::string_view name) {
     const std::string found = text("a section name");
     if (found != name) {
@@ -123,6 +137,7 @@ class StateReader {
         source_, 0,
         "checkpoint corrupt at byte " + std::to_string(offset_) + " (" + what + "): " + problem);
   }
+  /// Whether every byte was read.
   [[nodiscard]] bool at_end() const { return offset_ == bytes_.size(); }
 
  private:

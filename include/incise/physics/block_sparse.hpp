@@ -22,11 +22,13 @@ class TetMesh;
 /// sorted columns per row, packed so that an edit rewrites only the rows it touched (a row
 /// that grows moves to the end of the storage; see PackedRows).
 struct BlockPattern {
-  PackedRows<VertexId> columns;
+  PackedRows<VertexId> columns;       ///< each row's sorted columns (vertices)
   std::vector<std::size_t> diagonal;  ///< storage index of each row's diagonal block
   std::uint64_t version = 0;          ///< bumped on every change
 };
 
+/// The block matrix: values over a BlockPattern that several matrices of one body may share.
+/// One thread edits it; products read it from worker threads.
 class BlockSparseMatrix {
  public:
   BlockSparseMatrix();
@@ -46,6 +48,7 @@ class BlockSparseMatrix {
   /// Changes whenever the pattern changes (a build or any edit); with pattern(), tells whether
   /// two looks saw the same pattern (holding the pointer keeps its address from being reused).
   [[nodiscard]] std::uint64_t pattern_version() const { return pattern_->version; }
+  /// The pattern, shared with every matrix that matched it.
   [[nodiscard]] std::shared_ptr<const BlockPattern> pattern() const { return pattern_; }
 
   // ---- edits after a mesh edit (values of edited rows are left unspecified) --------------
@@ -58,25 +61,32 @@ class BlockSparseMatrix {
   /// a quarter of the whole. True when it did (every block then has a new place).
   bool compact_if_fragmented();
 
+  /// Block rows, one per vertex.
   [[nodiscard]] std::size_t rows() const { return pattern_->columns.rows(); }
   /// Blocks in rows (what a product multiplies).
   [[nodiscard]] std::size_t block_count() const { return pattern_->columns.live(); }
   /// Row i's blocks are values()[row_begin()[i] .. row_end()[i]).
   [[nodiscard]] std::span<const std::size_t> row_begin() const { return pattern_->columns.begin(); }
+  /// Each row's end in values(), as row_begin.
   [[nodiscard]] std::span<const std::size_t> row_end() const { return pattern_->columns.end(); }
+  /// The column of every stored block, beside values().
   [[nodiscard]] std::span<const VertexId> columns() const { return pattern_->columns.storage(); }
+  /// A row's columns, sorted.
   [[nodiscard]] std::span<const VertexId> row_columns(VertexId row) const {
     return pattern_->columns.row(static_cast<std::size_t>(row));
   }
   /// The whole storage, including what rows left behind (never read by products).
   [[nodiscard]] std::span<Mat3> values() { return values_; }
+  /// The same, read only.
   [[nodiscard]] std::span<const Mat3> values() const { return values_; }
   /// Index of block (row, column) in values(); asserts that it is in the pattern.
   [[nodiscard]] std::size_t find(VertexId row, VertexId column) const;
   /// The same, or nothing when the two vertices are not coupled.
   [[nodiscard]] std::optional<std::size_t> find_if_coupled(VertexId row, VertexId column) const;
+  /// Index of a row's diagonal block in values().
   [[nodiscard]] std::size_t diagonal(VertexId row) const { return pattern_->diagonal[row]; }
 
+  /// Sets every stored block to zero, as zero_values.
   void set_zero();
   /// y = A p (parallel over rows; the result does not depend on the thread count).
   void multiply(std::span<const Vec3> p, std::span<Vec3> y) const;

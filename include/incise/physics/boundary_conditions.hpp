@@ -9,8 +9,10 @@
 
 namespace incise {
 
+/// A body's boundary conditions, per vertex, kept through the mesh's edits (attributes).
 class BoundaryConditions {
  public:
+  /// No vertex constrained, no force, no gravity; `mesh` must outlive the conditions.
   explicit BoundaryConditions(TetMesh& mesh);
 
   /// Keeps vertices at their rest positions.
@@ -25,9 +27,12 @@ class BoundaryConditions {
   void add_point_force(VertexId vertex, const Vec3& force) { point_force_[vertex] += force; }
   /// Gravitational acceleration (m/s^2).
   void set_gravity(const Vec3& gravity) { gravity_ = gravity; }
+  /// Gravitational acceleration (m/s^2).
   [[nodiscard]] const Vec3& gravity() const { return gravity_; }
 
+  /// Whether the vertex is fixed or moved by a prescribed displacement.
   [[nodiscard]] bool is_constrained(VertexId vertex) const { return group_[vertex] >= 0; }
+  /// How many vertices are constrained.
   [[nodiscard]] std::size_t constrained_count() const;
   /// Position and velocity of a constrained vertex at time t.
   void prescribed_state(double t, VertexId vertex, const Vec3& rest, Vec3& x, Vec3& v) const;

@@ -34,8 +34,8 @@ using ElementMatrix = Eigen::Matrix<double, 12, 12>;
 
 /// Lame parameters (Pa).
 struct LameParameters {
-  double mu = 0.0;
-  double lambda = 0.0;
+  double mu = 0.0;      ///< shear modulus (Pa)
+  double lambda = 0.0;  ///< first Lame parameter (Pa)
 };
 
 /// Lame parameters from Young's modulus (Pa) and Poisson's ratio.
@@ -86,9 +86,10 @@ struct CorotatedLinearization {
   /// kWarped: the twist weights are all -2 mu and the modes span {dF : R^T dF skew}; the fast
   /// paths use R K0 R^T directly and leave twist_modes unset.
   bool warped = false;
-  Mat3 rotation = Mat3::Identity();
+  Mat3 rotation = Mat3::Identity();  ///< R of the polar decomposition F = R S
+  /// t_k, unit Frobenius norm (unset when warped).
   std::array<Mat3, 3> twist_modes{Mat3::Zero(), Mat3::Zero(), Mat3::Zero()};
-  std::array<double, 3> twist_weights{};
+  std::array<double, 3> twist_weights{};  ///< c_k (Pa)
 };
 
 [[nodiscard]] CorotatedLinearization corotated_linearization(const Mat3& F, const Mat3& R,

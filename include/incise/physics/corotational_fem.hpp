@@ -32,10 +32,11 @@ namespace incise {
 
 struct CorotatedBatch;
 
+/// The corotational FEM's options beyond the material.
 struct CorotationalFemParameters {
   /// Rayleigh damping D = alpha M + beta K: alpha (1/s) and beta (s).
   double rayleigh_mass = 0.0;
-  double rayleigh_stiffness = 0.0;
+  double rayleigh_stiffness = 0.0;  ///< beta (s)
   /// Tangent used by implicit solvers (see corotational.hpp): warped is cheapest, projected
   /// converges quadratically in Newton's method.
   TangentKind tangent = TangentKind::kWarped;
@@ -46,10 +47,14 @@ struct CorotationalFemParameters {
 
 /// Per-element rest data kept in a TetData container.
 struct FemElement {
-  TetRestShape shape;
+  TetRestShape shape;  ///< rest volume and shape gradients
   bool valid = false;  ///< false until computed, or when the rest shape is degenerate
 };
 
+/// Corotational linear elasticity on linear tetrahedra (Mueller and Gross): per element the
+/// rotation of the polar decomposition, the stress of the rotated linear strain, lumped
+/// masses; it follows each mesh edit around the vertices the edit touched. Forces, products
+/// and assembly run in parallel over elements or rows on the caller's TBB arena.
 class CorotationalFemModel final : public ForceModel,
                                    public VertexForces,
                                    public ForceLinearization,
@@ -87,17 +92,23 @@ class CorotationalFemModel final : public ForceModel,
 
   /// Weight in [0, 1] of an element's stiffness and mass (1 by default; children inherit it).
   void set_material_fraction(TetId tet, double fraction);
+  /// An element's weight, as set_material_fraction gave it.
   [[nodiscard]] double material_fraction(TetId tet) const { return mesh_->material_fraction(tet); }
   [[nodiscard]] double total_mass() const override;
   /// The first material (the only one of a uniform body) and its Lame parameters.
   [[nodiscard]] const Material& material() const { return materials_.table().front(); }
+  /// The first material's Lame parameters.
   [[nodiscard]] const LameParameters& lame() const { return lames_.front(); }
+  /// Every element's material.
   [[nodiscard]] const MaterialMap& materials() const { return materials_; }
   [[nodiscard]] const MaterialMap* material_map() const override { return &materials_; }
   /// Lame parameters of an element's material.
   [[nodiscard]] const LameParameters& lame(TetId tet) const { return lames_[materials_.id(tet)]; }
+  /// The options it was made with, as changed since.
   [[nodiscard]] const CorotationalFemParameters& parameters() const { return parameters_; }
+  /// Chooses the tangent of the next linearisations.
   void set_tangent(TangentKind kind) { parameters_.tangent = kind; }
+  /// Chooses between an assembled stiffness and element-by-element products.
   void set_assemble(bool assemble) { parameters_.assemble = assemble; }
   /// Time (s) spent assembling since the last linearisation (K, or a system matrix a solver
   /// asked for).

@@ -14,6 +14,8 @@ namespace incise {
 /// Reads the current state (x, v) of another vertex during a per-vertex force evaluation.
 using NeighborState = std::function<void(VertexId vertex, Vec3& position, Vec3& velocity)>;
 
+/// What an integrator steps: masses, forces, prescribed vertices, the force's linearisation
+/// and hooks around each step. MechanicalSystem is the one for a TetMesh body.
 class DynamicSystem {
  public:
   DynamicSystem() = default;
@@ -30,6 +32,7 @@ class DynamicSystem {
   virtual void extend_vertex_values(std::vector<Vec3>& values) const {
     values.resize(vertex_count(), Vec3::Zero());
   }
+  /// The number of vertices (the length of every state span).
   [[nodiscard]] virtual std::size_t vertex_count() const = 0;
   /// Lumped masses (kg).
   [[nodiscard]] virtual std::span<const double> masses() const = 0;
@@ -45,12 +48,14 @@ class DynamicSystem {
 
   /// Whether the vertex's motion is prescribed; then prescribed_state gives it.
   [[nodiscard]] virtual bool is_constrained(VertexId vertex) const = 0;
+  /// The prescribed position (m) and velocity (m/s) of a constrained vertex at time t (s).
   virtual void prescribed_state(double t, VertexId vertex, Vec3& x, Vec3& v) const = 0;
 
   /// Linearisation of the force about (x, v): prepare once, then y += a K p + b D p with
   /// K = -df/dx and D = -df/dv (symmetric positive semi-definite approximations).
   virtual void prepare_linearization(double t, std::span<const Vec3> x,
                                      std::span<const Vec3> v) = 0;
+  /// y += (a K + b D) p for the last prepare_linearization.
   virtual void add_linearized_product(double a, double b, std::span<const Vec3> p,
                                       std::span<Vec3> y) const = 0;
   /// forces() then prepare_linearization() at the same state, in one pass where the system
@@ -78,6 +83,7 @@ class DynamicSystem {
   /// Called by integrators after each step of length dt on the velocities of the vertices they
   /// advanced (e.g. to apply velocity-penalty damping); does nothing by default.
   virtual void end_step(double /*dt*/, std::span<Vec3> /*v*/) {}
+  /// The same for one vertex, from schemes that advance vertex by vertex.
   virtual void end_step(double /*dt*/, VertexId /*vertex*/, Vec3& /*v*/) {}
   /// Called by integrators as a step starts, after refresh(), with every vertex's state (which
   /// it may correct after mesh edits).

@@ -13,16 +13,21 @@
 
 namespace incise {
 
+/// Per-vertex bounds on a body's highest natural frequency (rad/s, Gershgorin rows) and their
+/// largest, kept row by row as edits change some of them.
 class FrequencyRows {
  public:
   /// Every row afresh (in parallel: each row is a function of the body alone).
   void fill(std::size_t rows, const std::function<double(VertexId)>& row);
   /// New rows up to `rows`, each 0 until set.
   void grow(std::size_t rows) { rows_.resize(rows, 0.0); }
+  /// A vertex's row (rad/s), after an edit changed it.
   void set(VertexId vertex, double row);
   /// After the rows an edit changed were set: the largest again where it may have shrunk.
   void settle();
+  /// Whether no row was filled yet.
   [[nodiscard]] bool empty() const { return rows_.empty(); }
+  /// The largest row (rad/s).
   [[nodiscard]] double largest() const { return largest_; }
 
  private:

@@ -20,6 +20,8 @@ namespace incise {
 
 class TetMesh;
 
+/// How hard the inversion guard pushes tetrahedra back right side out (scene key
+/// `model.inversion_guard`).
 struct InversionGuardParameters {
   /// A tetrahedron below half this share of its rest volume is pushed back to it
   /// (dimensionless, in [0, 1)); 0 turns the guard off.
@@ -29,6 +31,7 @@ struct InversionGuardParameters {
   int max_passes = 200;
 };
 
+/// What one call of keep_right_side_out did.
 struct InversionGuardOutcome {
   std::size_t corrected = 0;  ///< tetrahedra pushed back (counted once per call)
   /// Vertices the fallback moved back towards the start of the step.

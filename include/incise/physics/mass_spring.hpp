@@ -22,6 +22,7 @@
 
 namespace incise {
 
+/// The mass-spring model's options beyond the material (scene keys under `model`).
 struct MassSpringParameters {
   /// Damping ratio of each spring: c = ratio * 2 sqrt(k m_reduced) (dimensionless).
   double spring_damping_ratio = 0.1;
@@ -46,11 +47,16 @@ struct Spring {
   double damping = 0.0;      ///< N s/m
 };
 
+/// The seed's tissue (Bielser et al.): lumped masses and a damped spring on every mesh edge
+/// (van Gelder's stiffness from the material), with an optional volume term per tetrahedron;
+/// it follows each mesh edit around the vertices the edit touched. Forces run in parallel on
+/// the caller's TBB arena.
 class MassSpringModel final : public ForceModel,
                               public VertexForces,
                               public ForceLinearization,
                               public MeshObserver {
  public:
+  /// A body of one material; `mesh` must outlive the model.
   MassSpringModel(TetMesh& mesh, const Material& material, const MassSpringParameters& parameters);
   /// A body of several materials: each tetrahedron's density gives its mass and its Young's
   /// modulus its share of the springs along its edges.
@@ -80,10 +86,12 @@ class MassSpringModel final : public ForceModel,
   [[nodiscard]] double elastic_energy(std::span<const Vec3> x) const override;
   [[nodiscard]] double max_vertex_frequency() const override;
 
+  /// The spring on a mesh edge.
   [[nodiscard]] const Spring& spring(EdgeId edge) const { return springs_[edge]; }
   [[nodiscard]] double total_mass() const override;
   /// The first material (the only one of a uniform body).
   [[nodiscard]] const Material& material() const { return materials_.table().front(); }
+  /// Every tetrahedron's material.
   [[nodiscard]] const MaterialMap& materials() const { return materials_; }
   [[nodiscard]] const MaterialMap* material_map() const override { return &materials_; }
 

@@ -6,6 +6,7 @@
 
 namespace incise {
 
+/// A linear elastic tissue material in SI units (scene key `material`, or a preset's name).
 struct Material {
   double young_modulus = 5.4e3;  ///< Pa
   double poisson_ratio = 0.47;   ///< dimensionless, in (-1, 0.5)
@@ -26,6 +27,7 @@ struct Material {
 /// A named preset ("liver", "skin", "fat", "muscle"); throws InputError for an unknown name,
 /// listing the known ones.
 [[nodiscard]] Material material_preset(const std::string& name);
+/// The presets' names.
 [[nodiscard]] std::vector<std::string> material_preset_names();
 
 }  // namespace incise

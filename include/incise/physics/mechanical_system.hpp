@@ -11,12 +11,14 @@ namespace incise {
 
 /// Positions (m) and velocities (m/s) per vertex, interpolated onto vertices a cut creates.
 struct SimulationState {
+  /// At rest: x the mesh's rest positions, v zero.
   explicit SimulationState(TetMesh& mesh);
-  VertexData<Vec3> x;
-  VertexData<Vec3> v;
-  double time = 0.0;  ///< s
+  VertexData<Vec3> x;  ///< positions (m)
+  VertexData<Vec3> v;  ///< velocities (m/s)
+  double time = 0.0;   ///< s
 };
 
+/// A body's global damping (scene key `damping`).
 struct DampingParameters {
   /// Mass-proportional viscous damping in the force, f = -alpha m v (1/s).
   double viscous = 0.0;
@@ -26,6 +28,9 @@ struct DampingParameters {
   double penalty = 0.0;
 };
 
+/// A TetMesh body ready to step: a ForceModel, BoundaryConditions, gravity, damping and the
+/// inversion guard, seen by the integrators as a DynamicSystem. It holds references: the mesh,
+/// the model and the conditions must outlive it. One thread steps it.
 class MechanicalSystem final : public DynamicSystem {
  public:
   /// `guard` (off unless its ratio is set) keeps tetrahedra right side out after each step.
@@ -68,16 +73,22 @@ class MechanicalSystem final : public DynamicSystem {
   /// Tetrahedra the inversion guard pushed back since the start (summed over steps), and the
   /// most it found in one step.
   [[nodiscard]] std::uint64_t guarded_tets() const { return guarded_tets_; }
+  /// The most tetrahedra the guard pushed back in one step.
   [[nodiscard]] std::size_t guarded_tets_most() const { return guarded_tets_most_; }
   /// Vertices its fallback moved back towards the start of their step, summed over steps.
   [[nodiscard]] std::uint64_t backtracked_vertices() const { return backtracked_; }
+  /// The most vertices the fallback moved back in one step.
   [[nodiscard]] std::size_t backtracked_vertices_most() const { return backtracked_most_; }
+  /// The guard's parameters (a zero ratio when it is off).
   [[nodiscard]] const InversionGuardParameters& guard() const { return guard_; }
   /// An explicit step beyond its stability limit must show as divergence, not be pushed back.
   void turn_guard_off() { guard_.min_volume_ratio = 0.0; }
 
+  /// The body's force model.
   [[nodiscard]] ForceModel& model() { return model_; }
+  /// The body's boundary conditions.
   [[nodiscard]] BoundaryConditions& conditions() { return conditions_; }
+  /// The body's mesh.
   [[nodiscard]] const TetMesh& mesh() const { return mesh_; }
 
  private:

@@ -21,6 +21,8 @@
 
 namespace incise {
 
+/// The stable Neo-Hookean energy's parameters (Smith et al. 2018), not Lame's: see
+/// stable_neo_hookean().
 struct NeoHookeanParameters {
   double mu = 0.0;      ///< Pa
   double lambda = 0.0;  ///< Pa

@@ -13,10 +13,11 @@
 
 namespace incise::planning {
 
+/// A surface decimated under a bound, with its two-sided distances to the input.
 struct DecimationResult {
-  SurfaceMesh surface;
-  std::size_t triangles_before = 0;
-  std::size_t triangles_after = 0;
+  SurfaceMesh surface;                ///< the decimated surface
+  std::size_t triangles_before = 0;   ///< of the largest component
+  std::size_t triangles_after = 0;    ///< of the decimated surface
   double hausdorff_to_input = 0.0;    ///< m: from the decimated surface to the input
   double hausdorff_from_input = 0.0;  ///< m: from the input to the decimated surface
 };
@@ -30,16 +31,18 @@ struct DecimationResult {
 /// equal ones, the first in triangle order).
 [[nodiscard]] SurfaceMesh largest_component(const SurfaceMesh& surface);
 
+/// How remesh_surface meshes a surface again (the default method of surface-file plans).
 struct RemeshOptions {
   double max_error = 0.0;   ///< the bound: each triangle's centre within it of the surface
   double facet_size = 0.0;  ///< largest triangle circumradius, in the surface's units
   std::uint32_t seed = 0;   ///< the mesher's random seed (results repeat for a seed)
 };
 
+/// A surface meshed again from its signed-distance image, with what was filled or left out.
 struct RemeshResult {
-  SurfaceMesh surface;
-  std::size_t triangles_before = 0;  ///< of the largest component
-  std::size_t triangles_after = 0;
+  SurfaceMesh surface;                        ///< the new surface
+  std::size_t triangles_before = 0;           ///< of the largest component
+  std::size_t triangles_after = 0;            ///< of the new surface
   std::size_t holes_filled = 0;               ///< open borders closed for the mesher
   std::size_t triangles_over_holes = 0;       ///< meshed over a filled hole, left out
   std::size_t pieces_left_out_triangles = 0;  ///< in pieces apart from the largest

@@ -14,10 +14,11 @@
 
 namespace incise::planning {
 
+/// What balancing the scanned state did (the plan report's `equilibrium`).
 struct EquilibriumReport {
-  double residual_before = 0.0;  ///< N: largest resulting force on a soft-tissue point
-  double residual_after = 0.0;   ///< N
-  int iterations = 0;
+  double residual_before = 0.0;          ///< N: largest resulting force on a soft-tissue point
+  double residual_after = 0.0;           ///< N
+  int iterations = 0;                    ///< Newton-type steps taken
   double largest_relative_change = 0.0;  ///< of a rest length (springs)
   double largest_rest_shift = 0.0;       ///< m: of a rest position (continuum)
   int limited_changes = 0;           ///< steps held to half a rest length (summed over iterations)

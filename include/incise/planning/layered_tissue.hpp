@@ -43,12 +43,13 @@ enum class PointKind : std::uint8_t { kSoft, kBone, kBoundary };
 enum class SpringSet : std::uint8_t { kLayer, kConnecting, kDiagonal };
 enum class TissueElasticity : std::uint8_t { kSprings, kContinuum };
 
+/// A spring of the seed's tissue between two points.
 struct Spring {
-  int a = 0;
-  int b = 0;
-  double rest_length = 0.0;  ///< m
-  double stiffness = 0.0;    ///< N/m
-  SpringSet set = SpringSet::kLayer;
+  int a = 0;                          ///< one end (a point index)
+  int b = 0;                          ///< the other end
+  double rest_length = 0.0;           ///< m
+  double stiffness = 0.0;             ///< N/m
+  SpringSet set = SpringSet::kLayer;  ///< which of the seed's three sets it belongs to
   int layer = 0;  ///< the layer it lies in (layer springs) or starts from (the others)
 };
 
@@ -56,27 +57,30 @@ struct Spring {
 /// the prism's points, positively oriented at rest, and its rest shape. An empty one (a column
 /// of no thickness) has zero rest volume and acts on nothing.
 struct PrismTet {
-  std::array<std::uint8_t, 4> corners{};
-  TetRestShape rest;
+  std::array<std::uint8_t, 4> corners{};  ///< indices 0-5 into the prism's points
+  TetRestShape rest;                      ///< rest volume (m^3) and shape gradients
 };
 
+/// A column's piece between two layers: a skin triangle's three columns, one layer apart.
 struct Prism {
   std::array<int, 6> points{};  ///< bottom (outer layer) triangle, then the top (inner) one
   double rest_volume = 0.0;     ///< m^3, signed (see prism.hpp)
-  int layer = 0;
+  int layer = 0;                ///< its layer, 0 at the skin
   /// Continuum elasticity only: the prism split into three tetrahedra. The quadrilateral side
   /// between columns u < v is cut by its diagonal from u's lower-layer point to v's upper-layer
   /// one, so neighbouring prisms split their shared side alike and the tetrahedra conform.
   std::array<PrismTet, 3> tets{};
-  NeoHookeanParameters material;
+  NeoHookeanParameters material;  ///< its layer's material (continuum elasticity)
 };
 
+/// One soft-tissue layer's material (plan key `tissue.materials`).
 struct LayerMaterial {
   double young_modulus = 1.5e4;  ///< Pa
   double density = 1050.0;       ///< kg/m^3
   double poisson_ratio = 0.45;   ///< continuum elasticity only (springs have their own, 1/4)
 };
 
+/// How the layered tissue is built between skin and bone (plan key `tissue`).
 struct LayeredTissueOptions {
   int layers = 3;  ///< soft-tissue layers between skin and bone
   /// One per layer from the skin inwards, or one for all layers.
@@ -96,14 +100,17 @@ struct LayeredTissueOptions {
   double max_edge = 0.0;
 };
 
+/// The seed's layered soft tissue between the skin and the bone: a column of points per skin
+/// vertex, from the skin (layer 0) to its nearest bone point, joined by springs or by
+/// prisms of three tetrahedra each. Positions in m, masses in kg.
 struct LayeredTissue {
-  int layers = 0;
-  int columns = 0;         ///< one per skin vertex
-  std::vector<Vec3> rest;  ///< m: the scanned positions
-  std::vector<PointKind> kind;
-  std::vector<double> mass;  ///< kg
-  std::vector<Spring> springs;
-  std::vector<Prism> prisms;
+  int layers = 0;                          ///< soft-tissue layers per column
+  int columns = 0;                         ///< one per skin vertex
+  std::vector<Vec3> rest;                  ///< m: the scanned positions
+  std::vector<PointKind> kind;             ///< per point: soft, on the bone or on the boundary
+  std::vector<double> mass;                ///< kg
+  std::vector<Spring> springs;             ///< spring elasticity (the seed's)
+  std::vector<Prism> prisms;               ///< every column's pieces between layers
   std::vector<Triangle> skin_triangles;    ///< over columns
   std::vector<int> column_skin_vertex;     ///< the input skin vertex of each column
   std::size_t skin_triangles_dropped = 0;  ///< longer than max_edge
@@ -119,16 +126,20 @@ struct LayeredTissue {
   /// nearest points fold. Their last layer's tetrahedra are slivers or overlap their
   /// neighbours (each is still at rest in the scanned state).
   std::size_t folded_triangles = 0;
-  SpringLaw law;
-  TissueElasticity elasticity = TissueElasticity::kSprings;
-  double volume_weight = 0.0;  ///< Pa
-  double skin_prestrain = 0.0;
+  SpringLaw law;                                             ///< the springs' law
+  TissueElasticity elasticity = TissueElasticity::kSprings;  ///< springs or continuum
+  double volume_weight = 0.0;                                ///< Pa
+  double skin_prestrain = 0.0;  ///< the skin's initial strain (dimensionless)
 
   /// The point of column c at layer k (0: skin, layers: bone).
   [[nodiscard]] int point(int column, int layer) const { return column * (layers + 1) + layer; }
+  /// A point's layer (0: skin).
   [[nodiscard]] int layer_of(int point) const { return point % (layers + 1); }
+  /// A point's column.
   [[nodiscard]] int column_of(int point) const { return point / (layers + 1); }
+  /// Points in all.
   [[nodiscard]] std::size_t point_count() const { return rest.size(); }
+  /// Points of one kind.
   [[nodiscard]] std::size_t count(PointKind k) const;
 };
 

@@ -20,35 +20,37 @@ enum class Minimizer { kNonlinearCG, kLbfgs, kNewton };
 [[nodiscard]] Minimizer parse_minimizer(const std::string& name);
 [[nodiscard]] std::string to_string(Minimizer minimizer);
 
+/// How minimize() minimises (plan key `solver`).
 struct MinimizeOptions {
-  Minimizer method = Minimizer::kLbfgs;
+  Minimizer method = Minimizer::kLbfgs;  ///< the method
   /// Converged when the largest free gradient entry (per point, Euclidean) is at most this
   /// (units of the gradient: N for energies in J over positions in m).
   double gradient_tolerance = 1e-9;
-  int max_iterations = 20000;
-  int lbfgs_memory = 8;
+  int max_iterations = 20000;  ///< iterations (Newton steps) before it stops unconverged
+  int lbfgs_memory = 8;        ///< L-BFGS's pairs of earlier steps
 };
 
+/// What a minimisation did (the plan report's `prediction`).
 struct MinimizeResult {
-  bool converged = false;
-  int iterations = 0;
-  int evaluations = 0;  ///< function-and-gradient evaluations
-  double initial_value = 0.0;
-  double final_value = 0.0;
+  bool converged = false;         ///< the gradient tolerance was met
+  int iterations = 0;             ///< iterations (Newton steps)
+  int evaluations = 0;            ///< function-and-gradient evaluations
+  double initial_value = 0.0;     ///< the function's value at the start (J for energies)
+  double final_value = 0.0;       ///< at the end
   double initial_gradient = 0.0;  ///< largest free gradient entry at the start
-  double final_gradient = 0.0;
-  bool monotone = true;       ///< every accepted iterate decreased the value
-  int factorizations = 0;     ///< Newton: sparse Cholesky factorisations
-  int lagged_steps = 0;       ///< Newton: steps solved with an earlier factorisation (and CG)
+  double final_gradient = 0.0;    ///< at the end
+  bool monotone = true;           ///< every accepted iterate decreased the value
+  int factorizations = 0;         ///< Newton: sparse Cholesky factorisations
+  int lagged_steps = 0;           ///< Newton: steps solved with an earlier factorisation (and CG)
   int convexified_steps = 0;  ///< Newton: steps on the convexified Hessian (indefinite exact one)
   /// Newton: where the time went (s): Hessian assembly, factorisations, solves with a factor
   /// (lagged conjugate gradients included), energy evaluations of the line search.
   double assembly_seconds = 0.0;
-  double factorization_seconds = 0.0;
-  double solve_seconds = 0.0;
-  double line_search_seconds = 0.0;
-  double seconds = 0.0;
-  std::string message;  ///< why it stopped
+  double factorization_seconds = 0.0;  ///< s
+  double solve_seconds = 0.0;          ///< s
+  double line_search_seconds = 0.0;    ///< s
+  double seconds = 0.0;                ///< s in all
+  std::string message;                 ///< why it stopped
 };
 
 /// The largest Euclidean norm of a point's entry over the points marked free: the measure of

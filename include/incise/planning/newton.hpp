@@ -26,13 +26,16 @@ class NewtonWorkspace {
  public:
   NewtonWorkspace();
   ~NewtonWorkspace();
+  /// Takes the other's pattern and factor.
   NewtonWorkspace(NewtonWorkspace&&) noexcept;
+  /// Takes the other's pattern and factor.
   NewtonWorkspace& operator=(NewtonWorkspace&&) noexcept;
 
   /// Factorises the Hessian at x (its convex form where the exact one is indefinite), so that
   /// the next minimisation from near x starts with a factor. Throws when neither factorises.
   void factorize_at(const TissueEnergy& energy, std::span<const Vec3> x,
                     std::span<const char> free);
+  /// Whether a factor is in hand for the next minimisation.
   [[nodiscard]] bool has_factor() const;
   /// Drops the factor (the pattern and its analysis stay): the next minimisation takes the
   /// steps a fresh one would, to the last bit.

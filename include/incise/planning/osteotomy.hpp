@@ -23,15 +23,18 @@
 
 namespace incise::planning {
 
+/// An osteotomy: the bone cut by a plane, within a radius of its point (plan key
+/// `osteotomies`).
 struct CutPlane {
   Vec3 point = Vec3::Zero();                                ///< m
   Vec3 normal = Vec3::UnitZ();                              ///< unit
   double radius = std::numeric_limits<double>::infinity();  ///< m
 };
 
+/// The bone split into segments by the osteotomies.
 struct BoneSegments {
   std::vector<int> triangle_segment;  ///< segment of each bone triangle, 0 .. count - 1
-  int count = 0;
+  int count = 0;                      ///< segments
   /// Triangles per segment.
   std::vector<int> sizes;
   /// Volume each segment encloses (length^3 in the surface's units), its cut closed flat
@@ -50,9 +53,10 @@ struct BoneSegments {
 struct RigidMove {
   Vec3 segment_near = Vec3::Zero();  ///< m: the moved segment is the one nearest this point
   Vec3 translation = Vec3::Zero();   ///< m
-  Vec3 axis = Vec3::UnitZ();
-  double angle = 0.0;          ///< rad
-  Vec3 center = Vec3::Zero();  ///< m
+  Vec3 axis = Vec3::UnitZ();         ///< the rotation's axis (unit)
+  double angle = 0.0;                ///< rad
+  Vec3 center = Vec3::Zero();        ///< m
+  /// Where the move takes x (m).
   [[nodiscard]] Vec3 apply(const Vec3& x) const;
 };
 
@@ -60,9 +64,10 @@ struct RigidMove {
 [[nodiscard]] int nearest_segment(const SurfaceMesh& bone, const BoneSegments& segments,
                                   const Vec3& point);
 
+/// Two moved segments that pass into each other.
 struct Interpenetration {
-  int first = 0;
-  int second = 0;
+  int first = 0;   ///< one segment
+  int second = 0;  ///< the other
   /// Pairs of triangles that cross away from a cut the two segments share (contact on the cut
   /// is not counted).
   int crossing_triangle_pairs = 0;
@@ -87,14 +92,16 @@ struct Interpenetration {
 /// reached beyond it before any move. Depends on the bone, its segments and the planes only: a
 /// planning session computes it once for all the moves it tries.
 struct SegmentCuts {
+  /// One plane that parts a pair of segments.
   struct Cut {
-    std::size_t plane = 0;
+    std::size_t plane = 0;          ///< index into `planes`
     double half_width = 0.0;        ///< m
     double side[2] = {0.0, 0.0};    ///< which side each of the pair lies on (its sign)
     double before[2] = {0.0, 0.0};  ///< m: how far each reaches beyond the plane unmoved
   };
   std::vector<CutPlane> planes;  ///< the planes, normals made unit
   double tolerance = 0.0;        ///< m
+  /// Per pair of segments (first < second), the planes that part them.
   std::map<std::pair<int, int>, std::vector<Cut>> cuts;
 };
 

@@ -19,6 +19,9 @@
 
 namespace incise::planning {
 
+/// A plan prepared once (image, surfaces, bone segments, tissue, equilibrium), then moved and
+/// predicted as often as asked: what `incise plan --view` and Python's incise.PlanSession
+/// drive. One thread at a time.
 class PlanSession {
  public:
   /// Prepares the plan and sets its moves; throws InputError (naming the plan's key) for bad
@@ -28,9 +31,12 @@ class PlanSession {
   PlanSession(const PlanSession&) = delete;
   PlanSession& operator=(const PlanSession&) = delete;
 
+  /// The plan it was made from.
   [[nodiscard]] const PlanDescription& plan() const;
   [[nodiscard]] const SurfaceMesh& bone() const;  ///< m, the surface that was cut
+  /// The bone's segments.
   [[nodiscard]] const BoneSegments& segments() const;
+  /// The soft tissue.
   [[nodiscard]] const LayeredTissue& tissue() const;
   /// The segment of the bone triangle nearest `point` (m).
   [[nodiscard]] int segment_near(const Vec3& point) const;
@@ -46,6 +52,7 @@ class PlanSession {
   /// Predicts the soft tissue for the current moves: from the last prediction (warm), or from
   /// the scanned state. `progress` gets Newton's iterations.
   const MinimizeResult& predict(bool warm, const PlanProgress& progress = {});
+  /// How the last prediction went.
   [[nodiscard]] const MinimizeResult& last_prediction() const;
   /// N: the largest force left on a free point after the last prediction.
   [[nodiscard]] double residual_force() const;
@@ -53,7 +60,9 @@ class PlanSession {
   [[nodiscard]] std::span<const Vec3> positions() const;
   /// The skin over the tissue's columns: triangles, scanned and predicted positions (m).
   [[nodiscard]] std::span<const Triangle> skin_triangles() const;
+  /// The skin's scanned positions (m).
   [[nodiscard]] std::vector<Vec3> skin_before() const;
+  /// The skin's predicted positions (m).
   [[nodiscard]] std::vector<Vec3> skin_after() const;
 
   /// The plan as JSON with the current moves in place of its own (each names a point of its
@@ -62,6 +71,7 @@ class PlanSession {
 
   /// What preparing found (report.json's keys) and how long each stage took (s).
   [[nodiscard]] const nlohmann::json& preparation_report() const;
+  /// Seconds per preparation stage.
   [[nodiscard]] const nlohmann::json& preparation_seconds() const;
   /// The skin springs a soft-tissue cut removed (their ends: the gap opens between them).
   [[nodiscard]] std::span<const std::pair<int, int>> cut_skin_springs() const;

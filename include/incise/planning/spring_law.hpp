@@ -9,17 +9,22 @@
 
 namespace incise::planning {
 
+/// A spring's law: tension k l0 (e + a e^3) at strain e = (l - l0) / l0 (lengths in m,
+/// stiffness k in N/m).
 struct SpringLaw {
   double nonlinearity = 0.0;  ///< a
 
+  /// Stored energy (J).
   [[nodiscard]] double energy(double length, double rest, double stiffness) const {
     const double e = (length - rest) / rest;
     return stiffness * rest * rest * (0.5 * e * e + 0.25 * nonlinearity * e * e * e * e);
   }
+  /// Tension (N), positive when stretched.
   [[nodiscard]] double tension(double length, double rest, double stiffness) const {
     const double e = (length - rest) / rest;
     return stiffness * rest * (e + nonlinearity * e * e * e);
   }
+  /// d tension / d length (N/m).
   [[nodiscard]] double tension_derivative(double length, double rest, double stiffness) const {
     const double e = (length - rest) / rest;
     return stiffness * (1.0 + 3.0 * nonlinearity * e * e);

@@ -22,16 +22,18 @@
 
 namespace incise::planning {
 
+/// One connected piece of a surface.
 struct SurfaceComponent {
-  std::size_t triangles = 0;
-  double area = 0.0;    ///< length^2, in the surface's units
-  double volume = 0.0;  ///< length^3, signed: positive for outward-facing triangles (an open
+  std::size_t triangles = 0;  ///< its triangles
+  double area = 0.0;          ///< length^2, in the surface's units
+  double volume = 0.0;        ///< length^3, signed: positive for outward-facing triangles (an open
                         ///< component's is that of the surface closed by a cone to the origin)
 };
 
+/// A surface's connected pieces.
 struct SurfaceComponents {
-  std::vector<int> triangle_component;  ///< per triangle
-  std::vector<SurfaceComponent> components;
+  std::vector<int> triangle_component;       ///< per triangle
+  std::vector<SurfaceComponent> components;  ///< the pieces
 };
 
 /// Components of triangles joined through shared edges.
@@ -45,6 +47,7 @@ struct SurfaceComponents {
 [[nodiscard]] SurfaceMesh select_triangles(const SurfaceMesh& surface,
                                            std::span<const char> keep_triangle);
 
+/// The distance from one surface to another, from samples on the first.
 struct OneSidedDistance {
   double max = 0.0;                  ///< mm
   double p99 = 0.0;                  ///< mm: 99 % of the samples are nearer
@@ -58,9 +61,10 @@ struct OneSidedDistance {
   std::size_t at_scan_border = 0;    ///< within a voxel of the scan's border: not measured
 };
 
+/// A model surface against an image's isosurface, both ways.
 struct IsosurfaceDistance {
-  OneSidedDistance model_to_isosurface;
-  OneSidedDistance isosurface_to_model;
+  OneSidedDistance model_to_isosurface;  ///< from samples on the model
+  OneSidedDistance isosurface_to_model;  ///< from samples on the isosurface
   std::size_t isosurface_crossings = 0;  ///< on the whole grid
   /// With 99 % confidence, at most this fraction of each surface lies beyond its largest
   /// sampled distance: ln(100) / samples.
@@ -79,9 +83,10 @@ struct IsosurfaceDistance {
                                                              std::uint64_t seed = 0,
                                                              double least_region_mm3 = 0.0);
 
+/// Two surfaces against each other, both ways.
 struct SurfaceDistance {
-  OneSidedDistance model_to_reference;
-  OneSidedDistance reference_to_model;
+  OneSidedDistance model_to_reference;  ///< from samples on the model
+  OneSidedDistance reference_to_model;  ///< from samples on the reference
   /// With 99 % confidence, at most this fraction of each surface lies beyond its largest
   /// sampled distance: ln(100) / samples.
   double beyond_max_fraction = 0.0;

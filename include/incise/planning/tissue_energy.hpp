@@ -21,14 +21,18 @@
 
 namespace incise::planning {
 
+/// The seed's energy of the layered tissue (springs or continuum, volume preservation,
+/// gravity) and its gradient, evaluated in parallel. Reads the tissue, which must outlive it.
 class TissueEnergy {
  public:
+  /// `gravity` in m/s^2.
   TissueEnergy(const LayeredTissue& tissue, const Vec3& gravity);
 
   /// F_E + F_V + F_G, and its gradient (J/m) into `gradient` (every point) when not empty.
   double energy(std::span<const Vec3> x, std::span<Vec3> gradient = {}) const;
   /// The parts of energy() (J).
   [[nodiscard]] double spring_energy(std::span<const Vec3> x) const;
+  /// The prisms' volume preservation (J).
   [[nodiscard]] double volume_energy(std::span<const Vec3> x) const;
   /// The continuum's tetrahedra (J); 0 with spring elasticity.
   [[nodiscard]] double elastic_energy(std::span<const Vec3> x) const;
@@ -41,7 +45,10 @@ class TissueEnergy {
   /// Largest |force| (N) over free points, volume forces included (-grad of energy()).
   [[nodiscard]] double largest_free_force(std::span<const Vec3> x,
                                           std::span<const char> free) const;
+  /// The tissue it evaluates.
   [[nodiscard]] const LayeredTissue& tissue() const { return tissue_; }
+  /// The mean stiffness (N/m) of the springs and tetrahedra (each (2 mu + lambda) times its
+  /// size), a scale for the force objective.
   [[nodiscard]] double mean_stiffness() const { return mean_stiffness_; }
 
  private:
