@@ -12,6 +12,7 @@
 
 namespace incise {
 
+/// What `incise cut --method xfem` was asked for beyond the mesh and the blade path.
 struct XfemPathCutRequest {
   std::filesystem::path output;  ///< .vtu of the virtual elements (and OUTPUT_clipped.vtu beside)
   std::optional<SurfaceMesh> visual;    ///< a surface embedded in the mesh and cut with it
@@ -21,10 +22,11 @@ struct XfemPathCutRequest {
   std::string blade_name;               ///< names the blade path in the report
 };
 
+/// What the XFEM cut along a path made.
 struct XfemPathCutResult {
-  std::string report_json;  ///< the keys `incise cut --method xfem --report` writes
-  std::string summary;      ///< one line: elements, copies, DOFs, pieces, times
-  std::size_t slivers_in = 0;
+  std::string report_json;        ///< the keys `incise cut --method xfem --report` writes
+  std::string summary;            ///< one line: elements, copies, DOFs, pieces, times
+  std::size_t slivers_in = 0;     ///< slivers in the input mesh
   std::filesystem::path clipped;  ///< the clipped elements' .vtu
 };
 

@@ -29,13 +29,13 @@ struct ContactModel {
   /// The touched triangle (index into the surface it was built from; none without contact)
   /// and the anchor's barycentric coordinates in it: where the tissue feels the reaction.
   std::size_t triangle = static_cast<std::size_t>(-1);
-  std::array<double, 3> barycentric{1.0 / 3, 1.0 / 3, 1.0 / 3};
+  std::array<double, 3> barycentric{1.0 / 3, 1.0 / 3, 1.0 / 3};  ///< the anchor in `triangle`
 };
 
 /// A point of a surface: its triangle and barycentric coordinates there.
 struct SurfacePoint {
-  std::size_t triangle = static_cast<std::size_t>(-1);  ///< none for an empty surface
-  std::array<double, 3> barycentric{1.0 / 3, 1.0 / 3, 1.0 / 3};
+  std::size_t triangle = static_cast<std::size_t>(-1);           ///< none for an empty surface
+  std::array<double, 3> barycentric{1.0 / 3, 1.0 / 3, 1.0 / 3};  ///< the point in `triangle`
 };
 
 /// The point of the exterior triangles (on_cut 0) nearest `point` (m): where a force at
@@ -52,6 +52,7 @@ struct ForceSample {
   Vec3 cutting = Vec3::Zero();  ///< opposes the blade's advance in tissue
   double depth = 0.0;           ///< m of the tip below the surface (0 out of contact)
   double wetted_length = 0.0;   ///< m of blade below the surface
+  /// The whole force (N).
   [[nodiscard]] Vec3 total() const { return contact + cutting; }
 };
 
@@ -75,9 +76,13 @@ struct ForceSample {
 /// `max_step` (N) from the previous one, so a new physics frame never kicks the hand.
 class ForceFilter {
  public:
+  /// `limit` and `max_step` in N.
   ForceFilter(double limit, double max_step);
+  /// The force to send for `wanted` (N), clamped and rate-limited.
   Vec3 apply(const Vec3& wanted);
+  /// Forgets the last force: the next one starts from zero.
   void reset() { last_ = Vec3::Zero(); }
+  /// The last force sent (N).
   [[nodiscard]] const Vec3& last() const { return last_; }
 
  private:
@@ -90,9 +95,12 @@ class ForceFilter {
 /// jitter of a 1 kHz stream does not become force noise.
 class VelocityEstimator {
  public:
+  /// Averages over `window` (s).
   explicit VelocityEstimator(double window = 0.01);
+  /// A pose's time (s) and tip (m).
   void add(double time, const Vec3& tip);
   [[nodiscard]] Vec3 velocity() const;  ///< m/s
+  /// Forgets every sample.
   void reset();
 
  private:

@@ -29,11 +29,11 @@ using SteadyTime = std::chrono::steady_clock::time_point;
 /// A device pose as it arrived: the blade, the device's own time stamp (s; 0: none) and when
 /// it was received (the start of the pose-to-force latency).
 struct DevicePose {
-  BladePose blade;
-  double device_time = 0.0;
+  BladePose blade;                 ///< m, in the body's world frame
+  double device_time = 0.0;        ///< s, the device's stamp (0: none)
   std::uint64_t device_stamp = 0;  ///< the message's raw time stamp, echoed with the force
-  SteadyTime received{};
-  std::uint64_t sequence = 0;  ///< grows with every pose posted
+  SteadyTime received{};           ///< when it arrived
+  std::uint64_t sequence = 0;      ///< grows with every pose posted
 };
 
 /// Durations (s) recorded in 1-microsecond bins up to 100 ms (above: counted at the top) for
@@ -41,11 +41,15 @@ struct DevicePose {
 class DurationHistogram {
  public:
   DurationHistogram();
+  /// Records one duration (s).
   void add(double seconds);
+  /// Durations recorded.
   [[nodiscard]] std::uint64_t count() const { return count_; }
   /// The q-th quantile (q in [0, 1]) in s; 0 when empty.
   [[nodiscard]] double quantile(double q) const;
+  /// The longest (s).
   [[nodiscard]] double max() const { return max_; }
+  /// The mean (s); 0 when empty.
   [[nodiscard]] double mean() const { return count_ ? sum_ / static_cast<double>(count_) : 0.0; }
 
  private:
@@ -63,6 +67,7 @@ class PeriodicClock {
   /// Sleeps to the next deadline; returns the time it woke. A tick that comes a whole period
   /// late skips ahead (counted by overran()) instead of bursting to catch up.
   SteadyTime wait();
+  /// Whether the last wait skipped a late tick.
   [[nodiscard]] bool overran() const { return overran_; }
 
  private:
@@ -74,33 +79,40 @@ class PeriodicClock {
 /// Asks for real-time (FIFO) scheduling of the calling thread; false when not permitted.
 bool request_realtime_priority();
 
+/// How the haptic loop kept time (the serve report's `haptics`).
 struct HapticStatistics {
-  bool realtime = false;  ///< the loop ran with real-time priority
-  std::uint64_t ticks = 0;
-  std::uint64_t overruns = 0;  ///< ticks that started a whole period late (skipped ahead)
-  double period_p50 = 0.0;     ///< s
-  double period_p99 = 0.0;
-  double period_max = 0.0;
+  bool realtime = false;        ///< the loop ran with real-time priority
+  std::uint64_t ticks = 0;      ///< loop iterations
+  std::uint64_t overruns = 0;   ///< ticks that started a whole period late (skipped ahead)
+  double period_p50 = 0.0;      ///< s
+  double period_p99 = 0.0;      ///< s
+  double period_max = 0.0;      ///< s
   std::uint64_t latencies = 0;  ///< new poses answered by a force
   double latency_p50 = 0.0;     ///< s, pose received to its force handed on
-  double latency_p99 = 0.0;
-  double latency_max = 0.0;
-  double largest_force = 0.0;  ///< N
-  double largest_step = 0.0;   ///< N between consecutive samples
+  double latency_p99 = 0.0;     ///< s
+  double latency_max = 0.0;     ///< s
+  double largest_force = 0.0;   ///< N
+  double largest_step = 0.0;    ///< N between consecutive samples
 };
 
+/// The device's force loop (1 kHz by default) on its own thread: each tick evaluates the
+/// physics' latest contact model at the newest pose, filters the force and hands it on.
+/// post_pose, release, set_model, latest_pose and statistics may be called from any thread.
 class HapticLoop {
  public:
   /// Called on the loop's thread with each tick's filtered force (N) and the pose it answers
   /// (none before the first pose: no force is sent then).
   using ForceCallback = std::function<void(const Vec3& force, const DevicePose& pose)>;
 
+  /// A loop at `spec`'s rate and limits; it starts with start().
   HapticLoop(const HapticSpec& spec, ForceCallback on_force);
   ~HapticLoop();
   HapticLoop(const HapticLoop&) = delete;
   HapticLoop& operator=(const HapticLoop&) = delete;
 
+  /// Starts the loop's thread (real-time priority where permitted).
   void start();
+  /// Stops and joins it.
   void stop();
   /// The device's newest pose (any thread).
   void post_pose(const DevicePose& pose);
@@ -108,7 +120,9 @@ class HapticLoop {
   void release();
   /// The physics' newest model (any thread; the physics thread once per frame).
   void set_model(std::shared_ptr<const ContactModel> model);
+  /// The newest pose posted, if any.
   [[nodiscard]] std::optional<DevicePose> latest_pose() const;
+  /// The loop's timing so far.
   [[nodiscard]] HapticStatistics statistics() const;
 
  private:

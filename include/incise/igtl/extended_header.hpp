@@ -30,10 +30,10 @@ inline constexpr std::size_t kMaxMetadataEntries = 256;
 
 /// Where a body's parts lie (header version 1: all of it is content).
 struct BodyParts {
-  std::size_t content_offset = 0;
-  std::size_t content_size = 0;
-  std::uint32_t message_id = 0;
-  std::vector<MetadataEntry> metadata;
+  std::size_t content_offset = 0;       ///< bytes into the body where the content starts
+  std::size_t content_size = 0;         ///< the content's bytes
+  std::uint32_t message_id = 0;         ///< the extended header's message id (0 for version 1)
+  std::vector<MetadataEntry> metadata;  ///< version 2's metadata entries
 };
 /// The parts of `body`, sent with header version `version`. Every size read is checked
 /// against the bytes present before use; a body whose parts do not add up is refused.

@@ -17,14 +17,20 @@ namespace incise::igtl {
 class Socket {
  public:
   Socket() = default;
+  /// Owns `fd`.
   explicit Socket(int fd) : fd_(fd) {}
   ~Socket() { close(); }
+  /// Takes the other's descriptor.
   Socket(Socket&& other) noexcept : fd_(other.fd_) { other.fd_ = -1; }
+  /// Closes its own descriptor, then takes the other's.
   Socket& operator=(Socket&& other) noexcept;
   Socket(const Socket&) = delete;
   Socket& operator=(const Socket&) = delete;
+  /// The descriptor (-1 when none).
   [[nodiscard]] int fd() const { return fd_; }
+  /// Whether it holds a descriptor.
   [[nodiscard]] bool valid() const { return fd_ >= 0; }
+  /// Closes the descriptor, if any.
   void close();
 
  private:
@@ -50,14 +56,19 @@ bool read_available(const Socket& socket, std::vector<std::uint8_t>& into);
 /// reader gets fewer surfaces rather than stale forces.
 class Outbox {
  public:
+  /// Sends through `fd` (not owned); `on_backlog` is called when a message has to wait.
   Outbox(int fd, std::size_t backlog_limit, std::function<void()> on_backlog);
   /// Queues or sends `message` whole; false when it was dropped (backlog full or closed).
   bool send(std::span<const std::uint8_t> message, bool droppable);
   /// Sends what waits; false when the peer is gone.
   bool flush();
+  /// Whether bytes wait in the backlog.
   [[nodiscard]] bool waiting() const;
+  /// Whether a write failed (the peer is gone).
   [[nodiscard]] bool broken() const;
+  /// Messages sent whole.
   [[nodiscard]] std::uint64_t messages_sent() const;
+  /// Messages refused (backlog over its limit, or broken).
   [[nodiscard]] std::uint64_t messages_dropped() const;
 
  private:

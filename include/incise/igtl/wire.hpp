@@ -54,13 +54,14 @@ enum class DropReason : std::uint8_t {
 inline constexpr std::size_t kDropReasons = static_cast<std::size_t>(DropReason::kCount);
 [[nodiscard]] std::string_view name_of(DropReason reason);
 
+/// An OpenIGTLink header (58 bytes on the wire).
 struct Header {
-  std::uint16_t version = 0;
+  std::uint16_t version = 0;    ///< header version: 1, or 2 for protocol 3's extended header
   std::string type;             ///< e.g. "TRANSFORM"
   std::string device;           ///< e.g. "Scalpel"
   std::uint64_t timestamp = 0;  ///< seconds << 32 | fraction of a second (0: none)
-  std::uint64_t body_size = 0;
-  std::uint64_t crc = 0;
+  std::uint64_t body_size = 0;  ///< bytes after the header
+  std::uint64_t crc = 0;        ///< CRC-64 of the body
   /// The time stamp in seconds (0 when none).
   [[nodiscard]] double seconds() const;
 };
@@ -68,23 +69,26 @@ struct Header {
 /// One metadata entry of a header-version-2 message (its value in the encoding named, an
 /// IANA MIBenum: 3 is US-ASCII, 106 UTF-8).
 struct MetadataEntry {
-  std::string key;
-  std::uint16_t encoding = 3;
-  std::string value;
+  std::string key;             ///< the entry's key
+  std::uint16_t encoding = 3;  ///< the value's encoding (IANA MIBenum)
+  std::string value;           ///< the value's bytes
+  /// Equal keys, encodings and values.
   bool operator==(const MetadataEntry&) const = default;
 };
 
+/// A complete message as read: its header, parsed and raw, and its body split into parts.
 struct Message {
-  Header header;
-  std::array<std::uint8_t, kHeaderSize> raw_header{};
+  Header header;                                       ///< parsed
+  std::array<std::uint8_t, kHeaderSize> raw_header{};  ///< as on the wire
   /// The body as on the wire (header version 2: extended header, content, metadata).
   std::vector<std::uint8_t> body;
   /// Where the content (the message type's own bytes) lies in `body`: all of it for header
   /// version 1.
   std::size_t content_offset = 0;
-  std::size_t content_size = 0;
-  std::uint32_t message_id = 0;  ///< header version 2's message id (0 otherwise)
-  std::vector<MetadataEntry> metadata;
+  std::size_t content_size = 0;         ///< the content's bytes
+  std::uint32_t message_id = 0;         ///< header version 2's message id (0 otherwise)
+  std::vector<MetadataEntry> metadata;  ///< header version 2's metadata
+  /// The content's bytes.
   [[nodiscard]] std::span<const std::uint8_t> content() const {
     return std::span(body).subspan(content_offset, content_size);
   }
@@ -114,9 +118,9 @@ struct Message {
 [[nodiscard]] std::variant<std::vector<double>, DropReason> decode_sensor(const Message& message);
 /// A STATUS's code and text.
 struct Status {
-  int code = 0;
-  std::string error_name;
-  std::string text;
+  int code = 0;            ///< the protocol's status code (1: OK)
+  std::string error_name;  ///< up to 20 characters
+  std::string text;        ///< the message
 };
 [[nodiscard]] std::variant<Status, DropReason> decode_status(const Message& message);
 
@@ -146,9 +150,9 @@ inline constexpr int kStatusShutDown = 19;
 /// A decoded POLYDATA (for tests and clients): points (m), triangles, the CutFace point
 /// scalar (empty when the message has none).
 struct Surface {
-  std::vector<Vec3> points;
-  std::vector<Triangle> triangles;
-  std::vector<float> cut_share;
+  std::vector<Vec3> points;         ///< m
+  std::vector<Triangle> triangles;  ///< indices into points
+  std::vector<float> cut_share;     ///< per point, 0 to 1
 };
 [[nodiscard]] std::variant<Surface, DropReason> decode_surface(const Message& message);
 
@@ -157,12 +161,15 @@ struct Surface {
 /// size beyond kMaxBodySize is fatal (the stream cannot be trusted to resynchronise).
 class MessageReader {
  public:
+  /// A message the reader refused, and why.
   struct Drop {
-    DropReason reason;
-    Header header;
+    DropReason reason;  ///< why
+    Header header;      ///< its header
   };
+  /// What next() gives: a message or a drop.
   using Event = std::variant<Message, Drop>;
 
+  /// Appends bytes from the stream.
   void feed(std::span<const std::uint8_t> bytes);
   /// The next complete message or drop, or nothing until more bytes come.
   [[nodiscard]] std::optional<Event> next();

@@ -14,6 +14,7 @@
 
 namespace incise::imaging {
 
+/// How extract_isosurface meshes an iso value (plan key `isosurface`; CGAL Mesh_3's criteria).
 struct IsosurfaceOptions {
   double facet_size = 0.0;      ///< mm, largest triangle circumradius; 0: the largest spacing
   double facet_distance = 0.0;  ///< mm, centre to isosurface at most; 0: half the least spacing
@@ -28,6 +29,7 @@ struct IsosurfaceOptions {
   bool seed_every_region = true;
 };
 
+/// An image's isosurface and what making it found.
 struct Isosurface {
   SurfaceMesh surface;               ///< mm, patient space
   std::size_t border_triangles = 0;  ///< left out at the scan border

@@ -13,8 +13,9 @@
 
 namespace incise::imaging {
 
+/// The image's trilinear field at a point: its value and gradient.
 struct TrilinearSample {
-  double value = 0.0;
+  double value = 0.0;            ///< in the image's units
   Vec3 gradient = Vec3::Zero();  ///< value per mm, grid frame (the cell's own, one-sided at faces)
 };
 
@@ -38,6 +39,7 @@ struct TrilinearSample {
 [[nodiscard]] std::vector<std::uint8_t> small_regions_above(const VolumeImage& image, double iso,
                                                             std::size_t least_voxels);
 
+/// Points where the image crosses an iso value between voxel centres, sampled.
 struct IsoCrossings {
   std::vector<Vec3> points;  ///< mm, grid frame: a sample of the crossings
   /// Per point, with an `outside` mask only: 1 when the crossing bounds an enclosed region

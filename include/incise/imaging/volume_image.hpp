@@ -14,6 +14,7 @@
 
 namespace incise::imaging {
 
+/// A scalar volume (a CT) in patient space, as read from MetaImage or DICOM.
 struct VolumeImage {
   std::array<std::size_t, 3> size{0, 0, 0};  ///< voxels along the i, j and k axes
   Vec3 spacing = Vec3::Ones();               ///< mm between voxel centres along i, j, k
@@ -23,7 +24,9 @@ struct VolumeImage {
   std::vector<float> values;  ///< i fastest, then j, then k
   std::string description;    ///< what was read: format and voxel type, for reports
 
+  /// Voxels in all.
   [[nodiscard]] std::size_t voxel_count() const { return size[0] * size[1] * size[2]; }
+  /// The value of voxel (i, j, k).
   [[nodiscard]] float at(std::size_t i, std::size_t j, std::size_t k) const {
     return values[i + size[0] * (j + size[1] * k)];
   }

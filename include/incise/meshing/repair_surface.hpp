@@ -14,34 +14,36 @@
 
 namespace incise {
 
+/// How `incise mesh --repair` mends a surface before meshing it.
 struct SurfaceRepairOptions {
   /// kNone: refuse what is not clean (no change); kInPlace: repair in place only; kAuto: in
   /// place, then a wrap if that was not enough; kWrap: always wrap.
   enum class Mode { kNone, kInPlace, kAuto, kWrap };
-  Mode mode = Mode::kAuto;
+  Mode mode = Mode::kAuto;  ///< how far the repair may go
   /// Alpha wrapping: the largest cavity or gap left out (alpha) and how far outside the input
   /// the wrap lies (offset), in surface units; 0: the bounding box diagonal / 100 and / 1000.
   double wrap_alpha = 0.0;
-  double wrap_offset = 0.0;
+  double wrap_offset = 0.0;  ///< see wrap_alpha
 };
 
+/// What a repair did to a surface (`incise mesh`'s report).
 struct SurfaceRepairReport {
-  bool changed = false;
+  bool changed = false;               ///< the surface returned differs from the input
   std::size_t points_merged = 0;      ///< duplicate points joined
   std::size_t triangles_removed = 0;  ///< duplicate or degenerate triangles dropped
   std::size_t vertices_split = 0;     ///< non-manifold vertices given one copy per fan
   std::size_t edges_stitched = 0;     ///< border edge pairs joined
-  std::size_t holes_filled = 0;
-  double hole_area = 0.0;  ///< surface units squared, all filled holes together
-  double largest_hole_area = 0.0;
-  bool reoriented = false;  ///< turned to bound its volume outward
-  bool wrapped = false;
-  double alpha = 0.0;  ///< of the wrap (surface units)
-  double offset = 0.0;
+  std::size_t holes_filled = 0;       ///< open borders closed
+  double hole_area = 0.0;             ///< surface units squared, all filled holes together
+  double largest_hole_area = 0.0;     ///< surface units squared
+  bool reoriented = false;            ///< turned to bound its volume outward
+  bool wrapped = false;               ///< replaced by an alpha wrap
+  double alpha = 0.0;                 ///< of the wrap (surface units)
+  double offset = 0.0;                ///< of the wrap (surface units)
   /// Largest distance from a result vertex to the input surface, and from an input vertex to
   /// the result (surface units): how far the repair moved the surface, measured at vertices.
   double result_to_input = 0.0;
-  double input_to_result = 0.0;
+  double input_to_result = 0.0;    ///< see result_to_input
   std::vector<std::string> notes;  ///< one line per change, for the user
   /// Why the in-place repair stopped short of a surface (empty when it did not).
   std::string failure;

@@ -11,6 +11,7 @@
 
 namespace incise {
 
+/// How `incise mesh` fills a surface with tetrahedra (TetGen).
 struct TetrahedralizeOptions {
   /// Largest tetrahedron volume, in the surface's units cubed; 0 leaves it to TetGen.
   double max_volume = 0.0;
@@ -27,14 +28,15 @@ struct TetrahedralizeOptions {
   /// the surface has needle triangles (an angle below `needle_angle_deg`), which would
   /// otherwise become flat boundary tetrahedra or stop TetGen.
   enum class Remesh { kAuto, kNever, kAlways };
-  Remesh remesh = Remesh::kAuto;
-  double needle_angle_deg = 1.0;
+  Remesh remesh = Remesh::kAuto;  ///< whether to remesh first
+  double needle_angle_deg = 1.0;  ///< degrees: a smaller triangle angle is a needle
   /// Target edge length of the remeshed surface (surface units); 0: the median input edge.
   double remesh_edge_length = 0.0;
 };
 
+/// The tetrahedral mesh and how it was made.
 struct TetrahedralizeResult {
-  TetMesh mesh;
+  TetMesh mesh;                    ///< in the surface's units
   std::vector<std::string> notes;  ///< what was done to get there (remeshing, retries)
 };
 
@@ -47,14 +49,17 @@ struct TetrahedralizeResult {
 /// Isotropic remeshing of a closed surface to a target edge length (CGAL), keeping it closed.
 [[nodiscard]] SurfaceMesh remesh_surface(const SurfaceMesh& surface, double edge_length);
 
+/// What keeps a surface from bounding a volume (check_surface).
 struct SurfaceCheckReport {
-  std::size_t open_edges = 0;
-  std::size_t nonmanifold_edges = 0;
-  std::size_t misoriented_edges = 0;
-  std::size_t degenerate_triangles = 0;
+  std::size_t open_edges = 0;            ///< edges on one triangle
+  std::size_t nonmanifold_edges = 0;     ///< edges on more than two
+  std::size_t misoriented_edges = 0;     ///< edges used twice the same way
+  std::size_t degenerate_triangles = 0;  ///< of zero area
   /// Pairs of triangles that intersect (other than by shared vertices or edges); at most 10.
   std::vector<std::pair<std::size_t, std::size_t>> self_intersections;
+  /// Whether nothing is wrong.
   [[nodiscard]] bool ok() const;
+  /// What is wrong, in words: a line per kind, with the first self-intersecting pairs.
   [[nodiscard]] std::string describe() const;
 };
 

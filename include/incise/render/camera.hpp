@@ -11,23 +11,28 @@ namespace incise {
 
 using Mat4 = Eigen::Matrix4d;
 
+/// A perspective camera.
 struct Camera {
-  Vec3 eye{0.0, -1.0, 0.0};  ///< m
-  Vec3 target{0.0, 0.0, 0.0};
-  Vec3 up{0.0, 0.0, 1.0};
+  Vec3 eye{0.0, -1.0, 0.0};     ///< m
+  Vec3 target{0.0, 0.0, 0.0};   ///< m: the point looked at
+  Vec3 up{0.0, 0.0, 1.0};       ///< the picture's up direction
   double fov_y_degrees = 35.0;  ///< vertical field of view
 };
 
 /// An axis-aligned box (m).
 struct Bounds {
-  Vec3 min = Vec3::Constant(std::numeric_limits<double>::infinity());
-  Vec3 max = Vec3::Constant(-std::numeric_limits<double>::infinity());
+  Vec3 min = Vec3::Constant(std::numeric_limits<double>::infinity());   ///< low corner
+  Vec3 max = Vec3::Constant(-std::numeric_limits<double>::infinity());  ///< high corner
+  /// Grows the box to hold p.
   void add(const Vec3& p) {
     min = min.cwiseMin(p);
     max = max.cwiseMax(p);
   }
+  /// Whether no point was added.
   [[nodiscard]] bool empty() const { return !(min.array() <= max.array()).all(); }
+  /// The box's centre (m).
   [[nodiscard]] Vec3 centre() const { return 0.5 * (min + max); }
+  /// Half its diagonal (m): the radius of a sphere around it.
   [[nodiscard]] double radius() const { return 0.5 * (max - min).norm(); }
 };
 

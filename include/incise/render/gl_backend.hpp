@@ -12,6 +12,8 @@
 
 namespace incise {
 
+/// The OpenGL 3.3 backend of the window and the offscreen pictures. Needs a current context
+/// on the calling thread, for its whole life.
 class GlBackend final : public RenderBackend {
  public:
   /// Compiles the shaders and makes the textures; throws Error with the driver's log if the

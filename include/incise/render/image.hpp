@@ -7,11 +7,17 @@
 
 namespace incise {
 
+/// A pixel, 8 bits per channel.
 struct Rgba {
-  std::uint8_t r = 0, g = 0, b = 0, a = 255;
+  std::uint8_t r = 0;    ///< red
+  std::uint8_t g = 0;    ///< green
+  std::uint8_t b = 0;    ///< blue
+  std::uint8_t a = 255;  ///< opacity
+  /// The same four channels.
   friend bool operator==(const Rgba&, const Rgba&) = default;
 };
 
+/// A picture in memory, top row first.
 class Image {
  public:
   Image() = default;
@@ -19,12 +25,19 @@ class Image {
   /// positive or above 16384 on a side.
   Image(int width, int height, Rgba fill = {});
 
+  /// Pixels per row.
   [[nodiscard]] int width() const { return width_; }
+  /// Rows.
   [[nodiscard]] int height() const { return height_; }
+  /// Whether it has no pixel.
   [[nodiscard]] bool empty() const { return pixels_.empty(); }
+  /// The pixel in column x of row y (0: top).
   [[nodiscard]] Rgba& at(int x, int y) { return pixels_[index(x, y)]; }
+  /// The same, read only.
   [[nodiscard]] const Rgba& at(int x, int y) const { return pixels_[index(x, y)]; }
+  /// Every pixel, row after row.
   [[nodiscard]] std::vector<Rgba>& pixels() { return pixels_; }
+  /// The same, read only.
   [[nodiscard]] const std::vector<Rgba>& pixels() const { return pixels_; }
   /// Mirrors the rows (OpenGL reads pictures bottom row first).
   void flip_rows();

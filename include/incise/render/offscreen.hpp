@@ -14,6 +14,8 @@
 
 namespace incise {
 
+/// Pictures without a window: an EGL surfaceless context (Mesa's llvmpipe where there is no
+/// GPU), 4x multisampled. One thread uses it.
 class OffscreenRenderer final : public ImageRenderer {
  public:
   /// Throws Error saying what is missing when EGL or OpenGL 3.3 cannot be had.

@@ -41,22 +41,23 @@ struct RenderInput {
   /// Lines drawn on top: the active tetrahedra's edges (yellow) and the edges on the cut
   /// among them (cyan), m.
   std::span<const std::array<Vec3, 2>> highlights;
-  std::span<const std::array<Vec3, 2>> cut_edges;
+  std::span<const std::array<Vec3, 2>> cut_edges;  ///< the cut's edges among the highlights
   /// Per vertex: when given, the surface is coloured by this scalar (cool_to_warm over
   /// RenderOptions::scalar_range) instead of textured. Part of the surface: a change needs a
   /// new surface_revision.
   std::span<const double> scalars;
 };
 
+/// How a frame is drawn.
 struct RenderOptions {
-  int width = 800;  ///< pixels
-  int height = 600;
-  RenderMode mode = RenderMode::kFaces;
-  Camera camera;
+  int width = 800;                       ///< pixels
+  int height = 600;                      ///< pixels
+  RenderMode mode = RenderMode::kFaces;  ///< faces, wire or cut faces alone
+  Camera camera;                         ///< where it is seen from
   /// Rest-space length of one tile of the solid textures (m).
   double texture_period = 0.02;
-  Rgba background{38, 42, 52, 255};
-  bool draw_blade = true;
+  Rgba background{38, 42, 52, 255};  ///< the clear colour
+  bool draw_blade = true;            ///< draw the blade when the input has one
   /// The scalars' values at the blue and the red end of the colour map.
   std::array<double, 2> scalar_range{0.0, 1.0};
   /// Draw back faces even where the surface is closed (they are hidden then: for tests).
@@ -65,13 +66,13 @@ struct RenderOptions {
 
 /// The CPU side of the surface's buffers: built once per surface revision.
 struct SurfaceBuffers {
-  std::uint64_t revision = 0;
+  std::uint64_t revision = 0;      ///< the input's surface_revision they were built for
   std::vector<VertexId> vertices;  ///< the surface's mesh vertices, in buffer order
   /// One past the largest of `vertices`: the positions a frame must give to be drawn with them.
   std::size_t positions_needed = 0;
-  std::vector<std::uint32_t> indices;  ///< into `vertices`: exterior triangles, then cut ones
-  std::size_t exterior_triangles = 0;
-  std::size_t cut_triangles = 0;
+  std::vector<std::uint32_t> indices;      ///< into `vertices`: exterior triangles, then cut ones
+  std::size_t exterior_triangles = 0;      ///< triangles of the body's outside, first in indices
+  std::size_t cut_triangles = 0;           ///< triangles on the cut, after them
   std::vector<float> texture_coordinates;  ///< 3 per buffer vertex: rest position / period
   /// Coloured by scalars: each texture coordinate is (t, 0.5, 0.5), t the scalar's place in
   /// the range, into the colour map.
@@ -97,29 +98,34 @@ void gather_positions(const SurfaceBuffers& buffers, std::span<const Vec3> posit
 
 /// Everything but the surface a backend needs to draw one frame.
 struct DrawCall {
-  int width = 0;
-  int height = 0;
-  RenderMode mode = RenderMode::kFaces;
-  Eigen::Matrix4f view_projection;
-  Eigen::Vector3f eye;
-  Rgba background;
-  std::vector<float> blade_quad;  ///< two triangles, 18 floats; empty without a blade
-  std::vector<float> lines;       ///< 6 floats per segment
-  std::vector<float> cut_lines;   ///< 6 floats per segment, drawn in a second colour
-  bool colour_mapped = false;     ///< the surface's texture is the colour map
+  int width = 0;                         ///< pixels
+  int height = 0;                        ///< pixels
+  RenderMode mode = RenderMode::kFaces;  ///< as RenderOptions::mode
+  Eigen::Matrix4f view_projection;       ///< world (m) to clip space
+  Eigen::Vector3f eye;                   ///< m, for lighting
+  Rgba background;                       ///< the clear colour
+  std::vector<float> blade_quad;         ///< two triangles, 18 floats; empty without a blade
+  std::vector<float> lines;              ///< 6 floats per segment
+  std::vector<float> cut_lines;          ///< 6 floats per segment, drawn in a second colour
+  bool colour_mapped = false;            ///< the surface's texture is the colour map
   /// Skip back faces (llvmpipe shades every fragment it is given: about a third of the time
   /// of a large body's picture went to faces hidden behind others).
   bool cull_back_faces = false;
 };
 
+/// What draws: takes the surface's buffers when they change, the positions every frame, and
+/// a draw call (OpenGL in GlBackend; NullBackend records for tests).
 class RenderBackend {
  public:
   RenderBackend() = default;
   RenderBackend(const RenderBackend&) = delete;
   RenderBackend& operator=(const RenderBackend&) = delete;
   virtual ~RenderBackend() = default;
+  /// A new surface: its vertices, triangles and texture coordinates.
   virtual void upload_surface(const SurfaceBuffers& buffers) = 0;
+  /// The buffer vertices' current positions, 3 floats each (m).
   virtual void upload_positions(std::span<const float> xyz) = 0;
+  /// Draws one frame of what was uploaded.
   virtual void draw(const DrawCall& call) = 0;
 };
 
@@ -138,16 +144,19 @@ class NullBackend final : public RenderBackend {
     ++draws;
     last_call = call;
   }
-  int surface_uploads = 0;
-  int position_uploads = 0;
-  int draws = 0;
-  SurfaceBuffers surface;
-  std::vector<float> positions;
-  DrawCall last_call;
+  int surface_uploads = 0;       ///< upload_surface calls
+  int position_uploads = 0;      ///< upload_positions calls
+  int draws = 0;                 ///< draw calls
+  SurfaceBuffers surface;        ///< the last surface
+  std::vector<float> positions;  ///< the last positions
+  DrawCall last_call;            ///< the last draw call
 };
 
+/// Turns a frame's RenderInput into backend calls, building the surface's buffers again only
+/// when its revision (or what it needs) changes. One thread; the backend must outlive it.
 class Renderer {
  public:
+  /// Draws through `backend`.
   explicit Renderer(RenderBackend& backend) : backend_(&backend) {}
   /// Draws one frame through the backend.
   void render(const RenderInput& input, const RenderOptions& options);
@@ -168,6 +177,7 @@ class ImageRenderer {
   ImageRenderer(const ImageRenderer&) = delete;
   ImageRenderer& operator=(const ImageRenderer&) = delete;
   virtual ~ImageRenderer() = default;
+  /// The frame as a picture of options.width x options.height.
   [[nodiscard]] virtual Image render(const RenderInput& input, const RenderOptions& options) = 0;
 };
 

@@ -17,8 +17,9 @@ enum class TissueLook : std::uint8_t {
 
 /// size^3 RGB texels, x fastest; it tiles seamlessly in every direction.
 struct SolidTexture {
-  int size = 0;
-  std::vector<std::array<std::uint8_t, 3>> texels;
+  int size = 0;                                     ///< texels per side
+  std::vector<std::array<std::uint8_t, 3>> texels;  ///< size^3, x fastest
+  /// The texel at (i, j, k), each in [0, size).
   [[nodiscard]] const std::array<std::uint8_t, 3>& at(int i, int j, int k) const {
     return texels[(static_cast<std::size_t>(k) * static_cast<std::size_t>(size) +
                    static_cast<std::size_t>(j)) *

@@ -9,6 +9,8 @@
 
 namespace incise {
 
+/// A video (H.264, in the container the file name says) written by an ffmpeg child process fed
+/// raw frames through a pipe.
 class VideoWriter {
  public:
   /// Starts ffmpeg writing `path` at `fps` frames/s. Throws Error when ffmpeg is not on PATH.
