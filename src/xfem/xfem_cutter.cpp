@@ -355,7 +355,28 @@ bool XfemCutter::split(TetId rest_tet, const ElementCut& cut,
   for (std::size_t c = 0; c < 4; ++c) {
     const VertexId v = real[c];
     const auto vi = static_cast<std::size_t>(v);
-    if (copy_of_[vi] != kInvalidId) {
+    // Corners across the cut from this one: the side whose element takes its ghost.
+    std::array<VertexId, 4> far{};
+    std::size_t far_count = 0;
+    for (std::size_t k = 0; k < 4; ++k) {
+      if (cut.on_b[k] != cut.on_b[c]) {
+        far[far_count++] = real[k];
+      }
+    }
+    const bool ghost_used = !a_empty || !cut.on_b[c];  // a lone element b has side a's ghosts
+    if (copy_of_[vi] != kInvalidId && ghost_used && far_count > 0) {
+      // An earlier cut's copy is this side's ghost only when it is joined to this side's
+      // corners. A blade that crosses its own cut can meet a copy that went with a piece the
+      // first cut took off (soak finding 501075): as a ghost here it would tie that piece back
+      // to the body. Such a side gets a copy of its own, which later splits of it share.
+      VertexId joined = copy_joined_to(v, std::span(far.data(), far_count));
+      if (joined == kInvalidId) {
+        joined = mesh_->duplicate_vertex(v, {});
+        more_copies_[v].push_back(joined);
+        ++stats_.copies;
+      }
+      ghosts[c] = joined;
+    } else if (copy_of_[vi] != kInvalidId) {
       ghosts[c] = copy_of_[vi];
     } else if (tied[vi] != 0) {
       ghosts[c] = v;
@@ -400,6 +421,41 @@ bool XfemCutter::split(TetId rest_tet, const ElementCut& cut,
   freeze_edges(real);
   ++stats_.elements_split;
   return true;
+}
+
+VertexId XfemCutter::copy_joined_to(VertexId vertex, std::span<const VertexId> far_corners) const {
+  // A copy is joined to a corner when the corner lies within a few vertices of it through the
+  // elements as they are now: the far side of one cut is the copy's own neighbourhood, while
+  // a piece a cut took off has no element in common with the body at all.
+  constexpr int kRings = 3;
+  std::vector<VertexId> candidates{copy_of_[static_cast<std::size_t>(vertex)]};
+  if (const auto more = more_copies_.find(vertex); more != more_copies_.end()) {
+    candidates.insert(candidates.end(), more->second.begin(), more->second.end());
+  }
+  std::unordered_set<VertexId> seen;
+  std::vector<VertexId> frontier;
+  std::vector<VertexId> next;
+  for (const VertexId copy : candidates) {
+    seen = {copy};
+    frontier = {copy};
+    for (int ring = 0; ring < kRings && !frontier.empty(); ++ring) {
+      next.clear();
+      for (const VertexId u : frontier) {
+        for (const TetId t : mesh_->vertex_tets(u)) {
+          for (const VertexId w : mesh_->tet(t)) {
+            if (std::find(far_corners.begin(), far_corners.end(), w) != far_corners.end()) {
+              return copy;
+            }
+            if (seen.insert(w).second) {
+              next.push_back(w);
+            }
+          }
+        }
+      }
+      std::swap(frontier, next);
+    }
+  }
+  return kInvalidId;
 }
 
 void XfemCutter::freeze_edges(const Tet& rest_tet) {
@@ -572,6 +628,18 @@ void XfemCutter::load_state(StateReader& in) {
   tied_users_.clear();
   for (std::size_t k = 0; k < tied_vertices.size(); ++k) {
     tied_users_[tied_vertices[k]] = tied_lists[k];
+  }
+  // The copies after each vertex's first are the mesh's other duplicates of it, in id order.
+  more_copies_.clear();
+  for (std::size_t v = rest_vertices_; v < mesh_->vertex_count(); ++v) {
+    const auto id = static_cast<VertexId>(v);
+    const VertexOrigin& origin = mesh_->vertex_origin(id);
+    const VertexId original = origin.parents[0];
+    if (origin.kind == VertexOrigin::Kind::kDuplicate && original >= 0 &&
+        static_cast<std::size_t>(original) < rest_vertices_ &&
+        copy_of_[static_cast<std::size_t>(original)] != id) {
+      more_copies_[original].push_back(id);
+    }
   }
   front_ = in.values<TetId>("xfem front");
   reached_at_ = in.values<std::pair<double, double>>("xfem reached");

@@ -115,6 +115,18 @@ TEST(Checkpoint, TheTwoLevelPreconditionerResumesBitForBit) {
   }
 }
 
+TEST(Checkpoint, AnXfemCutThatCrossesItselfResumesBitForBit) {
+  // Soak finding 501075: at frame 30 the blade crosses near its own cut and three elements
+  // take copies of their own (a corner's first copy went with a piece the cut took off). The
+  // stop at 32 falls after them: the resumed cutter must know them, or its next split near
+  // them makes yet another copy.
+  const auto dir = test::scratch_dir("checkpoint-xfem-crossing");
+  const SceneDescription scene =
+      load_scene(std::filesystem::path(INCISE_SOURCE_DIR) /
+                 "tests/data/soak_findings/fixed/seed-501075/scene.json");
+  expect_resumes_bit_for_bit(scene, 32, 40, dir, "crossing");
+}
+
 TEST(Checkpoint, DamagedFilesGiveClearErrors) {
   const auto dir = test::scratch_dir("checkpoint-damaged");
   SceneDescription scene = default_scene();

@@ -34,6 +34,7 @@
 #include <cstdint>
 #include <memory>
 #include <set>
+#include <span>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
@@ -146,6 +147,11 @@ class XfemCutter {
   [[nodiscard]] const EdgeRecord* record(VertexId a, VertexId b) const;
   /// Stops counting crossings of a split tetrahedron's edges.
   void freeze_edges(const Tet& rest_tet);
+  /// The copy of `vertex` that the far side of a cut through it can use as the vertex's ghost:
+  /// one joined (through the mesh, a few vertices away) to one of `far_corners`, the corners on
+  /// that side; kInvalidId when no copy is (see split).
+  [[nodiscard]] VertexId copy_joined_to(VertexId vertex,
+                                        std::span<const VertexId> far_corners) const;
 
   TetMesh* mesh_;
   XfemCutterOptions options_;
@@ -161,6 +167,9 @@ class XfemCutter {
   std::unordered_set<std::uint64_t> frozen_;  ///< edge_key of edges of split tetrahedra
   std::vector<std::uint8_t> touched_;         ///< per original vertex: on the swept surface
   std::vector<VertexId> copy_of_;             ///< per original vertex, or kInvalidId
+  /// Per original vertex: copies made after copy_of_'s, for cuts whose far side is not joined
+  /// to any earlier copy's (a blade crossing its own cut). Rebuilt from the mesh on load.
+  std::unordered_map<VertexId, std::vector<VertexId>> more_copies_;
   /// Per original vertex without a copy yet: elements that use it in place of its copy.
   std::unordered_map<VertexId, std::vector<TetId>> tied_users_;
   std::vector<TetId> front_;  ///< rest tetrahedra in state kFront or kWaiting
