@@ -329,8 +329,16 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
     bool ok = true;
     double star_before = 0.0;  // m^3, rest
     double star_after = 0.0;
+    // Where the simulation has the body, the vertex moves to the same combination.
+    Vec3 deformed = Vec3::Zero();
+    if (deformed_ != nullptr) {
+      for (int k = 0; k < point.count; ++k) {
+        deformed += weights[k] * (*deformed_)[point.corners[k]];
+      }
+    }
+    const auto cutter_position = [this](VertexId u) { return position(u); };
+    const auto simulated_position = [this](VertexId u) { return (*deformed_)[u]; };
     for (TetId t : mesh_.vertex_tets(vertex)) {
-      const Tet& v = mesh_.tet(t);
       const int local = mesh_.local_index(t, vertex);
       const std::array<Vec3, 4> before = rest_corners(mesh_, t);
       std::array<Vec3, 4> after = before;
@@ -339,21 +347,10 @@ void SubdivisionCutter::slide_blade_points(const BladePose& pose) {
       star_after += signed_volume(after[0], after[1], after[2], after[3]);
       ok = orient3d(after[0], after[1], after[2], after[3]) == Sign::kPositive &&
            quality(after) >= slide_floor(quality(before));
-      if (ok && positions_ != nullptr) {
-        std::array<Vec3, 4> current{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
-        current[local] = now;
-        ok = orient3d(current[0], current[1], current[2], current[3]) == Sign::kPositive;
-      }
-      if (ok && deformed_ != nullptr) {
-        // Where the simulation has the body: the vertex moves to the same combination there.
-        const VertexData<Vec3>& x = *deformed_;
-        std::array<Vec3, 4> current{x[v[0]], x[v[1]], x[v[2]], x[v[3]]};
-        current[local] = Vec3::Zero();
-        for (int k = 0; k < point.count; ++k) {
-          current[local] += weights[k] * x[point.corners[k]];
-        }
-        ok = orient3d(current[0], current[1], current[2], current[3]) == Sign::kPositive;
-      }
+      ok = ok && (positions_ == nullptr ||
+                  positive_with_corner_at(mesh_, t, local, now, cutter_position));
+      ok = ok && (deformed_ == nullptr ||
+                  positive_with_corner_at(mesh_, t, local, deformed, simulated_position));
       if (!ok) {
         break;
       }
@@ -549,22 +546,16 @@ bool SubdivisionCutter::try_collapse(VertexId vertex, VertexId target) {
     if (orient3d(after[0], after[1], after[2], after[3]) != Sign::kPositive) {
       return false;
     }
-    if (positions_ != nullptr) {
-      const Tet& v = mesh_.tet(t);
-      std::array<Vec3, 4> now{position(v[0]), position(v[1]), position(v[2]), position(v[3])};
-      now[local] = position(target);
-      if (orient3d(now[0], now[1], now[2], now[3]) != Sign::kPositive) {
-        return false;
-      }
+    // ... and where the cutter intersects, and where the simulation has the body.
+    if (positions_ != nullptr &&
+        !positive_with_corner_at(mesh_, t, local, position(target),
+                                 [this](VertexId u) { return position(u); })) {
+      return false;
     }
-    if (deformed_ != nullptr) {
-      const VertexData<Vec3>& x = *deformed_;
-      const Tet& v = mesh_.tet(t);
-      std::array<Vec3, 4> now{x[v[0]], x[v[1]], x[v[2]], x[v[3]]};
-      now[local] = x[target];
-      if (orient3d(now[0], now[1], now[2], now[3]) != Sign::kPositive) {
-        return false;
-      }
+    if (deformed_ != nullptr &&
+        !positive_with_corner_at(mesh_, t, local, (*deformed_)[target],
+                                 [this](VertexId u) { return (*deformed_)[u]; })) {
+      return false;
     }
     worst_after = std::min(worst_after, quality(after));
     change.emplace_back(original, signed_volume(after[0], after[1], after[2], after[3]));

@@ -81,6 +81,18 @@ inline double quality(const std::array<Vec3, 4>& corners) {
   return normalized_volume(corners[0], corners[1], corners[2], corners[3]);
 }
 
+/// Whether tetrahedron `t` is positively oriented (exactly) with its corner `local` at `moved`
+/// and its other corners where `position_of(vertex)` puts them (rest, cutter or simulation
+/// positions).
+template <typename PositionOf>
+bool positive_with_corner_at(const TetMesh& mesh, TetId t, int local, const Vec3& moved,
+                             const PositionOf& position_of) {
+  const Tet& v = mesh.tet(t);
+  std::array<Vec3, 4> p{position_of(v[0]), position_of(v[1]), position_of(v[2]), position_of(v[3])};
+  p[static_cast<std::size_t>(local)] = moved;
+  return orient3d(p[0], p[1], p[2], p[3]) == Sign::kPositive;
+}
+
 inline int side_of(const Vec3& point, const std::array<Vec3, 3>& triangle) {
   const Vec3 normal = (triangle[1] - triangle[0]).cross(triangle[2] - triangle[0]);
   return normal.dot(point - triangle[0]) < 0.0 ? -1 : 1;
