@@ -7,6 +7,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <Eigen/Geometry>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <mutex>
@@ -186,6 +187,18 @@ void bind_planning(py::module_& module) {
           "steps), seconds, message, residual_force (N), factorizations, lagged_steps (steps "
           "solved with an earlier factorisation, kept between predictions) and stage_seconds "
           "(assembly, factorization, solve, line_search: where the time went).")
+      .def(
+          "prepare_next_nudge",
+          [](PySession& s) {
+            const auto start = std::chrono::steady_clock::now();
+            locked(s, [](planning::PlanSession& p) { p.prepare_next_nudge(); });
+            return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+          },
+          "Factorises the tissue's Hessian where the last prediction left it, so that the next "
+          "warm prediction needs no factorisation of its own; returns the seconds it took. What "
+          "the planning viewer does after showing each prediction, while the hand moves to the "
+          "next nudge: called after every prediction, the predictions stay the same, bit for "
+          "bit (the GIL is released meanwhile).")
       .def_property_readonly(
           "skin_triangles",
           [](PySession& s) {

@@ -95,11 +95,11 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
       stiffness.clear();
       // The exact tangent (positive definite near the scanned state), else its convex form
       // (once each: the tangent is factorised only once when it is positive definite).
-      add_tet_stiffness(tissue, pattern, x, false, stiffness);
+      add_prism_hessians(tissue, pattern, x, {.tets = true}, stiffness);
       bool factorised_now = factorization.factorize_positive_definite(stiffness.matrix());
       if (!factorised_now) {
         stiffness.clear();
-        add_tet_stiffness(tissue, pattern, x, true, stiffness);
+        add_prism_hessians(tissue, pattern, x, {.tets = true, .convex = true}, stiffness);
         factorised_now = factorization.factorize(stiffness.matrix());
       }
       if (!factorised_now) {

@@ -9,8 +9,6 @@
 #include <vector>
 
 #include "incise/core/error.hpp"
-#include "incise/core/parallel_for.hpp"
-#include "incise/planning/prism.hpp"
 #include "incise/solve/direct_factorization.hpp"
 #include "point_block_matrix.hpp"
 #include "tissue_pattern.hpp"
@@ -56,9 +54,9 @@ int lagged_iterations(const DirectFactorization& factor,
                                      static_cast<double>(kMostLaggedIterations)));
 }
 
-/// The Hessian of the energy over the free points, the volume term's curvature left out; with
-/// `convex`, also the transverse term of compressed springs (negative: they buckle), which makes
-/// it positive semi-definite by construction.
+/// The Hessian of the energy over the free points; with `convex`, its positive semi-definite
+/// form: the transverse term of compressed springs (negative: they buckle) left out, the
+/// tetrahedra's convex form, the volume term's curvature left out.
 void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& pattern,
                       std::span<const Vec3> x, bool convex, PointBlockMatrix& hessian) {
   hessian.clear();
@@ -81,65 +79,10 @@ void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& patter
     hessian.add_diagonal(spring.b, block);
     hessian.add_coupling(s, -block);
   }
-  if (tissue.elasticity == TissueElasticity::kContinuum) {
-    add_tet_stiffness(tissue, pattern, x, convex, hessian);
-  }
-  if (!(tissue.volume_weight > 0.0)) {
-    return;
-  }
-  // Element matrices for a block of prisms in parallel, then added in order: the sum is the
-  // same for any thread count.
-  constexpr std::size_t kBlock = 1024;  // prisms: 1024 x 2.6 kB of matrices
-  std::vector<PrismHessian> element(kBlock);
-  for (std::size_t first = 0; first < tissue.prisms.size(); first += kBlock) {
-    const std::size_t last = std::min(first + kBlock, tissue.prisms.size());
-    parallel_for(first, last, 64, [&](std::size_t begin, std::size_t end) {
-      for (std::size_t p = begin; p < end; ++p) {
-        const Prism& prism = tissue.prisms[p];
-        if (prism.rest_volume == 0.0) {
-          continue;
-        }
-        PrismPoints corners;
-        for (std::size_t i = 0; i < 6; ++i) {
-          corners[i] = x[static_cast<std::size_t>(prism.points[i])];
-        }
-        const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
-        const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
-        // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form
-        // keeps the first.
-        PrismHessian& block = element[p - first];
-        for (std::size_t i = 0; i < 6; ++i) {
-          for (std::size_t j = 0; j < 6; ++j) {
-            block.block<3, 3>(static_cast<Eigen::Index>(3 * i), static_cast<Eigen::Index>(3 * j)) =
-                weight * dv[i] * dv[j].transpose();
-          }
-        }
-        if (!convex) {
-          block += (weight * (prism_volume(corners) - prism.rest_volume)) *
-                   prism_volume_hessian(corners);
-        }
-      }
-    });
-    for (std::size_t p = first; p < last; ++p) {
-      const Prism& prism = tissue.prisms[p];
-      if (prism.rest_volume == 0.0) {
-        continue;
-      }
-      const PrismHessian& block = element[p - first];
-      for (std::size_t i = 0, k = 0; i < 6; ++i) {
-        const auto bi = static_cast<Eigen::Index>(3 * i);
-        hessian.add_diagonal(prism.points[i], block.block<3, 3>(bi, bi));
-        for (std::size_t j = i + 1; j < 6; ++j, ++k) {
-          const auto bj = static_cast<Eigen::Index>(3 * j);
-          const std::size_t pair = pattern.prism_pairs[p * 15 + k];
-          // The block at (first, second) of the pair as stored.
-          const bool same_order = pattern.pairs[pair].first == prism.points[i];
-          hessian.add_coupling(
-              pair, same_order ? Mat3(block.block<3, 3>(bi, bj)) : Mat3(block.block<3, 3>(bj, bi)));
-        }
-      }
-    }
-  }
+  add_prism_hessians(
+      tissue, pattern, x,
+      {.tets = tissue.elasticity == TissueElasticity::kContinuum, .volume = true, .convex = convex},
+      hessian);
 }
 
 enum class LaggedSolve {
@@ -203,6 +146,10 @@ struct NewtonWorkspace::Data {
   std::optional<PointBlockMatrix> hessian;
   DirectFactorization factorization;  ///< analysed on the first factorisation, kept after
   bool have_factor = false;
+  /// The last minimisation's first exact Hessian was indefinite: the next one, a nudge like
+  /// it, starts with the convex form instead of finding that out again (an assembly and a few
+  /// solves with the factor; the step taken is the same).
+  bool first_step_indefinite = false;
 };
 
 NewtonWorkspace::NewtonWorkspace() = default;
@@ -217,6 +164,7 @@ bool NewtonWorkspace::has_factor() const {
 void NewtonWorkspace::forget_factor() {
   if (data_) {
     data_->have_factor = false;
+    data_->first_step_indefinite = false;
   }
 }
 
@@ -327,16 +275,25 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       seconds += std::chrono::duration<double>(now - mark).count();
       mark = now;
     };
-    assemble_hessian(tissue, pattern, x, false, hessian);
-    hessian.damp_diagonal(damping + shift, 0.0);
-    lap(result.assembly_seconds);
+    // A warm start whose last first step met an indefinite Hessian goes to the convex form at
+    // once (below, as if the exact one had just shown negative curvature).
+    const bool known_indefinite = iteration == 0 && have_factor && data.first_step_indefinite;
+    if (!known_indefinite) {
+      assemble_hessian(tissue, pattern, x, false, hessian);
+      hessian.damp_diagonal(damping + shift, 0.0);
+      lap(result.assembly_seconds);
+    }
     Eigen::VectorXd step;
     // First, conjugate gradients on it preconditioned by the last factorisation: a few solves
     // with a factor already paid for, instead of a new factorisation, while the Hessian has not
     // moved far from the one factorised.
-    const LaggedSolve outcome = have_factor
+    const LaggedSolve outcome = known_indefinite ? LaggedSolve::kNegativeCurvature
+                                : have_factor
                                     ? lagged_solve(hessian.matrix(), factorization, rhs, step)
                                     : LaggedSolve::kNotConverged;
+    if (iteration == 0) {
+      data.first_step_indefinite = outcome == LaggedSolve::kNegativeCurvature;
+    }
     bool lagged = outcome == LaggedSolve::kSolved && rhs.dot(step) > 0.0;  // descent
     lap(result.solve_seconds);
     // The Hessian replaced by its convex form (positive semi-definite by construction), and the

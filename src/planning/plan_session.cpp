@@ -139,6 +139,34 @@ struct PlanSession::State {
   nlohmann::json seconds;
 };
 
+namespace {
+
+/// The instrument that holds soft point i (a skin point within its radius; the first such),
+/// else null.
+const Instrument* held_by(const PlanDescription& plan, const LayeredTissue& tissue, std::size_t i) {
+  if (tissue.layer_of(static_cast<int>(i)) != 0) {
+    return nullptr;
+  }
+  for (const Instrument& instrument : plan.instruments) {
+    if ((tissue.rest[i] - instrument.near).norm() <= instrument.radius) {
+      return &instrument;
+    }
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+/// Per point, whether a prediction moves it: the soft points that no instrument holds.
+std::vector<char> PlanSession::free_points(const State& s) {
+  const LayeredTissue& tissue = s.tissue;
+  std::vector<char> free(tissue.point_count(), 0);
+  for (std::size_t i = 0; i < free.size(); ++i) {
+    free[i] = tissue.kind[i] == PointKind::kSoft && held_by(s.plan, tissue, i) == nullptr ? 1 : 0;
+  }
+  return free;
+}
+
 PlanSession::PlanSession(const PlanDescription& plan, const PlanProgress& progress)
     : state_(std::make_unique<State>()) {
   State& s = *state_;
@@ -460,7 +488,7 @@ const MinimizeResult& PlanSession::predict(bool warm, const PlanProgress& progre
   // Where the fixed points go: bone points with their segment, boundary points stay,
   // instrument points are carried. Free points start where the last prediction left them.
   std::vector<Vec3> x = warm ? s.x : tissue.rest;
-  std::vector<char> free(tissue.point_count(), 0);
+  const std::vector<char> free = free_points(s);
   std::size_t held = 0;
   for (std::size_t i = 0; i < x.size(); ++i) {
     const int column = tissue.column_of(static_cast<int>(i));
@@ -468,18 +496,9 @@ const MinimizeResult& PlanSession::predict(bool warm, const PlanProgress& progre
       const int triangle = tissue.column_bone_triangle[static_cast<std::size_t>(column)];
       const int segment = s.segments.triangle_segment[static_cast<std::size_t>(triangle)];
       x[i] = s.moves[static_cast<std::size_t>(segment)].apply(tissue.rest[i]);
-    } else if (tissue.kind[i] == PointKind::kSoft) {
-      free[i] = 1;
-      if (tissue.layer_of(static_cast<int>(i)) == 0) {
-        for (const Instrument& instrument : s.plan.instruments) {
-          if ((tissue.rest[i] - instrument.near).norm() <= instrument.radius) {
-            x[i] = tissue.rest[i] + instrument.translation;
-            free[i] = 0;
-            ++held;
-            break;
-          }
-        }
-      }
+    } else if (tissue.kind[i] == PointKind::kSoft && free[i] == 0) {
+      x[i] = tissue.rest[i] + held_by(s.plan, tissue, i)->translation;
+      ++held;
     }
   }
   s.report["instrument_points"] = held;
@@ -546,6 +565,15 @@ const MinimizeResult& PlanSession::predict(bool warm, const PlanProgress& progre
   s.x = std::move(x);
   s.prediction = result;
   return s.prediction;
+}
+
+void PlanSession::prepare_next_nudge() {
+  State& s = *state_;
+  if (s.plan.solver.method != Minimizer::kNewton) {
+    return;
+  }
+  const TissueEnergy energy(s.tissue, s.plan.gravity);
+  s.newton.factorize_at(energy, s.x, free_points(s));
 }
 
 std::vector<Vec3> PlanSession::skin_before() const {

@@ -8,17 +8,12 @@
 #include <unordered_map>
 
 #include "incise/mesh/tet_mesh.hpp"
+#include "incise/physics/stable_neo_hookean.hpp"
+#include "incise/planning/prism.hpp"
 
 namespace incise::planning {
 
-namespace {
-
-/// The index among a prism's 15 corner pairs (i, j), i < j, in coupling_pattern's order.
-constexpr std::size_t prism_pair_index(std::size_t i, std::size_t j) {
-  return i * 6 - i * (i + 1) / 2 + (j - i - 1);
-}
-
-}  // namespace
+namespace {}  // namespace
 
 CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
   CouplingPattern pattern;
@@ -45,49 +40,87 @@ CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
   return pattern;
 }
 
-void add_tet_stiffness(const LayeredTissue& tissue, const CouplingPattern& pattern,
-                       std::span<const Vec3> x, bool convex, PointBlockMatrix& matrix) {
-  // Element matrices for a block of prisms in parallel (the eigen-decompositions are most of
-  // the work), then added into the matrix in order: the sum is the same for any thread count.
-  constexpr std::size_t kBlock = 2048;  // prisms: 2048 x 3 x 1.1 kB of matrices
-  std::vector<ElementMatrix> element(3 * kBlock);
+void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& pattern,
+                        std::span<const Vec3> x, const PrismTerms& terms,
+                        PointBlockMatrix& matrix) {
+  const bool volume = terms.volume && tissue.volume_weight > 0.0;
+  if (!terms.tets && !volume) {
+    return;
+  }
+  // A prism's matrix (its three tetrahedra's and its volume term's, over its six corners) for a
+  // block of prisms in parallel (the eigen-decompositions are most of the work), then added
+  // into the matrix in prism order, 21 blocks each: the sum is the same for any thread count.
+  constexpr std::size_t kBlock = 1024;  // prisms: 1024 x 2.6 kB of matrices
+  std::vector<PrismHessian> element(kBlock);
+  std::vector<char> empty(kBlock);
   for (std::size_t first = 0; first < tissue.prisms.size(); first += kBlock) {
     const std::size_t last = std::min(first + kBlock, tissue.prisms.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(first, last, 64),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                        for (std::size_t p = range.begin(); p < range.end(); ++p) {
-                          const Prism& prism = tissue.prisms[p];
-                          for (std::size_t t = 0; t < 3; ++t) {
-                            const PrismTet& tet = prism.tets[t];
-                            if (tet.rest.volume != 0.0) {
-                              element[3 * (p - first) + t] = neo_hookean_stiffness(
-                                  tet_corners(prism, tet, x), tet.rest, prism.material, convex);
-                            }
-                          }
-                        }
-                      });
-    for (std::size_t p = first; p < last; ++p) {
-      const Prism& prism = tissue.prisms[p];
-      for (std::size_t t = 0; t < 3; ++t) {
-        const PrismTet& tet = prism.tets[t];
-        if (tet.rest.volume == 0.0) {
-          continue;
-        }
-        const ElementMatrix& k = element[3 * (p - first) + t];
-        for (std::size_t a = 0; a < 4; ++a) {
-          const auto ba = static_cast<Eigen::Index>(3 * a);
-          const std::size_t ia = tet.corners[a];
-          matrix.add_diagonal(prism.points[ia], k.block<3, 3>(ba, ba));
-          for (std::size_t b = a + 1; b < 4; ++b) {
-            const auto bb = static_cast<Eigen::Index>(3 * b);
-            const std::size_t ib = tet.corners[b];
-            const std::size_t pair =
-                pattern.prism_pairs[p * 15 + prism_pair_index(std::min(ia, ib), std::max(ia, ib))];
-            // The block at (first, second) of the pair as stored.
-            const bool same_order = pattern.pairs[pair].first == prism.points[ia];
-            matrix.add_coupling(
-                pair, same_order ? Mat3(k.block<3, 3>(ba, bb)) : Mat3(k.block<3, 3>(bb, ba)));
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(first, last, 64),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+          for (std::size_t p = range.begin(); p < range.end(); ++p) {
+            const Prism& prism = tissue.prisms[p];
+            PrismHessian& h = element[p - first];
+            h.setZero();
+            bool any = false;
+            for (std::size_t t = 0; t < 3 && terms.tets; ++t) {
+              const PrismTet& tet = prism.tets[t];
+              if (tet.rest.volume == 0.0) {
+                continue;
+              }
+              any = true;
+              const ElementMatrix k = neo_hookean_stiffness(tet_corners(prism, tet, x), tet.rest,
+                                                            prism.material, terms.convex);
+              for (std::size_t a = 0; a < 4; ++a) {
+                const auto ia = static_cast<Eigen::Index>(3 * tet.corners[a]);
+                for (std::size_t b = 0; b < 4; ++b) {
+                  const auto ib = static_cast<Eigen::Index>(3 * tet.corners[b]);
+                  h.block<3, 3>(ia, ib) += k.block<3, 3>(static_cast<Eigen::Index>(3 * a),
+                                                         static_cast<Eigen::Index>(3 * b));
+                }
+              }
+            }
+            if (volume && prism.rest_volume != 0.0) {
+              any = true;
+              PrismPoints corners;
+              for (std::size_t i = 0; i < 6; ++i) {
+                corners[i] = x[static_cast<std::size_t>(prism.points[i])];
+              }
+              const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
+              const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
+              // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form keeps
+              // the first.
+              for (std::size_t i = 0; i < 6; ++i) {
+                for (std::size_t j = 0; j < 6; ++j) {
+                  h.block<3, 3>(static_cast<Eigen::Index>(3 * i),
+                                static_cast<Eigen::Index>(3 * j)) +=
+                      weight * dv[i] * dv[j].transpose();
+                }
+              }
+              if (!terms.convex) {
+                h += (weight * (prism_volume(corners) - prism.rest_volume)) *
+                     prism_volume_hessian(corners);
+              }
+            }
+            empty[p - first] = any ? 0 : 1;
           }
+        });
+    for (std::size_t p = first; p < last; ++p) {
+      if (empty[p - first] != 0) {
+        continue;
+      }
+      const Prism& prism = tissue.prisms[p];
+      const PrismHessian& h = element[p - first];
+      for (std::size_t i = 0, k = 0; i < 6; ++i) {
+        const auto bi = static_cast<Eigen::Index>(3 * i);
+        matrix.add_diagonal(prism.points[i], h.block<3, 3>(bi, bi));
+        for (std::size_t j = i + 1; j < 6; ++j, ++k) {
+          const auto bj = static_cast<Eigen::Index>(3 * j);
+          const std::size_t pair = pattern.prism_pairs[p * 15 + k];
+          // The block at (first, second) of the pair as stored.
+          const bool same_order = pattern.pairs[pair].first == prism.points[i];
+          matrix.add_coupling(
+              pair, same_order ? Mat3(h.block<3, 3>(bi, bj)) : Mat3(h.block<3, 3>(bj, bi)));
         }
       }
     }

@@ -21,9 +21,17 @@ struct CouplingPattern {
 
 [[nodiscard]] CouplingPattern coupling_pattern(const LayeredTissue& tissue);
 
-/// Adds the continuum's tetrahedra's stiffness at positions x: the true Hessian, or with
-/// `convex` its positive semi-definite form (stable_neo_hookean.hpp).
-void add_tet_stiffness(const LayeredTissue& tissue, const CouplingPattern& pattern,
-                       std::span<const Vec3> x, bool convex, PointBlockMatrix& matrix);
+/// Which of a prism's second derivatives add_prism_hessians adds.
+struct PrismTerms {
+  bool tets = false;    ///< the continuum's three tetrahedra (stable_neo_hookean.hpp)
+  bool volume = false;  ///< the volume term (where the tissue's volume_weight > 0)
+  /// Each term's positive semi-definite form instead of the true second derivative.
+  bool convex = false;
+};
+
+/// Adds the prisms' second derivatives at positions x (m), per prism one 18 x 18 matrix of the
+/// chosen terms, added in prism order (the same sum for any thread count).
+void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& pattern,
+                        std::span<const Vec3> x, const PrismTerms& terms, PointBlockMatrix& matrix);
 
 }  // namespace incise::planning

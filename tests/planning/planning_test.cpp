@@ -773,6 +773,46 @@ TEST(PlanSession, SmallNudgesArePredictedWithTheFactorInHand) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(PlanSession, ANudgePreparedForNeedsNoFactorisationAndPredictsTheSameEveryTime) {
+  const std::filesystem::path dir =
+      write_head(std::filesystem::temp_directory_path() / "incise_plan_prepared_nudge_test");
+  { std::ofstream(dir / "plan.json") << kCapPlan; }
+  const PlanDescription plan = load_plan(dir / "plan.json");
+  // The viewer's way: each prediction followed by a factorisation where it ended. Twice, to
+  // see that the predictions are the same, bit for bit. (Without it, the third 3 mm nudge
+  // needs a factorisation of its own: the factor in hand no longer preconditions well enough.)
+  std::vector<std::vector<Vec3>> runs;
+  for (int run = 0; run < 2; ++run) {
+    PlanSession session(plan);
+    const int cap = session.segment_near(Vec3(0, 0, 0.05));
+    EXPECT_TRUE(session.predict(true).converged);
+    session.prepare_next_nudge();
+    for (int step = 1; step <= 4; ++step) {
+      RigidMove move;
+      move.translation = Vec3(0, 0, 0.003 * step);  // m: 3 mm per nudge
+      ASSERT_TRUE(session.try_move(cap, move).empty()) << "step " << step;
+      const MinimizeResult& warm = session.predict(true);
+      EXPECT_TRUE(warm.converged) << "step " << step << ": " << warm.message;
+      EXPECT_EQ(warm.factorizations, 0) << "step " << step;
+      EXPECT_EQ(warm.lagged_steps, warm.iterations) << "step " << step;
+      session.prepare_next_nudge();
+    }
+    runs.emplace_back(session.positions().begin(), session.positions().end());
+    if (run == 1) {
+      // The same minimum as a prediction from the scanned state.
+      EXPECT_TRUE(session.predict(false).converged);
+      double largest_difference = 0.0;
+      for (std::size_t i = 0; i < runs[1].size(); ++i) {
+        largest_difference =
+            std::max(largest_difference, (session.positions()[i] - runs[1][i]).norm());
+      }
+      EXPECT_LT(largest_difference, 1e-5);  // m
+    }
+  }
+  EXPECT_EQ(runs[0], runs[1]);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(PlanSession, MovesAreTriedRefusedAtContactAndPredictedWarmAndTheSavedPlanReproducesThem) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_session_test");

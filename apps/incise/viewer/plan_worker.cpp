@@ -274,6 +274,10 @@ void PlanWorker::predict() {
                              s.largest_displacement_mm)
               << std::flush;
   });
+  // While the face is looked at and the hand moves to the next nudge: a factor of this
+  // minimum, so that the next prediction needs none of its own. Always, not only when no
+  // request waits, so that the same requests give the same predictions, bit for bit.
+  session_->prepare_next_nudge();
 }
 
 void PlanWorker::save(const std::filesystem::path& path) {
