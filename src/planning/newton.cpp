@@ -109,14 +109,17 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
   const auto finite = [&x] {
     return x.allFinite() ? LaggedSolve::kSolved : LaggedSolve::kNotConverged;
   };
+  // The residual is checked as soon as it is updated, before the next solve with the factor
+  // (the costliest part of an iteration: a converged step needs none after its last update).
+  const auto converged = [&] { return r.norm() <= kLaggedTolerance * b_norm; };
+  if (converged()) {
+    return finite();
+  }
   Eigen::VectorXd z = factor.solve(r);
   Eigen::VectorXd p = z;
   double rz = r.dot(z);
   const int most = lagged_iterations(factor, matrix);
   for (int iteration = 0; iteration < most; ++iteration) {
-    if (r.norm() <= kLaggedTolerance * b_norm) {
-      return finite();
-    }
     const Eigen::VectorXd ap = a * p;
     const double curvature = p.dot(ap);
     if (!(curvature > 0.0)) {
@@ -125,12 +128,15 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
     const double step = rz / curvature;
     x += step * p;
     r -= step * ap;
+    if (converged()) {
+      return finite();
+    }
     z = factor.solve(r);
     const double rz_next = r.dot(z);
     p = z + (rz_next / rz) * p;
     rz = rz_next;
   }
-  return r.norm() <= kLaggedTolerance * b_norm ? finite() : LaggedSolve::kNotConverged;
+  return LaggedSolve::kNotConverged;
 }
 
 }  // namespace
