@@ -97,10 +97,15 @@ enum class LaggedSolve {
 /// has moved too far from the factorised one and is factorised itself (negative curvature says
 /// beforehand that a Cholesky factorisation of it would fail).
 LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
-                         const DirectFactorization& factor, const Eigen::VectorXd& b,
+                         DirectFactorization& factor, const Eigen::VectorXd& b,
                          Eigen::VectorXd& x) {
   const auto a = matrix.selfadjointView<Eigen::Lower>();
-  x = factor.solve(b);
+  // The factor preconditions in single precision (half the bytes to read, on worker threads):
+  // its steps are wanted to kLaggedTolerance, not to sixteen digits.
+  const auto precondition = [&factor](const Eigen::VectorXd& v) {
+    return factor.solve_single_precision(v);
+  };
+  x = precondition(b);
   Eigen::VectorXd r = b - a * x;
   const double b_norm = b.norm();
   if (!(b_norm > 0.0)) {
@@ -115,7 +120,7 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
   if (converged()) {
     return finite();
   }
-  Eigen::VectorXd z = factor.solve(r);
+  Eigen::VectorXd z = precondition(r);
   Eigen::VectorXd p = z;
   double rz = r.dot(z);
   const int most = lagged_iterations(factor, matrix);
@@ -131,7 +136,7 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
     if (converged()) {
       return finite();
     }
-    z = factor.solve(r);
+    z = precondition(r);
     const double rz_next = r.dot(z);
     p = z + (rz_next / rz) * p;
     rz = rz_next;

@@ -10,15 +10,25 @@
 #include <Eigen/CholmodSupport>
 #include <cstdlib>
 #include <mutex>
+
+#include "single_precision_supernodes.hpp"
 #endif
 
 namespace incise {
 
 struct DirectFactorization::Backends {
 #ifdef INCISE_HAVE_CHOLMOD
-  Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> cholmod;
+  /// Eigen's CHOLMOD supernodal Cholesky, with its factor readable (for the single-precision
+  /// copy).
+  class CholmodLLT : public Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> {
+   public:
+    [[nodiscard]] const cholmod_factor* factor() const { return m_cholmodFactor; }
+  };
+  CholmodLLT cholmod;
   bool cholmod_analyzed = false;
   Cost cholmod_cost;  ///< from the analysis
+  SinglePrecisionSupernodes single;
+  bool single_current = false;  ///< `single` copies the last factor
 #endif
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt;
   bool ldlt_analyzed = false;
@@ -34,6 +44,7 @@ struct DirectFactorization::Backends {
       cholmod_cost = {cholmod.cholmod().lnz, cholmod.cholmod().fl};
     }
     cholmod.factorize(matrix);
+    single_current = false;
     using_cholmod = cholmod.info() == Eigen::Success;
     return using_cholmod;
   }
@@ -119,6 +130,22 @@ Eigen::VectorXd DirectFactorization::solve(const Eigen::VectorXd& rhs) const {
   }
 #endif
   return backends_->ldlt.solve(rhs);
+}
+
+Eigen::VectorXd DirectFactorization::solve_single_precision(const Eigen::VectorXd& rhs) {
+#ifdef INCISE_HAVE_CHOLMOD
+  Backends& b = *backends_;
+  if (b.using_cholmod) {
+    if (!b.single_current) {
+      b.single.copy(*b.cholmod.factor());
+      b.single_current = true;
+    }
+    if (b.single.valid()) {
+      return b.single.solve(rhs);
+    }
+  }
+#endif
+  return solve(rhs);
 }
 
 DirectFactorization::Cost DirectFactorization::cost() const {
