@@ -46,6 +46,7 @@ PointBlockMatrix::PointBlockMatrix(std::vector<int> first_row, int rows,
   }
   coupling_slot_.assign(pairs.size() * 9, -1);
   coupling_transposed_.assign(pairs.size(), 0);
+  coupling_column_.assign(pairs.size(), -1);
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     const int ra = row(pairs[p].first);
     const int rb = row(pairs[p].second);
@@ -53,6 +54,7 @@ PointBlockMatrix::PointBlockMatrix(std::vector<int> first_row, int rows,
       continue;
     }
     coupling_transposed_[p] = ra < rb ? 1 : 0;
+    coupling_column_[p] = std::min(ra, rb);
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 3; ++c) {
         coupling_slot_[p * 9 + static_cast<std::size_t>(3 * r + c)] =

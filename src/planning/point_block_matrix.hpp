@@ -31,6 +31,11 @@ class PointBlockMatrix {
 
   [[nodiscard]] const DirectFactorization::SparseMatrix& matrix() const { return matrix_; }
   [[nodiscard]] int row(int point) const { return first_row_[static_cast<std::size_t>(point)]; }
+  /// The first of the three columns that hold pair `pair`'s stored block (the smaller of its
+  /// points' first rows), -1 where it is not in the system; a point's diagonal block is in
+  /// columns row(point) to row(point) + 2. Adds to blocks in disjoint column ranges touch
+  /// disjoint values: they may run on separate threads.
+  [[nodiscard]] int coupling_column(std::size_t pair) const { return coupling_column_[pair]; }
   [[nodiscard]] int rows() const { return static_cast<int>(matrix_.rows()); }
 
  private:
@@ -39,6 +44,7 @@ class PointBlockMatrix {
   std::vector<int> diagonal_slot_;  ///< per point: its packed lower block (6), or -1
   std::vector<int> coupling_slot_;  ///< per pair: the 3x3 block below the diagonal (9), or -1
   std::vector<char> coupling_transposed_;  ///< per pair: the stored block is (b, a)
+  std::vector<int> coupling_column_;       ///< per pair: see coupling_column()
 };
 
 }  // namespace incise::planning

@@ -2,9 +2,11 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <unordered_map>
 
 #include "incise/mesh/tet_mesh.hpp"
@@ -40,6 +42,20 @@ CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
   return pattern;
 }
 
+void for_column_ranges(const PointBlockMatrix& matrix, const std::function<void(int, int)>& add) {
+  // One range per worker: each range walks every element and adds only its own blocks, so
+  // more ranges than workers would only repeat the walk.
+  const int points = matrix.rows() / 3;
+  const int ranges =
+      std::clamp(points / kLeastPointsPerRange, 1, tbb::this_task_arena::max_concurrency());
+  tbb::parallel_for(0, ranges, [&](int range) {
+    const auto bound = [&](int r) {
+      return 3 * static_cast<int>(static_cast<std::int64_t>(points) * r / ranges);
+    };
+    add(bound(range), bound(range + 1));
+  });
+}
+
 void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& pattern,
                         std::span<const Vec3> x, const PrismTerms& terms,
                         PointBlockMatrix& matrix) {
@@ -50,9 +66,9 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
   // A prism's matrix (its three tetrahedra's and its volume term's, over its six corners) for a
   // block of prisms in parallel (the eigen-decompositions are most of the work), then added
   // into the matrix in prism order, 21 blocks each: the sum is the same for any thread count.
-  constexpr std::size_t kBlock = 1024;  // prisms: 1024 x 2.6 kB of matrices
-  std::vector<PrismHessian> element(kBlock);
-  std::vector<char> empty(kBlock);
+  constexpr std::size_t kBlock = 4096;  // prisms: 4096 x 2.6 kB of matrices
+  std::vector<PrismHessian> element(std::min(kBlock, tissue.prisms.size()));
+  std::vector<char> empty(element.size());
   for (std::size_t first = 0; first < tissue.prisms.size(); first += kBlock) {
     const std::size_t last = std::min(first + kBlock, tissue.prisms.size());
     tbb::parallel_for(
@@ -105,25 +121,35 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
             empty[p - first] = any ? 0 : 1;
           }
         });
-    for (std::size_t p = first; p < last; ++p) {
-      if (empty[p - first] != 0) {
-        continue;
-      }
-      const Prism& prism = tissue.prisms[p];
-      const PrismHessian& h = element[p - first];
-      for (std::size_t i = 0, k = 0; i < 6; ++i) {
-        const auto bi = static_cast<Eigen::Index>(3 * i);
-        matrix.add_diagonal(prism.points[i], h.block<3, 3>(bi, bi));
-        for (std::size_t j = i + 1; j < 6; ++j, ++k) {
-          const auto bj = static_cast<Eigen::Index>(3 * j);
-          const std::size_t pair = pattern.prism_pairs[p * 15 + k];
-          // The block at (first, second) of the pair as stored.
-          const bool same_order = pattern.pairs[pair].first == prism.points[i];
-          matrix.add_coupling(
-              pair, same_order ? Mat3(h.block<3, 3>(bi, bj)) : Mat3(h.block<3, 3>(bj, bi)));
+    // Added by column ranges side by side, each range's blocks in prism order: every value
+    // gets its terms in the same order as one thread would add them.
+    for_column_ranges(matrix, [&](int low, int high) {
+      const auto mine = [low, high](int column) { return column >= low && column < high; };
+      for (std::size_t p = first; p < last; ++p) {
+        if (empty[p - first] != 0) {
+          continue;
+        }
+        const Prism& prism = tissue.prisms[p];
+        const PrismHessian& h = element[p - first];
+        for (std::size_t i = 0, k = 0; i < 6; ++i) {
+          const auto bi = static_cast<Eigen::Index>(3 * i);
+          if (mine(matrix.row(prism.points[i]))) {
+            matrix.add_diagonal(prism.points[i], h.block<3, 3>(bi, bi));
+          }
+          for (std::size_t j = i + 1; j < 6; ++j, ++k) {
+            const std::size_t pair = pattern.prism_pairs[p * 15 + k];
+            if (!mine(matrix.coupling_column(pair))) {
+              continue;
+            }
+            const auto bj = static_cast<Eigen::Index>(3 * j);
+            // The block at (first, second) of the pair as stored.
+            const bool same_order = pattern.pairs[pair].first == prism.points[i];
+            matrix.add_coupling(
+                pair, same_order ? Mat3(h.block<3, 3>(bi, bj)) : Mat3(h.block<3, 3>(bj, bi)));
+          }
         }
       }
-    }
+    });
   }
 }
 

@@ -3,6 +3,7 @@
 // tetrahedra added to a PointBlockMatrix over them: shared by Newton's prediction and the
 // continuum's equilibrium initialisation.
 
+#include <functional>
 #include <span>
 #include <utility>
 #include <vector>
@@ -20,6 +21,13 @@ struct CouplingPattern {
 };
 
 [[nodiscard]] CouplingPattern coupling_pattern(const LayeredTissue& tissue);
+
+/// Runs add(low, high) for disjoint ranges of the matrix's columns that cover them all (whole
+/// points' columns), side by side on worker threads: an assembly whose add() adds, in element
+/// order, only the blocks whose columns lie in [low, high) gives the same sums as one thread.
+void for_column_ranges(const PointBlockMatrix& matrix, const std::function<void(int, int)>& add);
+/// Fewer points than this to a range are not worth another thread's walk over the elements.
+inline constexpr int kLeastPointsPerRange = 2048;
 
 /// Which of a prism's second derivatives add_prism_hessians adds.
 struct PrismTerms {
