@@ -127,6 +127,27 @@ void PlanWorker::loop() {
     return;
   }
   for (;;) {
+    if (prepare_next_) {
+      // While the face is looked at and the hand moves to the next nudge (not busy: the window
+      // takes the next drag meanwhile, and its request waits for this): a factor of this
+      // minimum, so that the next prediction needs none of its own. After every prediction,
+      // not only when no request waits, so that the same requests give the same predictions,
+      // bit for bit.
+      prepare_next_ = false;
+      {
+        const std::lock_guard lock(mutex_);
+        running_ = !requests_.empty();
+        state_.busy = running_;
+      }
+      if (on_change_) {
+        on_change_();
+      }
+      try {
+        session_->prepare_next_nudge();
+      } catch (const std::exception& error) {
+        publish([&](PlanState& s) { s.status = std::string("error: ") + error.what(); });
+      }
+    }
     PlanRequest next;
     {
       std::unique_lock lock(mutex_);
@@ -274,10 +295,7 @@ void PlanWorker::predict() {
                              s.largest_displacement_mm)
               << std::flush;
   });
-  // While the face is looked at and the hand moves to the next nudge: a factor of this
-  // minimum, so that the next prediction needs none of its own. Always, not only when no
-  // request waits, so that the same requests give the same predictions, bit for bit.
-  session_->prepare_next_nudge();
+  prepare_next_ = true;
 }
 
 void PlanWorker::save(const std::filesystem::path& path) {

@@ -1,8 +1,9 @@
 #pragma once
 // The planning viewer's worker: a PlanSession on its own thread. It prepares the plan, then
 // runs requests one at a time (a segment nudged, an osteotomy plane added, the plan saved),
-// predicting the soft tissue after each change it accepts, warm-started after a nudge; the
-// window reads the latest published state.
+// predicting the soft tissue after each change it accepts, warm-started after a nudge, and
+// after each prediction, not busy, factorising where it ended for the next nudge; the window
+// reads the latest published state.
 // Only this thread touches the session; the window's thread calls request() and state().
 // Requests run in order, so the same requests give the same predictions, bit for bit.
 
@@ -98,6 +99,8 @@ class PlanWorker {
   std::unique_ptr<planning::PlanSession> session_;  ///< this thread's
   std::vector<SegmentPose> poses_;                  ///< this thread's
   std::vector<Vec3> centres_;                       ///< m, per segment
+  bool prepare_next_ =
+      false;  ///< this thread's: a prediction was made, the next nudge not prepared
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<PlanRequest> requests_;
