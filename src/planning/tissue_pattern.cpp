@@ -9,6 +9,7 @@
 #include <functional>
 #include <unordered_map>
 
+#include "incise/core/parallel_for.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 #include "incise/physics/stable_neo_hookean.hpp"
 #include "incise/planning/prism.hpp"
@@ -48,11 +49,14 @@ void for_column_ranges(const PointBlockMatrix& matrix, const std::function<void(
   const int points = matrix.rows() / 3;
   const int ranges =
       std::clamp(points / kLeastPointsPerRange, 1, tbb::this_task_arena::max_concurrency());
-  tbb::parallel_for(0, ranges, [&](int range) {
-    const auto bound = [&](int r) {
-      return 3 * static_cast<int>(static_cast<std::int64_t>(points) * r / ranges);
+  parallel_for(0, static_cast<std::size_t>(ranges), 1, [&](std::size_t first, std::size_t last) {
+    const auto bound = [&](std::size_t r) {
+      return 3 * static_cast<int>(static_cast<std::int64_t>(points) * static_cast<std::int64_t>(r) /
+                                  ranges);
     };
-    add(bound(range), bound(range + 1));
+    for (std::size_t range = first; range < last; ++range) {
+      add(bound(range), bound(range + 1));
+    }
   });
 }
 

@@ -1,9 +1,11 @@
 #include "single_precision_supernodes.hpp"
 
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <numeric>
+
+#include "incise/core/parallel_for.hpp"
 
 namespace incise {
 
@@ -39,12 +41,20 @@ void SinglePrecisionSupernodes::copy(const cholmod_factor& factor) {
   }
   const auto* values = static_cast<const double*>(factor.x);
   values_.resize(factor.xsize);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, factor.xsize, 1 << 16),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i < range.end(); ++i) {
-                        values_[i] = static_cast<float>(values[i]);
-                      }
-                    });
+  std::atomic<bool> representable = true;
+  parallel_for(0, factor.xsize, std::size_t{1} << 16, [&](std::size_t first, std::size_t last) {
+    bool finite = true;
+    for (std::size_t i = first; i < last; ++i) {
+      values_[i] = static_cast<float>(values[i]);
+      finite = finite && std::isfinite(values_[i]);
+    }
+    if (!finite) {
+      representable = false;
+    }
+  });
+  if (!representable) {
+    return;  // beyond a float's range (a factor of a matrix of 1e76 and more): solve in double
+  }
   work_.resize(static_cast<Eigen::Index>(factor.n));
   if (split_of_ != factor.super) {
     split(factor);
@@ -183,9 +193,11 @@ Eigen::VectorXd SinglePrecisionSupernodes::solve(const Eigen::VectorXd& b) {
   const std::size_t room = below_.size() / std::max<std::size_t>(subtrees_.size(), 1);
   // L y = P b: the subtrees side by side, their updates to the top summed apart; then the top.
   std::fill(top_sums_.begin(), top_sums_.end(), 0.0F);
-  tbb::parallel_for(std::size_t{0}, subtrees_.size(), [&](std::size_t k) {
-    for (const int s : subtrees_[k]) {
-      forward(s, top_sums_.data() + k * columns, below_.data() + k * room);
+  parallel_for(0, subtrees_.size(), 1, [&](std::size_t first, std::size_t last) {
+    for (std::size_t k = first; k < last; ++k) {
+      for (const int s : subtrees_[k]) {
+        forward(s, top_sums_.data() + k * columns, below_.data() + k * room);
+      }
     }
   });
   const Supernodes l(*factor_);
@@ -202,9 +214,11 @@ Eigen::VectorXd SinglePrecisionSupernodes::solve(const Eigen::VectorXd& b) {
   for (auto s = top_.rbegin(); s != top_.rend(); ++s) {
     backward(*s, below_.data());
   }
-  tbb::parallel_for(std::size_t{0}, subtrees_.size(), [&](std::size_t k) {
-    for (auto s = subtrees_[k].rbegin(); s != subtrees_[k].rend(); ++s) {
-      backward(*s, below_.data() + k * room);
+  parallel_for(0, subtrees_.size(), 1, [&](std::size_t first, std::size_t last) {
+    for (std::size_t k = first; k < last; ++k) {
+      for (auto s = subtrees_[k].rbegin(); s != subtrees_[k].rend(); ++s) {
+        backward(*s, below_.data() + k * room);
+      }
     }
   });
   Eigen::VectorXd x(n);

@@ -15,9 +15,9 @@ namespace incise {
 
 class SinglePrecisionSupernodes {
  public:
-  /// Copies the values of `factor` (supernodal LL', int indices, real double; else nothing is
-  /// copied and valid() is false). The factor's integer arrays are read in place: it must
-  /// outlive this copy and keep its pattern.
+  /// Copies the values of `factor` (supernodal LL', int indices, real double, every value
+  /// within a float's range; else valid() is false). The factor's integer arrays are read in place:
+  /// it must outlive this copy and keep its pattern.
   void copy(const cholmod_factor& factor);
   [[nodiscard]] bool valid() const { return factor_ != nullptr; }
   /// x with P A P^T = L L^T, A x = b (CHOLMOD's solve, to about 1e-7 of its size times the

@@ -94,5 +94,19 @@ TEST(DirectFactorization, SinglePrecisionSolvesAgreeWithTheDoubleOnesOnAnyThread
   EXPECT_LT((4.0 * quarter - exact).norm(), 1e-5 * exact.norm());
 }
 
+TEST(DirectFactorization, AFactorBeyondAFloatsRangeIsSolvedInDouble) {
+  if (!has_cholmod_backend()) {
+    GTEST_SKIP() << "built without CHOLMOD: solve_single_precision is solve";
+  }
+  // Entries of 1e80 (N/m in absurd units): the factor's 1e40 overflows a float.
+  const SparseMatrix matrix = grid_matrix(6, 1e80);
+  DirectFactorization factor;
+  ASSERT_TRUE(factor.factorize_positive_definite(matrix));
+  const Eigen::VectorXd b = Eigen::VectorXd::Ones(matrix.rows());
+  const Eigen::VectorXd single = factor.solve_single_precision(b);
+  EXPECT_TRUE(single.allFinite());
+  EXPECT_EQ(single, factor.solve(b));
+}
+
 }  // namespace
 }  // namespace incise

@@ -35,7 +35,8 @@ class DirectFactorization {
   /// The same solution from a single-precision copy of CHOLMOD's factor (made on the first
   /// call after each factorisation): half the bytes read of solve(), which a large factor's
   /// solves are bound by, for about 1e-7 of relative precision times the matrix's condition
-  /// number: for preconditioning. solve() itself where the factor is not CHOLMOD's.
+  /// number: for preconditioning. solve() itself where the factor is not CHOLMOD's. Its
+  /// sweeps run on TBB's workers; one caller at a time (it keeps the copy and a work vector).
   [[nodiscard]] Eigen::VectorXd solve_single_precision(const Eigen::VectorXd& rhs);
   /// "cholmod-supernodal" or "simplicial-ldlt": which backend factorised last.
   [[nodiscard]] std::string backend() const;
