@@ -117,6 +117,7 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
             "point in no tetrahedron?)");
       }
       factorised = true;
+      anderson.restart();  // a new matrix, a new iteration: the old steps do not mix with it
     }
     previous_residual = report.residual_after;
     Eigen::VectorXd rhs(rows);
