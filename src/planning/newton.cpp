@@ -38,8 +38,10 @@ constexpr double kLaggedTolerance = 1e-2;
 /// triangular solves run at about a fifth of the dense BLAS-3 rate of a supernodal
 /// factorisation: measured on the planning models, 8 ms per iteration against 0.1 s per
 /// factorisation of 8e8 flops) and a product with the matrix (4 flops per stored nonzero).
-/// Counted in operations, not timed, so that a prediction takes the same steps on any machine
-/// and under any load (the planning viewer's replays rely on it).
+/// (The single-precision sweeps halved an iteration since; twice the iterations then saved a
+/// factorisation from the scan at 25k and 59k points, none at 10k, and made nudges 10 %
+/// slower: the rate was kept.) Counted in operations, not timed, so that a prediction takes the
+/// same steps on any machine and under any load (the planning viewer's replays rely on it).
 int lagged_iterations(const DirectFactorization& factor,
                       const DirectFactorization::SparseMatrix& matrix) {
   constexpr double kSolveSlowdown = 5.0;
