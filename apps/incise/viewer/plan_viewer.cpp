@@ -123,6 +123,9 @@ PlanViewer::PlanViewer(PlanViewerOptions options) : options_(std::move(options))
                         options_.replay ? 0 : 1, this);
   glfwSetScrollCallback(
       window_, [](GLFWwindow* window, double, double y) { viewer_of(window).on_scroll(y); });
+  glfwSetMouseButtonCallback(window_, [](GLFWwindow* window, int button, int action, int) {
+    viewer_of(window).on_mouse_button(button, action);
+  });
   glfwSetKeyCallback(window_, [](GLFWwindow* window, int key, int, int action, int mods) {
     if (action == GLFW_PRESS || action == GLFW_REPEAT) {
       viewer_of(window).on_key(key, mods);
@@ -232,6 +235,13 @@ void PlanViewer::look_from(const Vec3& towards_camera) {
   render_.camera = fit_camera(box, aspect(), towards_camera, up, /*fill=*/1.2);
 }
 
+void PlanViewer::on_mouse_button(int button, int action) {
+  // GLFW's left, right and middle buttons are 0, 1 and 2.
+  if (action == GLFW_PRESS && button >= 0 && button < static_cast<int>(pressed_.size())) {
+    pressed_[static_cast<std::size_t>(button)] = true;
+  }
+}
+
 void PlanViewer::handle_keys() {
   const bool keyboard_free = !ImGui::GetIO().WantCaptureKeyboard;
   const int segments = static_cast<int>(state_.segment_volumes_mm3.size());
@@ -339,9 +349,15 @@ void PlanViewer::handle_mouse() {
   int width = 1;
   int height = 1;
   glfwGetWindowSize(window_, &width, &height);
-  const bool left = glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
-  const bool right = glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
-  const bool middle = glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
+  // Held now, or pressed (and perhaps released already) since the last frame.
+  const auto held = [this](int button) {
+    const bool pressed = pressed_[static_cast<std::size_t>(button)];
+    pressed_[static_cast<std::size_t>(button)] = false;
+    return pressed || glfwGetMouseButton(window_, button) == GLFW_PRESS;
+  };
+  const bool left = held(GLFW_MOUSE_BUTTON_LEFT);
+  const bool right = held(GLFW_MOUSE_BUTTON_RIGHT);
+  const bool middle = held(GLFW_MOUSE_BUTTON_MIDDLE);
   const bool free = !io.WantCaptureMouse;
   if (scroll_ != 0.0 && free) {
     zoom(render_.camera, std::pow(0.9, scroll_));

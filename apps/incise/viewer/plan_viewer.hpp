@@ -21,6 +21,7 @@
 // bone or the skin; 1, 2, 3 look from the front, the side, above; O places a plane; S saves;
 // P takes a picture; Esc closes.
 
+#include <array>
 #include <deque>
 #include <filesystem>
 #include <memory>
@@ -59,6 +60,9 @@ class PlanViewer {
   // From GLFW callbacks, on the window's thread.
   void on_key(int key, int mods) { keys_.push_back({key, mods}); }
   void on_scroll(double amount) { scroll_ += amount; }
+  /// A press is kept until the next frame has seen it: a click whose press and release come
+  /// in one batch of events (a slow frame) is still a click.
+  void on_mouse_button(int button, int action);
 
  private:
   void handle_keys();
@@ -123,6 +127,7 @@ class PlanViewer {
   double last_x_ = 0.0;
   double last_y_ = 0.0;
   double scroll_ = 0.0;
+  std::array<bool, 3> pressed_{};  ///< left, right, middle pressed since the last frame
   struct Key {
     int key;
     int mods;
