@@ -76,10 +76,10 @@ constexpr int kAndersonDepth = 5;
 /// which are small for tissue that carries its own weight. (Refactorising whenever the
 /// residual did not halve bought nothing: K hardly changes with X, and each factorisation
 /// cost 20 cheap steps. On the phantom head of bench/head_phantom.py: 8.3 s -> 1.6 s.) The
-/// steps are mixed by Anderson's acceleration, restarted where a mixed step raised the
-/// residual or a sliver changed the stiffness; each solve is in single precision (the residual
-/// is the forces', in double: the answer is the same).
-/// `f` holds the forces at the scanned state, `report` the residual before.
+/// steps are mixed by Anderson's acceleration, restarted whenever the stiffness is factorised
+/// again (after a step that did not lower the residual by a tenth, or left a sliver); each solve is
+/// in single precision (the residual is the forces', in double: the answer is the same). `f` holds
+/// the forces at the scanned state, `report` the residual before.
 EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& energy,
                                     std::vector<Vec3>& f, EquilibriumReport report,
                                     double tolerance, int max_iterations) {
@@ -117,7 +117,9 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
             "point in no tetrahedron?)");
       }
       factorised = true;
-      anderson.restart();  // a new matrix, a new iteration: the old steps do not mix with it
+      // A new matrix, a new iteration: the old steps do not mix with it. (This is also where a
+      // mixed step that raised the residual, or left a sliver, restarts the mixing.)
+      anderson.restart();
     }
     previous_residual = report.residual_after;
     Eigen::VectorXd rhs(rows);
@@ -141,13 +143,9 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
     }
     if (set_tet_rest_shapes(tissue, rest) > 0) {
       factorised = false;  // a sliver left: the stiffness changed
-      anderson.restart();
     }
     energy.forces(x, f);
     report.residual_after = largest_soft_force(tissue, f);
-    if (report.residual_after > previous_residual) {
-      anderson.restart();  // the mixed step did not help: the next is the chord's own
-    }
     report.iterations = iteration + 1;
   }
   for (std::size_t i = 0; i < n; ++i) {

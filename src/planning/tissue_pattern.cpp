@@ -1,7 +1,5 @@
 #include "tissue_pattern.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -15,8 +13,6 @@
 #include "incise/planning/prism.hpp"
 
 namespace incise::planning {
-
-namespace {}  // namespace
 
 CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
   CouplingPattern pattern;
@@ -75,56 +71,53 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
   std::vector<char> empty(element.size());
   for (std::size_t first = 0; first < tissue.prisms.size(); first += kBlock) {
     const std::size_t last = std::min(first + kBlock, tissue.prisms.size());
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(first, last, 64),
-        [&](const tbb::blocked_range<std::size_t>& range) {
-          for (std::size_t p = range.begin(); p < range.end(); ++p) {
-            const Prism& prism = tissue.prisms[p];
-            PrismHessian& h = element[p - first];
-            h.setZero();
-            bool any = false;
-            for (std::size_t t = 0; t < 3 && terms.tets; ++t) {
-              const PrismTet& tet = prism.tets[t];
-              if (tet.rest.volume == 0.0) {
-                continue;
-              }
-              any = true;
-              const ElementMatrix k = neo_hookean_stiffness(tet_corners(prism, tet, x), tet.rest,
-                                                            prism.material, terms.convex);
-              for (std::size_t a = 0; a < 4; ++a) {
-                const auto ia = static_cast<Eigen::Index>(3 * tet.corners[a]);
-                for (std::size_t b = 0; b < 4; ++b) {
-                  const auto ib = static_cast<Eigen::Index>(3 * tet.corners[b]);
-                  h.block<3, 3>(ia, ib) += k.block<3, 3>(static_cast<Eigen::Index>(3 * a),
-                                                         static_cast<Eigen::Index>(3 * b));
-                }
-              }
-            }
-            if (volume && prism.rest_volume != 0.0) {
-              any = true;
-              PrismPoints corners;
-              for (std::size_t i = 0; i < 6; ++i) {
-                corners[i] = x[static_cast<std::size_t>(prism.points[i])];
-              }
-              const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
-              const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
-              // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form keeps
-              // the first.
-              for (std::size_t i = 0; i < 6; ++i) {
-                for (std::size_t j = 0; j < 6; ++j) {
-                  h.block<3, 3>(static_cast<Eigen::Index>(3 * i),
-                                static_cast<Eigen::Index>(3 * j)) +=
-                      weight * dv[i] * dv[j].transpose();
-                }
-              }
-              if (!terms.convex) {
-                h += (weight * (prism_volume(corners) - prism.rest_volume)) *
-                     prism_volume_hessian(corners);
-              }
-            }
-            empty[p - first] = any ? 0 : 1;
+    parallel_for(first, last, 64, [&](std::size_t begin, std::size_t end) {
+      for (std::size_t p = begin; p < end; ++p) {
+        const Prism& prism = tissue.prisms[p];
+        PrismHessian& h = element[p - first];
+        h.setZero();
+        bool any = false;
+        for (std::size_t t = 0; t < 3 && terms.tets; ++t) {
+          const PrismTet& tet = prism.tets[t];
+          if (tet.rest.volume == 0.0) {
+            continue;
           }
-        });
+          any = true;
+          const ElementMatrix k = neo_hookean_stiffness(tet_corners(prism, tet, x), tet.rest,
+                                                        prism.material, terms.convex);
+          for (std::size_t a = 0; a < 4; ++a) {
+            const auto ia = static_cast<Eigen::Index>(3 * tet.corners[a]);
+            for (std::size_t b = 0; b < 4; ++b) {
+              const auto ib = static_cast<Eigen::Index>(3 * tet.corners[b]);
+              h.block<3, 3>(ia, ib) +=
+                  k.block<3, 3>(static_cast<Eigen::Index>(3 * a), static_cast<Eigen::Index>(3 * b));
+            }
+          }
+        }
+        if (volume && prism.rest_volume != 0.0) {
+          any = true;
+          PrismPoints corners;
+          for (std::size_t i = 0; i < 6; ++i) {
+            corners[i] = x[static_cast<std::size_t>(prism.points[i])];
+          }
+          const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
+          const double weight = tissue.volume_weight / std::abs(prism.rest_volume);
+          // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form keeps
+          // the first.
+          for (std::size_t i = 0; i < 6; ++i) {
+            for (std::size_t j = 0; j < 6; ++j) {
+              h.block<3, 3>(static_cast<Eigen::Index>(3 * i), static_cast<Eigen::Index>(3 * j)) +=
+                  weight * dv[i] * dv[j].transpose();
+            }
+          }
+          if (!terms.convex) {
+            h += (weight * (prism_volume(corners) - prism.rest_volume)) *
+                 prism_volume_hessian(corners);
+          }
+        }
+        empty[p - first] = any ? 0 : 1;
+      }
+    });
     // Added by column ranges side by side, each range's blocks in prism order: every value
     // gets its terms in the same order as one thread would add them.
     for_column_ranges(matrix, [&](int low, int high) {

@@ -39,6 +39,7 @@ struct DirectFactorization::Backends {
   /// CHOLMOD's supernodal Cholesky (the pattern analysed once); false when not positive definite.
   bool factorize_cholmod(const SparseMatrix& matrix) {
     if (!cholmod_analyzed) {
+      single.forget_pattern();  // the analysis makes a new factor, perhaps at the same address
       cholmod.analyzePattern(matrix);
       cholmod_analyzed = true;
       cholmod_cost = {cholmod.cholmod().lnz, cholmod.cholmod().fl};

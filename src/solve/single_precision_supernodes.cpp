@@ -29,6 +29,13 @@ struct Supernodes {
         count(static_cast<int>(l.nsuper)) {}
   [[nodiscard]] int columns(int s) const { return super[s + 1] - super[s]; }
   [[nodiscard]] int height(int s) const { return pi[s + 1] - pi[s]; }
+  /// Supernode s's dense columns in `values` (height x columns, column-major).
+  using Block = Eigen::Map<const Eigen::MatrixXf, 0, Eigen::OuterStride<>>;
+  [[nodiscard]] Block block(int s, const std::vector<float>& values) const {
+    return {values.data() + px[s], height(s), columns(s), Eigen::OuterStride<>(height(s))};
+  }
+  /// Its rows below its diagonal block.
+  [[nodiscard]] const int* rows_below(int s) const { return rows + pi[s] + columns(s); }
 };
 
 }  // namespace
@@ -56,7 +63,7 @@ void SinglePrecisionSupernodes::copy(const cholmod_factor& factor) {
     return;  // beyond a float's range (a factor of a matrix of 1e76 and more): solve in double
   }
   work_.resize(static_cast<Eigen::Index>(factor.n));
-  if (split_of_ != factor.super) {
+  if (!split_made_) {
     split(factor);
   }
   factor_ = &factor;
@@ -79,7 +86,7 @@ void SinglePrecisionSupernodes::split(const cholmod_factor& factor) {
     const auto us = static_cast<std::size_t>(s);
     work[us] += static_cast<double>(l.height(s)) * l.columns(s);
     if (l.height(s) > l.columns(s)) {
-      parent[us] = of_column[static_cast<std::size_t>(l.rows[l.pi[s] + l.columns(s)])];
+      parent[us] = of_column[static_cast<std::size_t>(*l.rows_below(s))];
       children[static_cast<std::size_t>(parent[us])].push_back(s);
       work[static_cast<std::size_t>(parent[us])] += work[us];
     } else {
@@ -132,25 +139,22 @@ void SinglePrecisionSupernodes::split(const cholmod_factor& factor) {
   }
   top_sums_.assign(subtrees_.size() * static_cast<std::size_t>(top_columns_), 0.0F);
   below_.assign(subtrees_.size() * std::max<std::size_t>(factor.maxesize, 1), 0.0F);
-  split_of_ = factor.super;
+  split_made_ = true;
 }
 
 void SinglePrecisionSupernodes::forward(int s, float* top_sums, float* below_values) {
   const Supernodes l(*factor_);
-  const int first = l.super[s];
   const int columns = l.columns(s);
-  const int height = l.height(s);
-  using Block = Eigen::Map<const Eigen::MatrixXf, 0, Eigen::OuterStride<>>;
-  const Block block(values_.data() + l.px[s], height, columns, Eigen::OuterStride<>(height));
-  auto y = work_.segment(first, columns);
+  const Supernodes::Block block = l.block(s, values_);
+  auto y = work_.segment(l.super[s], columns);
   block.topRows(columns).triangularView<Eigen::Lower>().solveInPlace(y);
-  const int below = height - columns;
+  const int below = l.height(s) - columns;
   if (below == 0) {
     return;
   }
   Eigen::Map<Eigen::VectorXf> updates(below_values, below);
   updates.noalias() = block.bottomRows(below) * y;
-  const int* below_rows = l.rows + l.pi[s] + columns;
+  const int* below_rows = l.rows_below(s);
   for (int i = 0; i < below; ++i) {
     const float update = updates[i];
     const int row = below_rows[i];
@@ -165,15 +169,12 @@ void SinglePrecisionSupernodes::forward(int s, float* top_sums, float* below_val
 
 void SinglePrecisionSupernodes::backward(int s, float* below_values) {
   const Supernodes l(*factor_);
-  const int first = l.super[s];
   const int columns = l.columns(s);
-  const int height = l.height(s);
-  using Block = Eigen::Map<const Eigen::MatrixXf, 0, Eigen::OuterStride<>>;
-  const Block block(values_.data() + l.px[s], height, columns, Eigen::OuterStride<>(height));
-  auto y = work_.segment(first, columns);
-  const int below = height - columns;
+  const Supernodes::Block block = l.block(s, values_);
+  auto y = work_.segment(l.super[s], columns);
+  const int below = l.height(s) - columns;
   if (below > 0) {
-    const int* below_rows = l.rows + l.pi[s] + columns;
+    const int* below_rows = l.rows_below(s);
     for (int i = 0; i < below; ++i) {
       below_values[i] = work_[below_rows[i]];
     }

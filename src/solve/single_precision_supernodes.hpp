@@ -16,10 +16,15 @@ namespace incise {
 class SinglePrecisionSupernodes {
  public:
   /// Copies the values of `factor` (supernodal LL', int indices, real double, every value
-  /// within a float's range; else valid() is false). The factor's integer arrays are read in place:
-  /// it must outlive this copy and keep its pattern.
+  /// within a float's range; else valid() is false). The factor's integer arrays are read in
+  /// place: it must outlive this copy and keep its pattern until forget_pattern().
   void copy(const cholmod_factor& factor);
   [[nodiscard]] bool valid() const { return factor_ != nullptr; }
+  /// The factor is analysed again (its pattern may differ): the next copy splits it anew.
+  void forget_pattern() {
+    factor_ = nullptr;
+    split_made_ = false;
+  }
   /// x with P A P^T = L L^T, A x = b (CHOLMOD's solve, to about 1e-7 of its size times the
   /// matrix's condition number). The same answer, bit for bit, for any number of threads.
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& b);
@@ -38,7 +43,7 @@ class SinglePrecisionSupernodes {
   std::vector<float> values_;  ///< the supernodes' dense columns, as CHOLMOD stores them
   Eigen::VectorXf work_;       ///< the permuted right-hand side, swept in place
   // The split, from the factor's pattern:
-  const void* split_of_ = nullptr;          ///< the `super` array it was made from
+  bool split_made_ = false;                 ///< for the factor's current pattern
   std::vector<std::vector<int>> subtrees_;  ///< each subtree's supernodes, children first
   std::vector<int> top_;                    ///< the others, children first
   std::vector<int> top_position_;  ///< per column: its place among the top's columns, or -1

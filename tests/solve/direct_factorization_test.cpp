@@ -94,6 +94,23 @@ TEST(DirectFactorization, SinglePrecisionSolvesAgreeWithTheDoubleOnesOnAnyThread
   EXPECT_LT((4.0 * quarter - exact).norm(), 1e-5 * exact.norm());
 }
 
+TEST(DirectFactorization, SinglePrecisionSolvesFollowANewPattern) {
+  if (!has_cholmod_backend()) {
+    GTEST_SKIP() << "built without CHOLMOD: solve_single_precision is solve";
+  }
+  DirectFactorization factor;
+  for (const int n : {10, 12, 9}) {  // each a new pattern, analysed again
+    factor.reset_pattern();
+    const SparseMatrix matrix = grid_matrix(n, 1.0);
+    ASSERT_TRUE(factor.factorize_positive_definite(matrix));
+    const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(matrix.rows(), -1.0, 1.0);
+    const Eigen::VectorXd exact = factor.solve(b);
+    const Eigen::VectorXd single = factor.solve_single_precision(b);
+    ASSERT_EQ(single.size(), exact.size());
+    EXPECT_LT((single - exact).norm(), 1e-5 * exact.norm()) << n << "^3 points";
+  }
+}
+
 TEST(DirectFactorization, AFactorBeyondAFloatsRangeIsSolvedInDouble) {
   if (!has_cholmod_backend()) {
     GTEST_SKIP() << "built without CHOLMOD: solve_single_precision is solve";

@@ -126,28 +126,8 @@ void PlanWorker::loop() {
     running_ = false;
     return;
   }
+  finish_request();
   for (;;) {
-    if (prepare_next_) {
-      // While the face is looked at and the hand moves to the next nudge (not busy: the window
-      // takes the next drag meanwhile, and its request waits for this): a factor of this
-      // minimum, so that the next prediction needs none of its own. After every prediction,
-      // not only when no request waits, so that the same requests give the same predictions,
-      // bit for bit.
-      prepare_next_ = false;
-      {
-        const std::lock_guard lock(mutex_);
-        running_ = !requests_.empty();
-        state_.busy = running_;
-      }
-      if (on_change_) {
-        on_change_();
-      }
-      try {
-        session_->prepare_next_nudge();
-      } catch (const std::exception& error) {
-        publish([&](PlanState& s) { s.status = std::string("error: ") + error.what(); });
-      }
-    }
     PlanRequest next;
     {
       std::unique_lock lock(mutex_);
@@ -173,14 +153,31 @@ void PlanWorker::loop() {
     } catch (const std::exception& error) {
       publish([&](PlanState& s) { s.status = std::string("error: ") + error.what(); });
     }
-    {
-      const std::lock_guard lock(mutex_);
-      running_ = !requests_.empty();
-      state_.busy = running_;
-    }
-    if (on_change_) {
-      on_change_();
-    }
+    finish_request();
+  }
+}
+
+void PlanWorker::finish_request() {
+  {
+    const std::lock_guard lock(mutex_);
+    running_ = !requests_.empty();
+    state_.busy = running_;
+  }
+  if (on_change_) {
+    on_change_();
+  }
+  if (!prepare_next_) {
+    return;
+  }
+  // While the face is looked at and the hand moves to the next nudge (not busy: the window
+  // takes the next drag meanwhile, and its request waits for this): a factor of this minimum,
+  // so that the next prediction needs none of its own. After every prediction, not only when
+  // no request waits, so that the same requests give the same predictions, bit for bit.
+  prepare_next_ = false;
+  try {
+    session_->prepare_next_nudge();
+  } catch (const std::exception& error) {
+    publish([&](PlanState& s) { s.status = std::string("error: ") + error.what(); });
   }
 }
 

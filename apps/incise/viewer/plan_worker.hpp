@@ -92,6 +92,9 @@ class PlanWorker {
   void cut(const PlanRequest& request);
   void save(const std::filesystem::path& path);
   void predict();
+  /// Publishes that the request is done (busy only while more wait), then factorises for the
+  /// next nudge if a prediction was made.
+  void finish_request();
 
   planning::PlanDescription plan_;
   std::string plan_text_;
@@ -99,8 +102,7 @@ class PlanWorker {
   std::unique_ptr<planning::PlanSession> session_;  ///< this thread's
   std::vector<SegmentPose> poses_;                  ///< this thread's
   std::vector<Vec3> centres_;                       ///< m, per segment
-  bool prepare_next_ =
-      false;  ///< this thread's: a prediction was made, the next nudge not prepared
+  bool prepare_next_ = false;  ///< this thread's: a prediction not yet prepared from
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<PlanRequest> requests_;
