@@ -765,11 +765,13 @@ bool SubdivisionCutter::collapse_opened_behind(const std::vector<TetId>& around)
   std::vector<std::pair<VertexId, VertexId>> points;  // (vertex, face point)
   for (TetId t : around) {
     for (VertexId v : mesh_.tet(t)) {
+      if (on_cut_[v] == 0) {
+        continue;  // most of them: asked first, before two origins are looked up
+      }
       const VertexOrigin& own = mesh_.vertex_origin(v);
       const VertexId point = own.kind == VertexOrigin::Kind::kDuplicate ? own.parents[0] : v;
       const VertexOrigin& origin = mesh_.vertex_origin(point);
-      if (on_cut_[v] != 0 && origin.kind == VertexOrigin::Kind::kCombination &&
-          origin.parent_count == 3) {
+      if (origin.kind == VertexOrigin::Kind::kCombination && origin.parent_count == 3) {
         points.emplace_back(v, point);
       }
     }

@@ -8,7 +8,6 @@
 #include <map>
 #include <numeric>
 #include <set>
-#include <unordered_set>
 
 #include "cutter_helpers.hpp"
 #include "incise/core/error.hpp"
@@ -236,10 +235,12 @@ void SubdivisionCutter::keep_no_shards() {
   // Regions closed off by cut faces are found by a bounded walk across faces that are not cut:
   // a walk that grows past the budget is in a large piece (and so is every tetrahedron it saw).
   constexpr std::size_t kBudget = 256;
-  std::unordered_set<TetId> large;
-  std::unordered_set<TetId> checked;
+  StampedSet& large = shard_walks_.large;
+  StampedSet& checked = shard_walks_.checked;
+  StampedSet& inside = shard_walks_.inside;
+  large.clear(mesh_.tet_count());
+  checked.clear(mesh_.tet_count());
   std::vector<TetId> region;
-  std::unordered_set<TetId> inside;
   for (const auto& [tet, face] : marked_) {
     const TetId across = mesh_.tet_neighbors(tet)[face];
     for (TetId start : {tet, across}) {
@@ -247,7 +248,8 @@ void SubdivisionCutter::keep_no_shards() {
         continue;
       }
       region.assign(1, start);
-      inside = {start};
+      inside.clear(mesh_.tet_count());
+      inside.insert(start);
       bool closed = true;
       for (std::size_t k = 0; k < region.size() && closed; ++k) {
         for (int g = 0; g < 4 && closed; ++g) {
@@ -264,10 +266,14 @@ void SubdivisionCutter::keep_no_shards() {
         }
       }
       if (!closed) {
-        large.insert(region.begin(), region.end());
+        for (TetId r : region) {
+          large.insert(r);
+        }
         continue;
       }
-      checked.insert(region.begin(), region.end());
+      for (TetId r : region) {
+        checked.insert(r);
+      }
       // Its thickness across the cut, against the snap distance of its tetrahedra.
       double volume = 0.0;
       double cut_area = 0.0;

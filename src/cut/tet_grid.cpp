@@ -193,17 +193,10 @@ void TetGrid::on_tet_reshaped(const TetMesh& mesh, TetId tet, const Tet& old_ver
 void TetGrid::query(const Vec3& low, const Vec3& high, std::vector<TetId>& out) const {
   file_pending();
   out.clear();
-  if (seen_.size() < mesh_->tet_count()) {
-    seen_.resize(mesh_->tet_count() + mesh_->tet_count() / 2 + 16, 0);
-  }
-  if (++stamp_ == 0) {
-    std::fill(seen_.begin(), seen_.end(), 0);
-    stamp_ = 1;
-  }
+  seen_.clear(mesh_->tet_count());
   for_each_cell_in_box(low, high, [&](std::size_t cell) {
     for (TetId t : cells_[cell]) {
-      if (seen_[static_cast<std::size_t>(t)] != stamp_) {
-        seen_[static_cast<std::size_t>(t)] = stamp_;
+      if (seen_.insert(t)) {
         out.push_back(t);
       }
     }
@@ -233,8 +226,7 @@ void TetGrid::load_state(StateReader& in) {
   if (!(cell_ > 0.0) || cells_.size() != expected) {
     in.fail("the tetrahedron grid", "its cells disagree with its dimensions");
   }
-  seen_.clear();
-  stamp_ = 0;
+  seen_ = StampedSet{};
 }
 
 }  // namespace incise

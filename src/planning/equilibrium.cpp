@@ -79,10 +79,12 @@ constexpr int kAndersonDepth = 5;
 /// steps are mixed by Anderson's acceleration, restarted whenever the stiffness is factorised
 /// again (after a step that did not lower the residual by a tenth, or left a sliver); each solve is
 /// in single precision (the residual is the forces', in double: the answer is the same). `f` holds
-/// the forces at the scanned state, `report` the residual before.
+/// the forces at the scanned state, `report` the residual before; `lent`, if given, the
+/// factorisation to use (its analysis kept for the caller's next solve of this pattern).
 EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& energy,
                                     std::vector<Vec3>& f, EquilibriumReport report,
-                                    double tolerance, int max_iterations) {
+                                    double tolerance, int max_iterations,
+                                    DirectFactorization* lent) {
   const std::size_t n = tissue.point_count();
   const std::span<const Vec3> x = tissue.rest;
   report.residual_after = report.residual_before;
@@ -91,7 +93,8 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
   const int rows = soft_rows(tissue, row);
   const CouplingPattern pattern = coupling_pattern(tissue);
   PointBlockMatrix stiffness(row, rows, pattern.pairs);
-  DirectFactorization factorization;
+  DirectFactorization own;
+  DirectFactorization& factorization = lent != nullptr ? *lent : own;
   std::vector<Vec3> rest(x.begin(), x.end());
   bool factorised = false;
   double previous_residual = report.residual_before;
@@ -160,7 +163,8 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
 }  // namespace
 
 EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
-                                         double tolerance, int max_iterations) {
+                                         double tolerance, int max_iterations,
+                                         DirectFactorization* lent) {
   EquilibriumReport report;
   const std::size_t n = tissue.point_count();
   const std::span<const Vec3> x = tissue.rest;
@@ -169,7 +173,7 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
   energy.forces(x, f);
   report.residual_before = largest_soft_force(tissue, f);
   if (tissue.elasticity == TissueElasticity::kContinuum) {
-    return balance_continuum(tissue, energy, f, report, tolerance, max_iterations);
+    return balance_continuum(tissue, energy, f, report, tolerance, max_iterations, lent);
   }
   // Damped steps converge linearly: a few more of them than Gauss-Newton would need.
   // Soft points are the rows; every spring is an unknown. The skin's too: on an irregular
@@ -198,7 +202,8 @@ EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& grav
     pairs.emplace_back(spring.a, spring.b);
   }
   PointBlockMatrix system(row, rows, pairs);
-  DirectFactorization factorization;  // CHOLMOD where built with it; the pattern is kept
+  DirectFactorization own;  // CHOLMOD where built with it; the pattern is kept
+  DirectFactorization& factorization = lent != nullptr ? *lent : own;
   // Levenberg-Marquardt damping, relative to each row's diagonal: a point whose springs are
   // nearly coplanar (an oblique column in a concave fold) cannot be balanced across their plane
   // without huge changes; damping leaves it a residual at first. It shrinks tenfold per step

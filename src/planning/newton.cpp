@@ -157,7 +157,7 @@ struct NewtonWorkspace::Data {
   int rows = 0;
   CouplingPattern pattern;
   std::optional<PointBlockMatrix> hessian;
-  DirectFactorization factorization;  ///< analysed on the first factorisation, kept after
+  DirectFactorization* factorization = nullptr;  ///< the workspace's
   bool have_factor = false;
   /// The last minimisation's first exact Hessian was indefinite: the next one, a nudge like
   /// it, starts with the convex form instead of finding that out again (an assembly and a few
@@ -172,6 +172,18 @@ NewtonWorkspace& NewtonWorkspace::operator=(NewtonWorkspace&&) noexcept = defaul
 
 bool NewtonWorkspace::has_factor() const {
   return data_ && data_->have_factor;
+}
+
+DirectFactorization& NewtonWorkspace::factorization() {
+  if (!factorization_) {
+    factorization_ = std::make_unique<DirectFactorization>();
+  }
+  return *factorization_;
+}
+
+DirectFactorization& NewtonWorkspace::lend_factorization() {
+  forget_factor();
+  return factorization();
 }
 
 void NewtonWorkspace::forget_factor() {
@@ -205,6 +217,7 @@ NewtonWorkspace::Data& NewtonWorkspace::data_for(const LayeredTissue& tissue,
   }
   d.pattern = coupling_pattern(tissue);
   d.hessian.emplace(d.row, d.rows, d.pattern.pairs);
+  d.factorization = &factorization();
   return d;
 }
 
@@ -220,10 +233,10 @@ void NewtonWorkspace::factorize_at(const TissueEnergy& energy, std::span<const V
     return;
   }
   assemble_hessian(tissue, d.pattern, x, false, *d.hessian);
-  if (!d.factorization.factorize_positive_definite(d.hessian->matrix())) {
+  if (!d.factorization->factorize_positive_definite(d.hessian->matrix())) {
     assemble_hessian(tissue, d.pattern, x, true, *d.hessian);
     d.hessian->damp_diagonal(1e-12, 0.0);
-    if (!d.factorization.factorize(d.hessian->matrix())) {
+    if (!d.factorization->factorize(d.hessian->matrix())) {
       throw InputError(
           "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
           "(a free point held by no spring?)");
@@ -263,7 +276,8 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
 
   const CouplingPattern& pattern = data.pattern;
   PointBlockMatrix& hessian = *data.hessian;
-  DirectFactorization& factorization = data.factorization;
+  DirectFactorization& factorization = *data.factorization;
+  const int analyses_before = factorization.analyses();
   bool& have_factor = data.have_factor;  // a factor of an earlier, nearby Hessian
   double damping = 0.0;                  // relative, grown only when a step fails
   double shift = 0.0;                    // relative, after an indefinite exact Hessian
@@ -431,6 +445,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
   }
   result.final_value = value;
   result.final_gradient = gradient;
+  result.pattern_analyses = factorization.analyses() - analyses_before;
   result.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return result;
 }

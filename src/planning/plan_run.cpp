@@ -108,6 +108,7 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
     report["newton"] = {{"factorizations", prediction.factorizations},
                         {"lagged_steps", prediction.lagged_steps},
                         {"convexified_steps", prediction.convexified_steps},
+                        {"pattern_analyses", prediction.pattern_analyses},
                         {"seconds",
                          {{"assembly", prediction.assembly_seconds},
                           {"factorization", prediction.factorization_seconds},

@@ -294,7 +294,10 @@ PlanSession::PlanSession(const PlanDescription& plan, const PlanProgress& progre
   report_progress("balancing the scanned state", 0.4);
   stage = Clock::now();
   if (plan.equilibrium) {
-    s.balance = initialise_equilibrium(tissue, plan.gravity);
+    // Through the prediction's factorisation: its Newton steps factorise the same pattern
+    // (unless soft tissue is cut below) and need no analysis of their own.
+    s.balance =
+        initialise_equilibrium(tissue, plan.gravity, 1e-9, 60, &s.newton.lend_factorization());
   } else {
     const TissueEnergy unbalanced(tissue, plan.gravity);
     std::vector<Vec3> f(tissue.point_count());

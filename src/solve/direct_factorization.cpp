@@ -1,6 +1,8 @@
 #include "incise/solve/direct_factorization.hpp"
 
 #include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <vector>
 
 #include "incise/solve/linear_solvers.hpp"
 
@@ -34,6 +36,37 @@ struct DirectFactorization::Backends {
   bool ldlt_analyzed = false;
   bool ldlt_factorized = false;
   bool using_cholmod = false;
+  /// The pattern the analyses were made for (column starts, row indices): a matrix with
+  /// another one is analysed again, so that callers of one pattern can share the analysis and
+  /// one that changes it cannot mistake it (a comparison, against an analysis 100x its cost).
+  std::vector<int> analysed_starts;
+  std::vector<int> analysed_rows;
+  int analyses = 0;  ///< symbolic analyses made, by either backend
+
+  /// Drops the analyses when `matrix` has another pattern than the one they were made for.
+  void follow_pattern(const SparseMatrix& matrix) {
+    const auto columns = static_cast<std::size_t>(matrix.outerSize());
+    const auto entries = static_cast<std::size_t>(matrix.nonZeros());
+    const bool same =
+        matrix.isCompressed() && analysed_starts.size() == columns + 1 &&
+        analysed_rows.size() == entries &&
+        std::equal(analysed_starts.begin(), analysed_starts.end(), matrix.outerIndexPtr()) &&
+        std::equal(analysed_rows.begin(), analysed_rows.end(), matrix.innerIndexPtr());
+    if (same) {
+      return;
+    }
+#ifdef INCISE_HAVE_CHOLMOD
+    cholmod_analyzed = false;
+#endif
+    ldlt_analyzed = false;
+    ldlt_factorized = false;
+    analysed_starts.clear();
+    analysed_rows.clear();
+    if (matrix.isCompressed()) {
+      analysed_starts.assign(matrix.outerIndexPtr(), matrix.outerIndexPtr() + columns + 1);
+      analysed_rows.assign(matrix.innerIndexPtr(), matrix.innerIndexPtr() + entries);
+    }
+  }
 
 #ifdef INCISE_HAVE_CHOLMOD
   /// CHOLMOD's supernodal Cholesky (the pattern analysed once); false when not positive definite.
@@ -41,6 +74,7 @@ struct DirectFactorization::Backends {
     if (!cholmod_analyzed) {
       single.forget_pattern();  // the analysis makes a new factor, perhaps at the same address
       cholmod.analyzePattern(matrix);
+      ++analyses;
       cholmod_analyzed = true;
       cholmod_cost = {cholmod.cholmod().lnz, cholmod.cholmod().fl};
     }
@@ -56,6 +90,7 @@ struct DirectFactorization::Backends {
     using_cholmod = false;
     if (!ldlt_analyzed) {
       ldlt.analyzePattern(matrix);
+      ++analyses;
       ldlt_analyzed = true;
     }
     ldlt.factorize(matrix);
@@ -104,9 +139,12 @@ void DirectFactorization::reset_pattern() {
 #endif
   backends_->ldlt_analyzed = false;
   backends_->ldlt_factorized = false;
+  backends_->analysed_starts.clear();
+  backends_->analysed_rows.clear();
 }
 
 bool DirectFactorization::factorize(const SparseMatrix& matrix) {
+  backends_->follow_pattern(matrix);
 #ifdef INCISE_HAVE_CHOLMOD
   if (backends_->factorize_cholmod(matrix)) {
     return true;
@@ -117,11 +155,16 @@ bool DirectFactorization::factorize(const SparseMatrix& matrix) {
 }
 
 bool DirectFactorization::factorize_positive_definite(const SparseMatrix& matrix) {
+  backends_->follow_pattern(matrix);
 #ifdef INCISE_HAVE_CHOLMOD
   return backends_->factorize_cholmod(matrix);
 #else
   return backends_->factorize_ldlt(matrix) && backends_->ldlt.vectorD().minCoeff() > 0.0;
 #endif
+}
+
+int DirectFactorization::analyses() const {
+  return backends_->analyses;
 }
 
 Eigen::VectorXd DirectFactorization::solve(const Eigen::VectorXd& rhs) const {

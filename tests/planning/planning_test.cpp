@@ -873,6 +873,36 @@ TEST(PlanSession, MovesAreTriedRefusedAtContactAndPredictedWarmAndTheSavedPlanRe
   std::filesystem::remove_all(dir);
 }
 
+TEST(Plan, ThePredictionFactorisesWithTheEquilibriumsAnalysis) {
+  // The equilibrium and the prediction's Newton steps factorise matrices of one pattern (the
+  // soft points' couplings): analysed once, by the equilibrium. A cut through the soft tissue
+  // in between changes the pattern: the prediction analyses it again, and still converges.
+  const std::filesystem::path dir =
+      write_head(std::filesystem::temp_directory_path() / "incise_plan_analysis_test");
+  const std::string text = R"({
+    "surfaces": {"skin": "skin.obj", "bone": "bone.obj"},
+    "layers": 2, "materials": {"young_modulus": 20000, "density": 1050},
+    "skin_prestrain": 0.05, "volume_weight": 10000,
+    "osteotomies": [{"point": [0, 0, 10], "normal": [0, 0, 1]}],
+    "moves": [{"segment_near": [0, 0, 50], "translate": [0, 0, 3]}]CUTS
+  })";
+  for (const bool cut : {false, true}) {
+    SCOPED_TRACE(cut ? "with a soft-tissue cut" : "without cuts");
+    std::string plan_text = text;
+    plan_text.replace(
+        plan_text.find("CUTS"), 4,
+        cut ? R"(, "cuts": [{"point": [0, -50, 0], "normal": [1, 0, 0], "radius": 12}])" : "");
+    { std::ofstream(dir / "plan.json") << plan_text; }
+    const PlanSummary summary = run_plan(load_plan(dir / "plan.json"), dir / "out");
+    EXPECT_TRUE(summary.prediction.converged) << summary.prediction.message;
+    EXPECT_GT(summary.prediction.factorizations, 0);
+    EXPECT_EQ(summary.prediction.pattern_analyses, cut ? 1 : 0);
+    const nlohmann::json report = nlohmann::json::parse(std::ifstream(dir / "out" / "report.json"));
+    EXPECT_EQ(report["newton"]["pattern_analyses"].get<int>(), cut ? 1 : 0);
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Plan, RunsFromSurfacesToAPrediction) {
   const std::filesystem::path dir =
       write_head(std::filesystem::temp_directory_path() / "incise_plan_test");

@@ -19,7 +19,7 @@ using SparseMatrix = DirectFactorization::SparseMatrix;
 /// The lower triangle of an elasticity-like matrix on an n^3 grid: the 7-point Laplacian times
 /// a coupling block between the three unknowns per point, plus a small shift (condition about
 /// 1e4, like a soft body's stiffness with its mass).
-SparseMatrix grid_matrix(int n, double scale) {
+SparseMatrix grid_matrix(int n, double scale, bool diagonals = false) {
   Eigen::Matrix3d block;
   block << 2.0, 0.5, 0.0, 0.5, 2.0, 0.3, 0.0, 0.3, 1.0;
   const auto index = [n](int i, int j, int k) { return (i * n + j) * n + k; };
@@ -46,6 +46,8 @@ SparseMatrix grid_matrix(int n, double scale) {
           add(p, index(i, j - 1, k), -1.0);
         if (k > 0)
           add(p, index(i, j, k - 1), -1.0);
+        if (diagonals && i > 0 && j > 0)
+          add(p, index(i - 1, j - 1, k), -0.001);
       }
     }
   }
@@ -109,6 +111,34 @@ TEST(DirectFactorization, SinglePrecisionSolvesFollowANewPattern) {
     ASSERT_EQ(single.size(), exact.size());
     EXPECT_LT((single - exact).norm(), 1e-5 * exact.norm()) << n << "^3 points";
   }
+}
+
+TEST(DirectFactorization, AnotherPatternIsAnalysedAgainWithoutBeingTold) {
+  // Two callers of one factorisation (the planning equilibrium, then the prediction's Newton
+  // steps) share its analysis where their patterns agree; where they do not, it analyses
+  // again by itself, and the answer is right.
+  DirectFactorization factor;
+  const SparseMatrix plain = grid_matrix(8, 1.0);
+  const SparseMatrix denser = grid_matrix(8, 1.0, true);  // the same size, more entries
+  ASSERT_EQ(plain.rows(), denser.rows());
+  ASSERT_GT(denser.nonZeros(), plain.nonZeros());
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(plain.rows(), -1.0, 1.0);
+  const auto residual = [&](const SparseMatrix& matrix) {
+    const Eigen::VectorXd x = factor.solve(b);
+    return (matrix.selfadjointView<Eigen::Lower>() * x - b).norm() / b.norm();
+  };
+  ASSERT_TRUE(factor.factorize_positive_definite(plain));
+  EXPECT_LT(residual(plain), 1e-12);
+  EXPECT_EQ(factor.analyses(), 1);
+  ASSERT_TRUE(factor.factorize_positive_definite(grid_matrix(8, 3.0)));  // same pattern
+  EXPECT_EQ(factor.analyses(), 1);
+  EXPECT_LT(residual(grid_matrix(8, 3.0)), 1e-12);
+  ASSERT_TRUE(factor.factorize(denser));
+  EXPECT_EQ(factor.analyses(), 2);
+  EXPECT_LT(residual(denser), 1e-12);
+  ASSERT_TRUE(factor.factorize_positive_definite(plain));  // back again
+  EXPECT_EQ(factor.analyses(), 3);
+  EXPECT_LT(residual(plain), 1e-12);
 }
 
 TEST(DirectFactorization, AFactorBeyondAFloatsRangeIsSolvedInDouble) {

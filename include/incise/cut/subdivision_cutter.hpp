@@ -23,6 +23,7 @@
 #include <optional>
 #include <vector>
 
+#include "incise/core/stamped_set.hpp"
 #include "incise/cut/blade.hpp"
 #include "incise/cut/cut_cases.hpp"
 #include "incise/cut/cut_face_marks.hpp"
@@ -385,6 +386,14 @@ class SubdivisionCutter {
   std::vector<TetId> active_;
   CutStats stats_;
   std::vector<TetId> scratch_;
+  /// keep_no_shards' walks: tetrahedra in a large piece, in a small region already looked
+  /// at, and in the region being walked (sets kept between moves: cleared by a stamp).
+  struct ShardWalks {
+    StampedSet large;
+    StampedSet checked;
+    StampedSet inside;
+  };
+  ShardWalks shard_walks_;
 };
 
 }  // namespace incise

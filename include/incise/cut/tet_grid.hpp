@@ -6,6 +6,7 @@
 
 #include <vector>
 
+#include "incise/core/stamped_set.hpp"
 #include "incise/mesh/attributes.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 
@@ -72,8 +73,7 @@ class TetGrid final : public MeshObserver {
   std::array<long, 3> dims_{1, 1, 1};
   mutable std::vector<std::vector<TetId>> cells_;
   mutable std::vector<TetId> pending_;  ///< around a relocated vertex, not filed yet
-  mutable std::vector<std::uint32_t> seen_;
-  mutable std::uint32_t stamp_ = 0;
+  mutable StampedSet seen_;             ///< a query's tetrahedra so far
 };
 
 }  // namespace incise

@@ -12,6 +12,10 @@
 
 #include "incise/planning/layered_tissue.hpp"
 
+namespace incise {
+class DirectFactorization;
+}
+
 namespace incise::planning {
 
 /// What balancing the scanned state did (the plan report's `equilibrium`).
@@ -30,8 +34,11 @@ struct EquilibriumReport {
 /// throws InputError when the forces cannot be balanced (a rest length would have to fall below
 /// 5 % of its scanned length). Continuum: changes its tetrahedra's rest shapes; throws
 /// InputError when one would invert. A residual above the tolerance (N) after max_iterations is
-/// reported, not thrown.
+/// reported, not thrown. With `factorization`, its steps factorise through it: a prediction's
+/// Newton steps that factorise the same pattern next (NewtonWorkspace::lend_factorization) then
+/// need no analysis of their own (0.4 s of a 59k-point model's prediction).
 EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
-                                         double tolerance = 1e-9, int max_iterations = 60);
+                                         double tolerance = 1e-9, int max_iterations = 60,
+                                         DirectFactorization* factorization = nullptr);
 
 }  // namespace incise::planning

@@ -43,6 +43,9 @@ struct MinimizeResult {
   int factorizations = 0;         ///< Newton: sparse Cholesky factorisations
   int lagged_steps = 0;           ///< Newton: steps solved with an earlier factorisation (and CG)
   int convexified_steps = 0;  ///< Newton: steps on the convexified Hessian (indefinite exact one)
+  /// Newton: analyses of the Hessian's pattern (0 when one was in hand: an earlier prediction's,
+  /// or the equilibrium's through NewtonWorkspace::lend_factorization).
+  int pattern_analyses = 0;
   /// Newton: where the time went (s): Hessian assembly, factorisations, solves with a factor
   /// (lagged conjugate gradients included), energy evaluations of the line search.
   double assembly_seconds = 0.0;

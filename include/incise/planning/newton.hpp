@@ -15,6 +15,10 @@
 #include "incise/planning/minimize.hpp"
 #include "incise/planning/tissue_energy.hpp"
 
+namespace incise {
+class DirectFactorization;
+}
+
 namespace incise::planning {
 
 /// What one Newton minimisation leaves for the next on the same tissue and free points: the
@@ -40,6 +44,10 @@ class NewtonWorkspace {
   /// Drops the factor (the pattern and its analysis stay): the next minimisation takes the
   /// steps a fresh one would, to the last bit.
   void forget_factor();
+  /// The factorisation its steps solve with, for another solve to use first (the equilibrium
+  /// before the first prediction): an analysis of the pattern it leaves is kept, so that the
+  /// minimisation need not make one. The factor in hand is dropped, as by forget_factor().
+  [[nodiscard]] DirectFactorization& lend_factorization();
 
   struct Data;  ///< newton.cpp's
 
@@ -49,7 +57,11 @@ class NewtonWorkspace {
                                         NewtonWorkspace*);
   /// The data for this tissue and free set, rebuilt (factor dropped) when they differ.
   Data& data_for(const LayeredTissue& tissue, std::span<const char> free);
+  /// The factorisation (made on first use): kept when the data are rebuilt, since it analyses
+  /// a new pattern by itself.
+  DirectFactorization& factorization();
   std::unique_ptr<Data> data_;
+  std::unique_ptr<DirectFactorization> factorization_;
 };
 
 /// Minimises energy.energy() over the points marked free (options.gradient_tolerance, N;

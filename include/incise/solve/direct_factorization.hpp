@@ -14,7 +14,8 @@
 namespace incise {
 
 /// A sparse symmetric factorisation: CHOLMOD's supernodal Cholesky, else Eigen's simplicial
-/// LDL^T for indefinite matrices; the symbolic analysis is kept while the pattern is the same.
+/// LDL^T for indefinite matrices; the symbolic analysis is kept while the pattern is the same
+/// (compared at each factorisation: a matrix of another pattern is analysed again).
 class DirectFactorization {
  public:
   using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;  ///< what it reads
@@ -49,6 +50,9 @@ class DirectFactorization {
     double flops = 0.0;     ///< to make it
   };
   [[nodiscard]] Cost cost() const;  ///< the last factor's
+  /// Symbolic analyses (orderings and supernode structure) made so far: one per pattern
+  /// met, and one more for each return to an earlier one.
+  [[nodiscard]] int analyses() const;
 
  private:
   struct Backends;
