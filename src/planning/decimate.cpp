@@ -23,7 +23,7 @@
 #include "incise/planning/surface_error.hpp"
 #include "incise/planning/surface_image.hpp"
 #include "nearest_triangle.hpp"
-#include "silenced_output.hpp"
+#include "incise/core/silenced_standard_output.hpp"
 
 namespace incise::planning {
 

@@ -11,7 +11,7 @@
 #include "incise/core/timing.hpp"
 #include "incise/imaging/read_volume.hpp"
 #include "incise/planning/surface_error.hpp"
-#include "silenced_output.hpp"
+#include "incise/core/silenced_standard_output.hpp"
 
 namespace incise::planning {
 
