@@ -505,16 +505,18 @@ const MinimizeResult& PlanSession::predict(bool warm, const PlanProgress& progre
     }
   }
   s.report["instrument_points"] = held;
-  if (warm) {
-    // The columns follow their bone ends' new step, in proportion to depth (the skin's point
-    // not at all, the one beside the bone all the way): a guess Newton starts near to, where
-    // the bone's jump alone would strain the tissue beside it most.
+  {
+    // The columns follow their bone ends' step (from the last prediction, or from the scan),
+    // in proportion to depth (the skin's point not at all, the one beside the bone all the
+    // way): a guess Newton starts near to, where the bone's jump alone would strain the tissue
+    // beside it most (from the scan, the 59k-point phantom's 5 mm advancement: 8 -> 7 steps).
+    const std::vector<Vec3>& from = warm ? s.x : tissue.rest;
     for (int c = 0; c < tissue.columns; ++c) {
       const auto end = static_cast<std::size_t>(tissue.point(c, tissue.layers));
       if (tissue.kind[end] != PointKind::kBone) {
         continue;
       }
-      const Vec3 step = x[end] - s.x[end];
+      const Vec3 step = x[end] - from[end];
       for (int k = 1; k < tissue.layers; ++k) {
         const auto p = static_cast<std::size_t>(tissue.point(c, k));
         if (free[p] != 0) {
