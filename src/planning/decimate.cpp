@@ -19,11 +19,11 @@
 #include <algorithm>
 
 #include "incise/core/error.hpp"
+#include "incise/core/silenced_standard_output.hpp"
 #include "incise/imaging/isosurface.hpp"
 #include "incise/planning/surface_error.hpp"
 #include "incise/planning/surface_image.hpp"
 #include "nearest_triangle.hpp"
-#include "incise/core/silenced_standard_output.hpp"
 
 namespace incise::planning {
 

@@ -8,10 +8,10 @@
 #include <string>
 
 #include "incise/core/error.hpp"
+#include "incise/core/silenced_standard_output.hpp"
 #include "incise/core/timing.hpp"
 #include "incise/imaging/read_volume.hpp"
 #include "incise/planning/surface_error.hpp"
-#include "incise/core/silenced_standard_output.hpp"
 
 namespace incise::planning {
 
