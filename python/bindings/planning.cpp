@@ -175,6 +175,7 @@ void bind_planning(py::module_& module) {
             out["residual_force"] = residual;
             out["factorizations"] = result.factorizations;
             out["lagged_steps"] = result.lagged_steps;
+            out["pattern_analyses"] = result.pattern_analyses;
             out["stage_seconds"] = py::dict(py::arg("assembly") = result.assembly_seconds,
                                             py::arg("factorization") = result.factorization_seconds,
                                             py::arg("solve") = result.solve_seconds,
@@ -185,8 +186,10 @@ void bind_planning(py::module_& module) {
           "Predicts the soft tissue for the moves made: from the last prediction (warm) or from "
           "the scanned state (what incise plan computes). Returns converged, iterations (Newton "
           "steps), seconds, message, residual_force (N), factorizations, lagged_steps (steps "
-          "solved with an earlier factorisation, kept between predictions) and stage_seconds "
-          "(assembly, factorization, solve, line_search: where the time went).")
+          "solved with an earlier factorisation, kept between predictions), pattern_analyses "
+          "(analyses of the Hessian's pattern: 0 once the session's equilibrium or an earlier "
+          "prediction made one) and stage_seconds (assembly, factorization, solve, "
+          "line_search: where the time went).")
       .def(
           "prepare_next_nudge",
           [](PySession& s) {

@@ -98,6 +98,7 @@ def test_a_plan_session_moves_a_segment_stops_at_contact_and_saves_what_plan_rep
     assert set(warm["stage_seconds"]) == {"assembly", "factorization", "solve", "line_search"}
     assert 0 <= warm["lagged_steps"] <= warm["iterations"]
     assert warm["factorizations"] >= 0
+    assert warm["pattern_analyses"] == 0  # the equilibrium's analysis of the same pattern
     after_warm = session.skin_after.copy()
     assert np.linalg.norm(after_warm - session.skin_before, axis=1).max() > 2e-3
     # Pushed 8 mm down through its cut: refused, naming the pair; the last move stays.
