@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "incise/core/error.hpp"
@@ -256,7 +257,9 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
   }
   MinimizeResult result;
   NewtonWorkspace own;
-  NewtonWorkspace::Data& data = (workspace != nullptr ? *workspace : own).data_for(tissue, free);
+  NewtonWorkspace& space = workspace != nullptr ? *workspace : own;
+  const bool start_convex = std::exchange(space.start_convex_, false);
+  NewtonWorkspace::Data& data = space.data_for(tissue, free);
   const std::vector<int>& row = data.row;
   const int rows = data.rows;
   std::vector<Vec3> g(n);
@@ -304,7 +307,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     };
     // A warm start whose last first step met an indefinite Hessian goes to the convex form at
     // once (below, as if the exact one had just shown negative curvature).
-    const bool known_indefinite = iteration == 0 && have_factor && data.first_step_indefinite;
+    // So does a start the caller knows to be indefinite (without a factor, it is factorised
+    // in its convex form below, as after a failed attempt on the exact one).
+    const bool known_indefinite =
+        iteration == 0 && (start_convex || (have_factor && data.first_step_indefinite));
     if (!known_indefinite) {
       assemble_hessian(tissue, pattern, x, false, hessian);
       hessian.damp_diagonal(damping + shift, 0.0);
@@ -318,7 +324,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
                                 : have_factor
                                     ? lagged_solve(hessian.matrix(), factorization, rhs, step)
                                     : LaggedSolve::kNotConverged;
-    if (iteration == 0) {
+    if (iteration == 0 && !start_convex) {  // what the exact Hessian showed, if it was tried
       data.first_step_indefinite = outcome == LaggedSolve::kNegativeCurvature;
     }
     bool lagged = outcome == LaggedSolve::kSolved && rhs.dot(step) > 0.0;  // descent
@@ -339,7 +345,8 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       // form, solved with the factor in hand if it still preconditions it well (the steps of
       // interactive nudges: each starts indefinite and is one factorisation cheaper so).
       convexify();
-      lagged = lagged_solve(hessian.matrix(), factorization, rhs, step) == LaggedSolve::kSolved &&
+      lagged = have_factor &&
+               lagged_solve(hessian.matrix(), factorization, rhs, step) == LaggedSolve::kSolved &&
                rhs.dot(step) > 0.0;
       lap(result.solve_seconds);
     }
@@ -350,6 +357,9 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       // near the minimum. Else of its convex part, which always gives a descent direction.
       bool factorized = !convexified && factorization.factorize_positive_definite(hessian.matrix());
       lap(result.factorization_seconds);
+      if (!factorized && !convexified) {
+        ++result.indefinite_attempts;
+      }
       if (!factorized) {
         if (!convexified) {
           convexify();

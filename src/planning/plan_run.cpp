@@ -109,6 +109,7 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
                         {"lagged_steps", prediction.lagged_steps},
                         {"convexified_steps", prediction.convexified_steps},
                         {"pattern_analyses", prediction.pattern_analyses},
+                        {"indefinite_attempts", prediction.indefinite_attempts},
                         {"seconds",
                          {{"assembly", prediction.assembly_seconds},
                           {"factorization", prediction.factorization_seconds},

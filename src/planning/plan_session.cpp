@@ -493,12 +493,14 @@ const MinimizeResult& PlanSession::predict(bool warm, const PlanProgress& progre
   std::vector<Vec3> x = warm ? s.x : tissue.rest;
   const std::vector<char> free = free_points(s);
   std::size_t held = 0;
+  bool bone_moved = false;  // from the scanned state
   for (std::size_t i = 0; i < x.size(); ++i) {
     const int column = tissue.column_of(static_cast<int>(i));
     if (tissue.kind[i] == PointKind::kBone) {
       const int triangle = tissue.column_bone_triangle[static_cast<std::size_t>(column)];
       const int segment = s.segments.triangle_segment[static_cast<std::size_t>(triangle)];
       x[i] = s.moves[static_cast<std::size_t>(segment)].apply(tissue.rest[i]);
+      bone_moved = bone_moved || x[i] != tissue.rest[i];
     } else if (tissue.kind[i] == PointKind::kSoft && free[i] == 0) {
       x[i] = tissue.rest[i] + held_by(s.plan, tissue, i)->translation;
       ++held;
@@ -550,6 +552,12 @@ const MinimizeResult& PlanSession::predict(bool warm, const PlanProgress& progre
   };
   if (!warm) {
     s.newton.forget_factor();  // what incise plan computes, to the last bit
+    if (bone_moved) {
+      // Bone moved from the scanned state into the tissue beside it: the exact Hessian there
+      // is indefinite (so on every example plan and phantom), and trying it first would cost
+      // an assembly and a failed factorisation before the same convex step.
+      s.newton.start_convex();
+    }
   } else if (options.method == Minimizer::kNewton && !s.newton.has_factor()) {
     // The first warm prediction (the last one took no step): the Hessian factorised where the
     // last one ended, a minimum, so that this and the next nudges' Newton steps start with a

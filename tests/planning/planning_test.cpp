@@ -344,6 +344,47 @@ TEST(Prediction, EnergyDecreasesMonotonicallyAndBothMinimisersAgree) {
   }
 }
 
+TEST(Prediction, ANewtonStartKnownIndefiniteTakesTheSameStepsWithoutTryingTheExactHessian) {
+  // A bone pushed into the tissue from the balanced state: the exact Hessian there is
+  // indefinite, so Newton's first step factorises its convex form after a failed attempt on
+  // the exact one. Told so (NewtonWorkspace::start_convex, as a plan's prediction from the scan
+  // is), it skips the attempt and takes the same steps, to the bit.
+  const Balanced model;
+  RigidMove push;
+  push.translation = Vec3(0, 0, 0.004);  // m
+  std::vector<Vec3> start = model.tissue.rest;
+  for (std::size_t i = 0; i < start.size(); ++i) {
+    if (model.tissue.kind[i] != PointKind::kSoft) {
+      start[i] = push.apply(start[i]);
+    }
+  }
+  const TissueEnergy energy(model.tissue, model.gravity);
+  MinimizeOptions o;
+  o.method = Minimizer::kNewton;
+  o.gradient_tolerance = 1e-4 * largest_weight(model.tissue, 9.81);
+  const std::vector<char> free = free_points(model.tissue);
+  std::vector<Vec3> tried = start;
+  const MinimizeResult plain = minimize_newton(energy, tried, free, o);
+  ASSERT_TRUE(plain.converged) << plain.message;
+  ASSERT_GE(plain.indefinite_attempts, 1) << "the push no longer makes the start indefinite";
+  NewtonWorkspace workspace;
+  workspace.start_convex();
+  std::vector<Vec3> told = start;
+  const MinimizeResult skipped = minimize_newton(energy, told, free, o, {}, &workspace);
+  EXPECT_TRUE(skipped.converged) << skipped.message;
+  EXPECT_EQ(skipped.indefinite_attempts, plain.indefinite_attempts - 1);
+  EXPECT_EQ(skipped.iterations, plain.iterations);
+  EXPECT_EQ(skipped.factorizations, plain.factorizations);
+  EXPECT_EQ(skipped.convexified_steps, plain.convexified_steps);
+  EXPECT_EQ(told, tried);
+  // The hint is for one minimisation: the next one from the same start tries the exact one.
+  std::vector<Vec3> again = start;
+  workspace.forget_factor();
+  const MinimizeResult next = minimize_newton(energy, again, free, o, {}, &workspace);
+  EXPECT_EQ(next.indefinite_attempts, plain.indefinite_attempts);
+  EXPECT_EQ(again, tried);
+}
+
 TEST(Prediction, ForceMinimisationReachesTheSameRestState) {
   // Without volume preservation both objectives have the same minimiser (zero forces); with
   // it they differ (F_F + k F_V is not an energy). Both elasticities.

@@ -46,6 +46,9 @@ struct MinimizeResult {
   /// Newton: analyses of the Hessian's pattern (0 when one was in hand: an earlier prediction's,
   /// or the equilibrium's through NewtonWorkspace::lend_factorization).
   int pattern_analyses = 0;
+  /// Newton: factorisations of an exact Hessian that found it indefinite (each step then
+  /// factorised its convex form instead).
+  int indefinite_attempts = 0;
   /// Newton: where the time went (s): Hessian assembly, factorisations, solves with a factor
   /// (lagged conjugate gradients included), energy evaluations of the line search.
   double assembly_seconds = 0.0;

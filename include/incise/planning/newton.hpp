@@ -48,6 +48,11 @@ class NewtonWorkspace {
   /// before the first prediction): an analysis of the pattern it leaves is kept, so that the
   /// minimisation need not make one. The factor in hand is dropped, as by forget_factor().
   [[nodiscard]] DirectFactorization& lend_factorization();
+  /// The next minimisation takes its first step on the Hessian's convex form without trying
+  /// the exact one: for a start the caller knows to be indefinite there (bone moved into the
+  /// tissue from the scanned state), where the attempt costs an assembly and a failed
+  /// factorisation (0.3 s at 59k points) and ends in the same step.
+  void start_convex() { start_convex_ = true; }
 
   struct Data;  ///< newton.cpp's
 
@@ -62,6 +67,7 @@ class NewtonWorkspace {
   DirectFactorization& factorization();
   std::unique_ptr<Data> data_;
   std::unique_ptr<DirectFactorization> factorization_;
+  bool start_convex_ = false;  ///< for the next minimisation only
 };
 
 /// Minimises energy.energy() over the points marked free (options.gradient_tolerance, N;
