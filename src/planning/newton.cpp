@@ -158,7 +158,6 @@ struct NewtonWorkspace::Data {
   int rows = 0;
   CouplingPattern pattern;
   std::optional<PointBlockMatrix> hessian;
-  DirectFactorization* factorization = nullptr;  ///< the workspace's
   bool have_factor = false;
   /// The last minimisation's first exact Hessian was indefinite: the next one, a nudge like
   /// it, starts with the convex form instead of finding that out again (an assembly and a few
@@ -218,7 +217,6 @@ NewtonWorkspace::Data& NewtonWorkspace::data_for(const LayeredTissue& tissue,
   }
   d.pattern = coupling_pattern(tissue);
   d.hessian.emplace(d.row, d.rows, d.pattern.pairs);
-  d.factorization = &factorization();
   return d;
 }
 
@@ -234,10 +232,10 @@ void NewtonWorkspace::factorize_at(const TissueEnergy& energy, std::span<const V
     return;
   }
   assemble_hessian(tissue, d.pattern, x, false, *d.hessian);
-  if (!d.factorization->factorize_positive_definite(d.hessian->matrix())) {
+  if (!factorization().factorize_positive_definite(d.hessian->matrix())) {
     assemble_hessian(tissue, d.pattern, x, true, *d.hessian);
     d.hessian->damp_diagonal(1e-12, 0.0);
-    if (!d.factorization->factorize(d.hessian->matrix())) {
+    if (!factorization().factorize(d.hessian->matrix())) {
       throw InputError(
           "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
           "(a free point held by no spring?)");
@@ -279,7 +277,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
 
   const CouplingPattern& pattern = data.pattern;
   PointBlockMatrix& hessian = *data.hessian;
-  DirectFactorization& factorization = *data.factorization;
+  DirectFactorization& factorization = space.factorization();
   const int analyses_before = factorization.analyses();
   bool& have_factor = data.have_factor;  // a factor of an earlier, nearby Hessian
   double damping = 0.0;                  // relative, grown only when a step fails

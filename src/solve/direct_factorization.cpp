@@ -43,6 +43,17 @@ struct DirectFactorization::Backends {
   std::vector<int> analysed_rows;
   int analyses = 0;  ///< symbolic analyses made, by either backend
 
+  /// Drops the analyses and the pattern they were made for.
+  void forget_analyses() {
+#ifdef INCISE_HAVE_CHOLMOD
+    cholmod_analyzed = false;
+#endif
+    ldlt_analyzed = false;
+    ldlt_factorized = false;
+    analysed_starts.clear();
+    analysed_rows.clear();
+  }
+
   /// Drops the analyses when `matrix` has another pattern than the one they were made for.
   void follow_pattern(const SparseMatrix& matrix) {
     const auto columns = static_cast<std::size_t>(matrix.outerSize());
@@ -55,13 +66,7 @@ struct DirectFactorization::Backends {
     if (same) {
       return;
     }
-#ifdef INCISE_HAVE_CHOLMOD
-    cholmod_analyzed = false;
-#endif
-    ldlt_analyzed = false;
-    ldlt_factorized = false;
-    analysed_starts.clear();
-    analysed_rows.clear();
+    forget_analyses();
     if (matrix.isCompressed()) {
       analysed_starts.assign(matrix.outerIndexPtr(), matrix.outerIndexPtr() + columns + 1);
       analysed_rows.assign(matrix.innerIndexPtr(), matrix.innerIndexPtr() + entries);
@@ -134,13 +139,7 @@ DirectFactorization::DirectFactorization() : backends_(std::make_unique<Backends
 DirectFactorization::~DirectFactorization() = default;
 
 void DirectFactorization::reset_pattern() {
-#ifdef INCISE_HAVE_CHOLMOD
-  backends_->cholmod_analyzed = false;
-#endif
-  backends_->ldlt_analyzed = false;
-  backends_->ldlt_factorized = false;
-  backends_->analysed_starts.clear();
-  backends_->analysed_rows.clear();
+  backends_->forget_analyses();
 }
 
 bool DirectFactorization::factorize(const SparseMatrix& matrix) {
