@@ -35,17 +35,24 @@ constexpr int kMostLaggedIterations = 40;
 constexpr double kLaggedTolerance = 1e-2;
 
 /// How many preconditioned conjugate gradient iterations cost half of a factorisation. An
-/// iteration is a solve with the factor (4 flops per factor nonzero, but memory-bound
-/// triangular solves run at about a fifth of the dense BLAS-3 rate of a supernodal
-/// factorisation: measured on the planning models, 8 ms per iteration against 0.1 s per
-/// factorisation of 8e8 flops) and a product with the matrix (4 flops per stored nonzero).
-/// (The single-precision sweeps halved an iteration since; twice the iterations then saved a
-/// factorisation from the scan at 25k and 59k points, none at 10k, and made nudges 10 %
-/// slower: the rate was kept.) Counted in operations, not timed, so that a prediction takes the
-/// same steps on any machine and under any load (the planning viewer's replays rely on it).
+/// iteration is a solve with the factor (4 flops per factor nonzero; memory-bound triangular
+/// sweeps, in single precision, on both cores) and a product with the matrix (4 flops per
+/// stored nonzero), counted kSolveSlowdown times against the factorisation's BLAS-3 flops.
+/// Measured (session 43, 2 cores): a factorisation costs 58-83 iterations (10k points 0.124 s
+/// against 1.5 ms, headsq 0.156 s against 2.7 ms, 25k 0.33 s against 5.2 ms, 59k 0.94 s
+/// against 14 ms), which the count matches at a slowdown of 0.4-1.5. The slowdown was 5 (for
+/// double-precision solves, before the single-precision sweeps): the predictions from the scan
+/// of 10k-59k points then factorised once more than they needed (10k points 0.43 -> 0.32 s,
+/// 25k 1.74-1.91 -> 1.44-1.47 s, 59k 4.95-5.1 -> 4.49-4.64 s at 2; headsq the same steps),
+/// and nudges took the same steps either way. At 1 (the
+/// measured rate) the lagged solves on an ageing factor cost more than the factorisations they
+/// save (25k-59k points 6-20 % slower than at 2): a fresh factor also serves the steps after
+/// it, which the count does not weigh. Counted in operations, not timed, so that a prediction
+/// takes the same steps on any machine and under any load (the planning viewer's replays
+/// rely on it).
 int lagged_iterations(const DirectFactorization& factor,
                       const DirectFactorization::SparseMatrix& matrix) {
-  constexpr double kSolveSlowdown = 5.0;
+  constexpr double kSolveSlowdown = 2.0;
   const DirectFactorization::Cost cost = factor.cost();
   const double per_iteration = kSolveSlowdown * 4.0 * cost.nonzeros +
                                kSolveSlowdown * 4.0 * static_cast<double>(matrix.nonZeros());
