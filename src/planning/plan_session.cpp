@@ -296,8 +296,8 @@ PlanSession::PlanSession(const PlanDescription& plan, const PlanProgress& progre
   if (plan.equilibrium) {
     // Through the prediction's factorisation: its Newton steps factorise the same pattern
     // (unless soft tissue is cut below) and need no analysis of their own.
-    s.balance =
-        initialise_equilibrium(tissue, plan.gravity, 1e-9, 60, &s.newton.lend_factorization());
+    s.balance = initialise_equilibrium(tissue, plan.gravity, kEquilibriumTolerance,
+                                       kEquilibriumIterations, &s.newton.lend_factorization());
   } else {
     const TissueEnergy unbalanced(tissue, plan.gravity);
     std::vector<Vec3> f(tissue.point_count());

@@ -341,7 +341,6 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   scalar_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
   std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
-  factor_->reset_pattern();
   coarse_motion_.assign(aggregates, Modes::Zero());
 }
 
@@ -686,7 +685,6 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
   std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
   std::copy(values.begin(), values.end(), scalar_.valuePtr());
-  factor_->reset_pattern();
   if (!members_.empty() && !factor_->factorize_positive_definite(scalar_)) {
     throw InputError(
         "checkpoint: the coarse matrix of the two-level preconditioner is not positive "

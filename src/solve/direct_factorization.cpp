@@ -138,10 +138,6 @@ DirectFactorization::DirectFactorization() : backends_(std::make_unique<Backends
 }
 DirectFactorization::~DirectFactorization() = default;
 
-void DirectFactorization::reset_pattern() {
-  backends_->forget_analyses();
-}
-
 bool DirectFactorization::factorize(const SparseMatrix& matrix) {
   backends_->follow_pattern(matrix);
 #ifdef INCISE_HAVE_CHOLMOD

@@ -225,9 +225,6 @@ void LinearizedSystemSolver::build_scalar_pattern() {
   scalar_pattern_ = assembled_.pattern();
   scalar_pattern_version_ = assembled_.pattern_version();
   scalar_constrained_.assign(constrained_.begin(), constrained_.end());
-  if (direct_) {
-    direct_->reset_pattern();
-  }
 }
 
 void LinearizedSystemSolver::fill_scalar_values() {

@@ -30,6 +30,11 @@ struct EquilibriumReport {
   Vec3 load_on_fixed_points = Vec3::Zero();  ///< N: sum of forces diverted to bone and boundary
 };
 
+/// initialise_equilibrium's default largest residual force (N) and step limit: what a plan
+/// balances its scanned state to.
+inline constexpr double kEquilibriumTolerance = 1e-9;
+inline constexpr int kEquilibriumIterations = 60;
+
 /// Springs: changes `tissue`'s rest lengths (each Gauss-Newton step by at most half of one);
 /// throws InputError when the forces cannot be balanced (a rest length would have to fall below
 /// 5 % of its scanned length). Continuum: changes its tetrahedra's rest shapes; throws
@@ -38,7 +43,8 @@ struct EquilibriumReport {
 /// Newton steps that factorise the same pattern next (NewtonWorkspace::lend_factorization) then
 /// need no analysis of their own (0.4 s of a 59k-point model's prediction).
 EquilibriumReport initialise_equilibrium(LayeredTissue& tissue, const Vec3& gravity,
-                                         double tolerance = 1e-9, int max_iterations = 60,
+                                         double tolerance = kEquilibriumTolerance,
+                                         int max_iterations = kEquilibriumIterations,
                                          DirectFactorization* factorization = nullptr);
 
 }  // namespace incise::planning

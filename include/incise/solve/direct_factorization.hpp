@@ -24,8 +24,6 @@ class DirectFactorization {
   DirectFactorization(const DirectFactorization&) = delete;
   DirectFactorization& operator=(const DirectFactorization&) = delete;
 
-  /// Forgets the symbolic analysis (the sparsity pattern changed).
-  void reset_pattern();
   /// Factorises the matrix (lower triangle read); false when neither backend can.
   [[nodiscard]] bool factorize(const SparseMatrix& matrix);
   /// Factorises the matrix only if it is positive definite (no indefinite fallback): false
