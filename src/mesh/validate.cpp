@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <sstream>
 
+#include "incise/core/parallel_for.hpp"
 #include "incise/mesh/predicates.hpp"
 
 namespace incise {
@@ -34,78 +36,134 @@ double normalized_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3
   return signed_volume(a, b, c, d) / regular_volume;
 }
 
+namespace {
+
+/// Tetrahedra per block of validate()'s parallel passes: each block's findings are listed in
+/// tetrahedron order and the blocks joined in order, so the report is the same on any number
+/// of threads.
+constexpr std::size_t kValidationBlock = 4096;
+
+/// One block's findings.
+struct BlockFindings {
+  std::vector<TetId> inverted;
+  std::vector<TetId> degenerate;
+  std::vector<TetId> slivers;
+  std::vector<std::array<VertexId, 3>> nonmanifold_faces;
+  std::vector<std::pair<TetId, TetId>> overlapping;
+};
+
+/// The checks of one tetrahedron: its orientation and shape, and its faces' neighbours.
+void check_tet(const TetMesh& mesh, TetId id, const std::vector<char>& vertex_finite,
+               const ValidationOptions& options, BlockFindings& found) {
+  const auto positions = mesh.rest_positions();
+  const Tet& tet = mesh.tet(id);
+  if (!std::all_of(tet.begin(), tet.end(), [&](VertexId v) { return vertex_finite[v] != 0; })) {
+    return;  // already reported through its vertices; predicates need finite input
+  }
+  const Vec3& a = positions[tet[0]];
+  const Vec3& b = positions[tet[1]];
+  const Vec3& c = positions[tet[2]];
+  const Vec3& d = positions[tet[3]];
+  const Sign orientation = orient3d(a, b, c, d);
+  if (orientation == Sign::kNegative) {
+    found.inverted.push_back(id);
+  } else if (orientation == Sign::kZero) {
+    found.degenerate.push_back(id);
+  } else if (normalized_volume(a, b, c, d) < options.degenerate_tolerance) {
+    found.slivers.push_back(id);
+  }
+  const auto& neighbors = mesh.tet_neighbors(id);
+  for (int f = 0; f < 4; ++f) {
+    const auto& face = tet_local::kFaces[f];
+    const TetId other = neighbors[f];
+    if (other == kNonManifoldFace) {
+      std::array<VertexId, 3> key{tet[face[0]], tet[face[1]], tet[face[2]]};
+      std::sort(key.begin(), key.end());
+      found.nonmanifold_faces.push_back(key);
+    } else if (other > id) {
+      // Conforming neighbours lie on opposite sides of their shared face.
+      const Tet& neighbor = mesh.tet(other);
+      VertexId apex = kInvalidId;
+      for (VertexId v : neighbor) {
+        if (v != tet[face[0]] && v != tet[face[1]] && v != tet[face[2]]) {
+          apex = v;
+        }
+      }
+      if (vertex_finite[apex] != 0 &&
+          orient3d(positions[tet[face[0]]], positions[tet[face[1]]], positions[tet[face[2]]],
+                   positions[apex]) != Sign::kPositive &&
+          orientation == Sign::kPositive) {
+        found.overlapping.emplace_back(id, other);
+      }
+    }
+  }
+}
+
+template <typename T>
+void append(std::vector<T>& to, const std::vector<T>& from) {
+  to.insert(to.end(), from.begin(), from.end());
+}
+
+}  // namespace
+
 ValidationReport validate(const TetMesh& mesh, const ValidationOptions& options) {
+  // The tetrahedra are checked, and their sorted vertex sets sorted, block by block on worker
+  // threads (a cut checks the whole mesh after each of its hundreds of poses: at 58k
+  // tetrahedra this was two thirds of `incise cut`'s time); what is found is the same, in the
+  // same order, as one thread would find it.
   ValidationReport report;
   const auto positions = mesh.rest_positions();
-  std::vector<bool> vertex_finite(positions.size(), true);
+  std::vector<char> vertex_finite(positions.size(), 1);
   for (std::size_t v = 0; v < positions.size(); ++v) {
     if (!positions[v].allFinite()) {
-      vertex_finite[v] = false;
+      vertex_finite[v] = 0;
       report.nonfinite_vertices.push_back(static_cast<VertexId>(v));
     }
     if (mesh.vertex_tets(static_cast<VertexId>(v)).empty()) {
       report.unreferenced_vertices.push_back(static_cast<VertexId>(v));
     }
   }
-
-  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    const auto id = static_cast<TetId>(t);
-    const Tet& tet = mesh.tet(id);
-    if (!std::all_of(tet.begin(), tet.end(), [&](VertexId v) { return vertex_finite[v]; })) {
-      continue;  // already reported through its vertices; predicates need finite input
-    }
-    const Vec3& a = positions[tet[0]];
-    const Vec3& b = positions[tet[1]];
-    const Vec3& c = positions[tet[2]];
-    const Vec3& d = positions[tet[3]];
-    const Sign orientation = orient3d(a, b, c, d);
-    if (orientation == Sign::kNegative) {
-      report.inverted_tets.push_back(id);
-    } else if (orientation == Sign::kZero) {
-      report.degenerate_tets.push_back(id);
-    } else if (normalized_volume(a, b, c, d) < options.degenerate_tolerance) {
-      report.sliver_tets.push_back(id);
-    }
-    const auto& neighbors = mesh.tet_neighbors(id);
-    for (int f = 0; f < 4; ++f) {
-      const auto& face = tet_local::kFaces[f];
-      const TetId other = neighbors[f];
-      if (other == kNonManifoldFace) {
-        std::array<VertexId, 3> key{tet[face[0]], tet[face[1]], tet[face[2]]};
+  const std::size_t tets = mesh.tet_count();
+  const std::size_t blocks = (tets + kValidationBlock - 1) / kValidationBlock;
+  std::vector<BlockFindings> found(blocks);
+  // Duplicate tetrahedra: equal sorted vertex sets, found by sorting (set, id) pairs: each
+  // block sorted apart, then the sorted blocks merged.
+  std::vector<std::pair<Tet, TetId>> sorted(tets);
+  parallel_for(0, blocks, 1, [&](std::size_t first, std::size_t last) {
+    for (std::size_t block = first; block < last; ++block) {
+      const std::size_t begin = block * kValidationBlock;
+      const std::size_t end = std::min(tets, begin + kValidationBlock);
+      for (std::size_t t = begin; t < end; ++t) {
+        const auto id = static_cast<TetId>(t);
+        check_tet(mesh, id, vertex_finite, options, found[block]);
+        Tet key = mesh.tet(id);
         std::sort(key.begin(), key.end());
-        report.nonmanifold_faces.push_back(key);
-      } else if (other > id) {
-        // Conforming neighbours lie on opposite sides of their shared face.
-        const Tet& neighbor = mesh.tet(other);
-        VertexId apex = kInvalidId;
-        for (VertexId v : neighbor) {
-          if (v != tet[face[0]] && v != tet[face[1]] && v != tet[face[2]]) {
-            apex = v;
-          }
-        }
-        if (vertex_finite[apex] &&
-            orient3d(positions[tet[face[0]]], positions[tet[face[1]]], positions[tet[face[2]]],
-                     positions[apex]) != Sign::kPositive &&
-            orientation == Sign::kPositive) {
-          report.overlapping_tets.emplace_back(id, other);
-        }
+        sorted[t] = {key, id};
       }
+      std::sort(sorted.begin() + static_cast<std::ptrdiff_t>(begin),
+                sorted.begin() + static_cast<std::ptrdiff_t>(end));
     }
+  });
+  for (const BlockFindings& block : found) {
+    append(report.inverted_tets, block.inverted);
+    append(report.degenerate_tets, block.degenerate);
+    append(report.sliver_tets, block.slivers);
+    append(report.nonmanifold_faces, block.nonmanifold_faces);
+    append(report.overlapping_tets, block.overlapping);
   }
   std::sort(report.nonmanifold_faces.begin(), report.nonmanifold_faces.end());
   report.nonmanifold_faces.erase(
       std::unique(report.nonmanifold_faces.begin(), report.nonmanifold_faces.end()),
       report.nonmanifold_faces.end());
-
-  // Duplicate tetrahedra: equal sorted vertex sets.
-  std::vector<std::pair<Tet, TetId>> sorted;
-  sorted.reserve(mesh.tet_count());
-  for (std::size_t t = 0; t < mesh.tet_count(); ++t) {
-    Tet key = mesh.tet(static_cast<TetId>(t));
-    std::sort(key.begin(), key.end());
-    sorted.emplace_back(key, static_cast<TetId>(t));
+  // Sorted runs of one block each, merged pairwise (the pairs are distinct: one order).
+  for (std::size_t width = kValidationBlock; width < tets; width *= 2) {
+    for (std::size_t begin = 0; begin + width < tets; begin += 2 * width) {
+      const auto at = [&](std::size_t k) {
+        return sorted.begin() + static_cast<std::ptrdiff_t>(std::min(k, tets));
+      };
+      std::inplace_merge(at(begin), at(begin + width), at(begin + 2 * width));
+    }
   }
-  std::sort(sorted.begin(), sorted.end());
   for (std::size_t i = 1; i < sorted.size(); ++i) {
     if (sorted[i].first == sorted[i - 1].first) {
       report.duplicate_tets.emplace_back(sorted[i - 1].second, sorted[i].second);

@@ -97,5 +97,52 @@ TEST(Validate, ReportsUnreferencedVerticesButToleratesThem) {
   EXPECT_TRUE(report.ok());
 }
 
+TEST(Validate, AMeshOfManyBlocksIsReportedInTetrahedronOrderWithDuplicatesAcrossBlocks) {
+  // validate() checks blocks of 4096 tetrahedra on worker threads and sorts each block's
+  // vertex sets apart before merging them: defects in several blocks, and duplicates of
+  // tetrahedra in the first block appended at the end, must come out as one thread finds
+  // them (ascending ids; every duplicate pair).
+  BoxGridOptions options;
+  options.cells = {14, 14, 14};  // 16,464 tetrahedra: five blocks
+  const TetMesh good = make_box_grid(options);
+  std::vector<Tet> tets(good.tets().begin(), good.tets().end());
+  ASSERT_GT(tets.size(), 4u * 4096u);
+  const std::vector<TetId> inverted{5, 4500, 9000, 16000};
+  for (TetId t : inverted) {
+    std::swap(tets[static_cast<std::size_t>(t)][0], tets[static_cast<std::size_t>(t)][1]);
+  }
+  const std::vector<std::size_t> copied{1, 300, 4095, 4096, 12000};
+  for (std::size_t t : copied) {
+    Tet copy = tets[t];
+    std::swap(copy[0], copy[3]);  // the same set in another order (and inverted)
+    tets.push_back(copy);
+  }
+  const TetMesh mesh(std::vector<Vec3>(good.rest_positions().begin(), good.rest_positions().end()),
+                     tets);
+  const ValidationReport report = validate(mesh);
+  std::vector<TetId> expected_inverted = inverted;
+  for (std::size_t k = 0; k < copied.size(); ++k) {
+    expected_inverted.push_back(static_cast<TetId>(good.tet_count() + k));
+  }
+  EXPECT_EQ(report.inverted_tets, expected_inverted);
+  // Duplicates as a plain sort of (sorted set, id) finds them.
+  std::vector<std::pair<Tet, TetId>> keys;
+  for (std::size_t t = 0; t < tets.size(); ++t) {
+    Tet key = tets[t];
+    std::sort(key.begin(), key.end());
+    keys.emplace_back(key, static_cast<TetId>(t));
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::pair<TetId, TetId>> expected_duplicates;
+  for (std::size_t i = 1; i < keys.size(); ++i) {
+    if (keys[i].first == keys[i - 1].first) {
+      expected_duplicates.emplace_back(keys[i - 1].second, keys[i].second);
+    }
+  }
+  ASSERT_EQ(expected_duplicates.size(), copied.size());
+  EXPECT_EQ(report.duplicate_tets, expected_duplicates);
+  EXPECT_TRUE(report.degenerate_tets.empty());
+}
+
 }  // namespace
 }  // namespace incise
