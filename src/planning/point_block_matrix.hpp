@@ -16,7 +16,8 @@ namespace incise::planning {
 
 class PointBlockMatrix {
  public:
-  /// `first_row[i]`: the first of point i's three rows, or -1 when i is not in the system.
+  /// `first_row[i]`: the first of point i's three rows (a multiple of 3 below `rows`, each
+  /// point its own), or -1 when i is not in the system.
   /// `pairs`: the point pairs that may couple (pairs with a point outside are ignored).
   PointBlockMatrix(std::vector<int> first_row, int rows,
                    std::span<const std::pair<int, int>> pairs);
