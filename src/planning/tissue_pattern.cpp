@@ -17,7 +17,7 @@ namespace incise::planning {
 CouplingPattern coupling_pattern(const LayeredTissue& tissue) {
   CouplingPattern pattern;
   // The mesh's flat edge table (one cache miss a lookup), not std::unordered_map's chained
-  // nodes: at 59k points, 360k pairs from 2.6M lookups, 93 -> 30-34 ms, twice per plan.
+  // nodes: at 59k points (360k pairs, 15 lookups a prism) 93 -> 30-34 ms, twice per plan.
   EdgeIndex index;
   index.reserve(tissue.springs.size() + tissue.prisms.size() * 4);
   for (const Spring& spring : tissue.springs) {
