@@ -44,12 +44,11 @@ constexpr double kLaggedTolerance = 1e-2;
 /// double-precision solves, before the single-precision sweeps): the predictions from the scan
 /// of 10k-59k points then factorised once more than they needed (10k points 0.43 -> 0.32 s,
 /// 25k 1.74-1.91 -> 1.44-1.47 s, 59k 4.95-5.1 -> 4.49-4.64 s at 2; headsq the same steps),
-/// and nudges took the same steps either way. At 1 (the
-/// measured rate) the lagged solves on an ageing factor cost more than the factorisations they
-/// save (25k-59k points 6-20 % slower than at 2): a fresh factor also serves the steps after
-/// it, which the count does not weigh. Counted in operations, not timed, so that a prediction
-/// takes the same steps on any machine and under any load (the planning viewer's replays
-/// rely on it).
+/// and nudges took the same steps either way. At 1 (the measured rate) the lagged solves on an
+/// ageing factor cost more than the factorisations they save (25k-59k points 6-20 % slower
+/// than at 2): a fresh factor also serves the steps after it, which the count does not weigh.
+/// Counted in operations, not timed, so that a prediction takes the same steps on any machine
+/// and under any load (the planning viewer's replays rely on it).
 int lagged_iterations(const DirectFactorization& factor,
                       const DirectFactorization::SparseMatrix& matrix) {
   constexpr double kSolveSlowdown = 2.0;

@@ -57,22 +57,25 @@ PointBlockMatrix::PointBlockMatrix(std::vector<int> first_row, int rows,
       }
     }
   }
-  // Sorted by row; a pair given twice shares its block (as the triplets' sum would).
-  std::vector<int> distinct(block_columns, 0);  // distinct rows below each block column
+  // Sorted by row; a pair given twice shares its block (as the triplets' sum would): place[k]
+  // is below[k]'s block among its column's distinct rows, distinct[b] their count. (A pair's
+  // smaller row is a point's in the system: block columns without one hold nothing.)
+  std::vector<int> place(below.size());
+  std::vector<int> distinct(block_columns, 0);
   for (std::size_t b = 0; b < block_columns; ++b) {
     std::sort(below.begin() + static_cast<std::ptrdiff_t>(begin[b]),
               below.begin() + static_cast<std::ptrdiff_t>(begin[b + 1]));
     for (std::size_t k = begin[b]; k < begin[b + 1]; ++k) {
       distinct[b] += k == begin[b] || below[k].first != below[k - 1].first ? 1 : 0;
+      place[k] = distinct[b] - 1;
     }
   }
   int* outer = matrix_.outerIndexPtr();
   outer[0] = 0;
   for (std::size_t b = 0; b < block_columns; ++b) {
-    const int blocks_below = point_of_block[b] >= 0 ? distinct[b] : 0;
     for (int c = 0; c < 3; ++c) {
       const std::size_t column = 3 * b + static_cast<std::size_t>(c);
-      outer[column + 1] = outer[column] + (point_of_block[b] >= 0 ? 3 - c : 0) + 3 * blocks_below;
+      outer[column + 1] = outer[column] + (point_of_block[b] >= 0 ? 3 - c : 0) + 3 * distinct[b];
     }
   }
   matrix_.resizeNonZeros(outer[rows]);
@@ -82,49 +85,31 @@ PointBlockMatrix::PointBlockMatrix(std::vector<int> first_row, int rows,
   coupling_slot_.assign(pairs.size() * 9, -1);
   coupling_transposed_.assign(pairs.size(), 0);
   coupling_column_.assign(pairs.size(), -1);
+  // Column r0 + c holds the diagonal block's rows r0 + c to r0 + 2, then 3 rows per block
+  // below: (r, c) of the diagonal block sits at (r - c), a pair's (r, c) at 3 place + r after
+  // the diagonal's 3 - c entries. A pair given twice writes the same rows twice.
   for (std::size_t b = 0; b < block_columns; ++b) {
     if (point_of_block[b] < 0) {
       continue;
     }
     const int r0 = 3 * static_cast<int>(b);
-    for (int c = 0; c < 3; ++c) {
-      int at = outer[r0 + c];
-      for (int r = c; r < 3; ++r) {
-        inner[at++] = r0 + r;
-      }
-      int previous = -1;
-      for (std::size_t k = begin[b]; k < begin[b + 1]; ++k) {
-        if (below[k].first == previous) {
-          continue;
-        }
-        previous = below[k].first;
-        for (int r = 0; r < 3; ++r) {
-          inner[at++] = previous + r;
-        }
-      }
-    }
-    // Slots: (r, c) of the diagonal block at (r - c) in column r0 + c; a pair's (r, c) at its
-    // block's place among the blocks below, row r, in column r0 + c.
     const auto i = static_cast<std::size_t>(point_of_block[b]);
     for (int r = 0, k = 0; r < 3; ++r) {
       for (int c = 0; c <= r; ++c, ++k) {
-        diagonal_slot_[i * 6 + static_cast<std::size_t>(k)] = outer[r0 + c] + (r - c);
+        const int slot = outer[r0 + c] + (r - c);
+        inner[slot] = r0 + r;
+        diagonal_slot_[i * 6 + static_cast<std::size_t>(k)] = slot;
       }
     }
-    int place = -1;
-    int previous = -1;
     for (std::size_t k = begin[b]; k < begin[b + 1]; ++k) {
       const auto [high, p] = below[k];
-      if (high != previous) {
-        ++place;
-        previous = high;
-      }
       coupling_transposed_[p] = row(pairs[p].first) < row(pairs[p].second) ? 1 : 0;
       coupling_column_[p] = r0;
       for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {
-          coupling_slot_[p * 9 + static_cast<std::size_t>(3 * r + c)] =
-              outer[r0 + c] + (3 - c) + 3 * place + r;
+          const int slot = outer[r0 + c] + (3 - c) + 3 * place[k] + r;
+          inner[slot] = high + r;
+          coupling_slot_[p * 9 + static_cast<std::size_t>(3 * r + c)] = slot;
         }
       }
     }
