@@ -11,6 +11,33 @@
 
 namespace incise::planning {
 
+namespace {
+
+/// Prisms per block of the per-element terms held at once (a few MB at most).
+constexpr std::size_t kPrismBlock = 4096;
+
+/// For blocks of kPrismBlock prisms: compute(p, k) for each prism p of the block (k its place
+/// in the block) on worker threads, then take(p, k) for each in prism order on this thread.
+/// Each prism's terms are computed apart and summed in one order, so the sums are the same, to
+/// the bit, on any thread count.
+template <typename Compute, typename Take>
+void prisms_in_blocks(std::size_t prisms, std::size_t grain, const Compute& compute,
+                      const Take& take) {
+  for (std::size_t first = 0; first < prisms; first += kPrismBlock) {
+    const std::size_t last = std::min(first + kPrismBlock, prisms);
+    parallel_for(first, last, grain, [&](std::size_t begin, std::size_t end) {
+      for (std::size_t p = begin; p < end; ++p) {
+        compute(p, p - first);
+      }
+    });
+    for (std::size_t p = first; p < last; ++p) {
+      take(p, p - first);
+    }
+  }
+}
+
+}  // namespace
+
 TissueEnergy::TissueEnergy(const LayeredTissue& tissue, const Vec3& gravity)
     : tissue_(tissue), gravity_(gravity) {
   double sum = 0.0;
@@ -51,50 +78,41 @@ void TissueEnergy::add_elastic(std::span<const Vec3> x, std::span<Vec3> gradient
   if (tissue_.elasticity != TissueElasticity::kContinuum) {
     return;
   }
-  // Each tetrahedron's energy and forces for a block of prisms on worker threads (the
-  // invariants and their derivatives are the work), then summed in prism order on this one:
-  // the same sums, to the bit, as one thread would make, on any thread count.
-  constexpr std::size_t kBlock = 4096;  // prisms: 4096 x 3 x 104 bytes
+  // Each tetrahedron's energy and forces on worker threads (the invariants and their
+  // derivatives are the work), summed in prism order.
   const bool with_gradient = !gradient.empty();
   const std::size_t prisms = tissue_.prisms.size();
-  std::vector<double> tet_energy(3 * std::min(kBlock, prisms));
+  std::vector<double> tet_energy(3 * std::min(kPrismBlock, prisms));
   std::vector<ElementForces> tet_forces(with_gradient ? tet_energy.size() : 0);
-  for (std::size_t first = 0; first < prisms; first += kBlock) {
-    const std::size_t last = std::min(first + kBlock, prisms);
-    parallel_for(first, last, 64, [&](std::size_t begin, std::size_t end) {
-      for (std::size_t p = begin; p < end; ++p) {
+  prisms_in_blocks(
+      prisms, 64,
+      [&](std::size_t p, std::size_t k) {
+        const Prism& prism = tissue_.prisms[p];
+        for (std::size_t t = 0; t < 3; ++t) {
+          const PrismTet& tet = prism.tets[t];
+          if (tet.rest.volume != 0.0) {
+            const Corners corners = tet_corners(prism, tet, x);
+            tet_energy[3 * k + t] = neo_hookean_energy(corners, tet.rest, prism.material);
+            if (with_gradient) {
+              tet_forces[3 * k + t] = neo_hookean_forces(corners, tet.rest, prism.material);
+            }
+          }
+        }
+      },
+      [&](std::size_t p, std::size_t k) {
         const Prism& prism = tissue_.prisms[p];
         for (std::size_t t = 0; t < 3; ++t) {
           const PrismTet& tet = prism.tets[t];
           if (tet.rest.volume == 0.0) {
             continue;
           }
-          const std::size_t slot = 3 * (p - first) + t;
-          const Corners corners = tet_corners(prism, tet, x);
-          tet_energy[slot] = neo_hookean_energy(corners, tet.rest, prism.material);
-          if (with_gradient) {
-            tet_forces[slot] = neo_hookean_forces(corners, tet.rest, prism.material);
+          energy += tet_energy[3 * k + t];
+          for (std::size_t i = 0; i < 4 && with_gradient; ++i) {
+            gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -=
+                tet_forces[3 * k + t][i];
           }
         }
-      }
-    });
-    for (std::size_t p = first; p < last; ++p) {
-      const Prism& prism = tissue_.prisms[p];
-      for (std::size_t t = 0; t < 3; ++t) {
-        const PrismTet& tet = prism.tets[t];
-        if (tet.rest.volume == 0.0) {
-          continue;
-        }
-        const std::size_t slot = 3 * (p - first) + t;
-        energy += tet_energy[slot];
-        if (with_gradient) {
-          for (std::size_t i = 0; i < 4; ++i) {
-            gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -= tet_forces[slot][i];
-          }
-        }
-      }
-    }
-  }
+      });
 }
 
 double TissueEnergy::volume_energy(std::span<const Vec3> x) const {
@@ -109,19 +127,16 @@ void TissueEnergy::add_volume(std::span<const Vec3> x, std::span<Vec3> gradient,
     return;
   }
   const double kappa = tissue_.volume_weight * scale;
-  // As add_elastic: each prism's term on worker threads, summed in prism order here.
-  constexpr std::size_t kBlock = 4096;  // prisms: 4096 x 152 bytes
   const bool with_gradient = !gradient.empty();
   const std::size_t prisms = tissue_.prisms.size();
-  std::vector<double> prism_energy(std::min(kBlock, prisms));
+  std::vector<double> prism_energy(std::min(kPrismBlock, prisms));
   std::vector<std::array<Vec3, 6>> prism_gradient(with_gradient ? prism_energy.size() : 0);
-  for (std::size_t first = 0; first < prisms; first += kBlock) {
-    const std::size_t last = std::min(first + kBlock, prisms);
-    parallel_for(first, last, 256, [&](std::size_t begin, std::size_t end) {
-      for (std::size_t p = begin; p < end; ++p) {
+  prisms_in_blocks(
+      prisms, 256,
+      [&](std::size_t p, std::size_t k) {
         const Prism& prism = tissue_.prisms[p];
         if (prism.rest_volume == 0.0) {
-          continue;
+          return;
         }
         PrismPoints corners;
         for (std::size_t i = 0; i < 6; ++i) {
@@ -129,29 +144,25 @@ void TissueEnergy::add_volume(std::span<const Vec3> x, std::span<Vec3> gradient,
         }
         const double change = prism_volume(corners) - prism.rest_volume;
         const double magnitude = std::abs(prism.rest_volume);
-        prism_energy[p - first] = 0.5 * kappa * change * change / magnitude;
+        prism_energy[k] = 0.5 * kappa * change * change / magnitude;
         if (with_gradient) {
           const std::array<Vec3, 6> dv = prism_volume_gradient(corners);
           const double factor = kappa * change / magnitude;
           for (std::size_t i = 0; i < 6; ++i) {
-            prism_gradient[p - first][i] = factor * dv[i];
+            prism_gradient[k][i] = factor * dv[i];
           }
         }
-      }
-    });
-    for (std::size_t p = first; p < last; ++p) {
-      const Prism& prism = tissue_.prisms[p];
-      if (prism.rest_volume == 0.0) {
-        continue;
-      }
-      energy += prism_energy[p - first];
-      if (with_gradient) {
-        for (std::size_t i = 0; i < 6; ++i) {
-          gradient[static_cast<std::size_t>(prism.points[i])] += prism_gradient[p - first][i];
+      },
+      [&](std::size_t p, std::size_t k) {
+        const Prism& prism = tissue_.prisms[p];
+        if (prism.rest_volume == 0.0) {
+          return;
         }
-      }
-    }
-  }
+        energy += prism_energy[k];
+        for (std::size_t i = 0; i < 6 && with_gradient; ++i) {
+          gradient[static_cast<std::size_t>(prism.points[i])] += prism_gradient[k][i];
+        }
+      });
 }
 
 double TissueEnergy::energy(std::span<const Vec3> x, std::span<Vec3> gradient) const {
