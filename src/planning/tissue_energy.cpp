@@ -5,38 +5,11 @@
 #include <cmath>
 #include <vector>
 
-#include "incise/core/parallel_for.hpp"
 #include "incise/planning/minimize.hpp"
 #include "incise/planning/prism.hpp"
+#include "tissue_pattern.hpp"
 
 namespace incise::planning {
-
-namespace {
-
-/// Prisms per block of the per-element terms held at once (a few MB at most).
-constexpr std::size_t kPrismBlock = 4096;
-
-/// For blocks of kPrismBlock prisms: compute(p, k) for each prism p of the block (k its place
-/// in the block) on worker threads, then take(p, k) for each in prism order on this thread.
-/// Each prism's terms are computed apart and summed in one order, so the sums are the same, to
-/// the bit, on any thread count.
-template <typename Compute, typename Take>
-void prisms_in_blocks(std::size_t prisms, std::size_t grain, const Compute& compute,
-                      const Take& take) {
-  for (std::size_t first = 0; first < prisms; first += kPrismBlock) {
-    const std::size_t last = std::min(first + kPrismBlock, prisms);
-    parallel_for(first, last, grain, [&](std::size_t begin, std::size_t end) {
-      for (std::size_t p = begin; p < end; ++p) {
-        compute(p, p - first);
-      }
-    });
-    for (std::size_t p = first; p < last; ++p) {
-      take(p, p - first);
-    }
-  }
-}
-
-}  // namespace
 
 TissueEnergy::TissueEnergy(const LayeredTissue& tissue, const Vec3& gravity)
     : tissue_(tissue), gravity_(gravity) {
@@ -84,7 +57,7 @@ void TissueEnergy::add_elastic(std::span<const Vec3> x, std::span<Vec3> gradient
   const std::size_t prisms = tissue_.prisms.size();
   std::vector<double> tet_energy(3 * std::min(kPrismBlock, prisms));
   std::vector<ElementForces> tet_forces(with_gradient ? tet_energy.size() : 0);
-  prisms_in_blocks(
+  for_prism_blocks(
       prisms, 64,
       [&](std::size_t p, std::size_t k) {
         const Prism& prism = tissue_.prisms[p];
@@ -99,17 +72,20 @@ void TissueEnergy::add_elastic(std::span<const Vec3> x, std::span<Vec3> gradient
           }
         }
       },
-      [&](std::size_t p, std::size_t k) {
-        const Prism& prism = tissue_.prisms[p];
-        for (std::size_t t = 0; t < 3; ++t) {
-          const PrismTet& tet = prism.tets[t];
-          if (tet.rest.volume == 0.0) {
-            continue;
-          }
-          energy += tet_energy[3 * k + t];
-          for (std::size_t i = 0; i < 4 && with_gradient; ++i) {
-            gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -=
-                tet_forces[3 * k + t][i];
+      [&](std::size_t first, std::size_t last) {  // summed in prism order
+        for (std::size_t p = first; p < last; ++p) {
+          const Prism& prism = tissue_.prisms[p];
+          const std::size_t k = p - first;
+          for (std::size_t t = 0; t < 3; ++t) {
+            const PrismTet& tet = prism.tets[t];
+            if (tet.rest.volume == 0.0) {
+              continue;
+            }
+            energy += tet_energy[3 * k + t];
+            for (std::size_t i = 0; i < 4 && with_gradient; ++i) {
+              gradient[static_cast<std::size_t>(prism.points[tet.corners[i]])] -=
+                  tet_forces[3 * k + t][i];
+            }
           }
         }
       });
@@ -131,7 +107,7 @@ void TissueEnergy::add_volume(std::span<const Vec3> x, std::span<Vec3> gradient,
   const std::size_t prisms = tissue_.prisms.size();
   std::vector<double> prism_energy(std::min(kPrismBlock, prisms));
   std::vector<std::array<Vec3, 6>> prism_gradient(with_gradient ? prism_energy.size() : 0);
-  prisms_in_blocks(
+  for_prism_blocks(
       prisms, 256,
       [&](std::size_t p, std::size_t k) {
         const Prism& prism = tissue_.prisms[p];
@@ -153,14 +129,16 @@ void TissueEnergy::add_volume(std::span<const Vec3> x, std::span<Vec3> gradient,
           }
         }
       },
-      [&](std::size_t p, std::size_t k) {
-        const Prism& prism = tissue_.prisms[p];
-        if (prism.rest_volume == 0.0) {
-          return;
-        }
-        energy += prism_energy[k];
-        for (std::size_t i = 0; i < 6 && with_gradient; ++i) {
-          gradient[static_cast<std::size_t>(prism.points[i])] += prism_gradient[k][i];
+      [&](std::size_t first, std::size_t last) {  // summed in prism order
+        for (std::size_t p = first; p < last; ++p) {
+          const Prism& prism = tissue_.prisms[p];
+          if (prism.rest_volume == 0.0) {
+            continue;
+          }
+          energy += prism_energy[p - first];
+          for (std::size_t i = 0; i < 6 && with_gradient; ++i) {
+            gradient[static_cast<std::size_t>(prism.points[i])] += prism_gradient[p - first][i];
+          }
         }
       });
 }

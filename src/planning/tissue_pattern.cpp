@@ -69,15 +69,13 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
   // A prism's matrix (its three tetrahedra's and its volume term's, over its six corners) for a
   // block of prisms in parallel (the eigen-decompositions are most of the work), then added
   // into the matrix in prism order, 21 blocks each: the sum is the same for any thread count.
-  constexpr std::size_t kBlock = 4096;  // prisms: 4096 x 2.6 kB of matrices
-  std::vector<PrismHessian> element(std::min(kBlock, tissue.prisms.size()));
+  std::vector<PrismHessian> element(std::min(kPrismBlock, tissue.prisms.size()));  // 2.6 kB each
   std::vector<char> empty(element.size());
-  for (std::size_t first = 0; first < tissue.prisms.size(); first += kBlock) {
-    const std::size_t last = std::min(first + kBlock, tissue.prisms.size());
-    parallel_for(first, last, 64, [&](std::size_t begin, std::size_t end) {
-      for (std::size_t p = begin; p < end; ++p) {
+  for_prism_blocks(
+      tissue.prisms.size(), 64,
+      [&](std::size_t p, std::size_t slot) {
         const Prism& prism = tissue.prisms[p];
-        PrismHessian& h = element[p - first];
+        PrismHessian& h = element[slot];
         h.setZero();
         bool any = false;
         for (std::size_t t = 0; t < 3 && terms.tets; ++t) {
@@ -118,39 +116,39 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
                  prism_volume_hessian(corners);
           }
         }
-        empty[p - first] = any ? 0 : 1;
-      }
-    });
-    // Added by column ranges side by side, each range's blocks in prism order: every value
-    // gets its terms in the same order as one thread would add them.
-    for_column_ranges(matrix, [&](int low, int high) {
-      const auto mine = [low, high](int column) { return column >= low && column < high; };
-      for (std::size_t p = first; p < last; ++p) {
-        if (empty[p - first] != 0) {
-          continue;
-        }
-        const Prism& prism = tissue.prisms[p];
-        const PrismHessian& h = element[p - first];
-        for (std::size_t i = 0, k = 0; i < 6; ++i) {
-          const auto bi = static_cast<Eigen::Index>(3 * i);
-          if (mine(matrix.row(prism.points[i]))) {
-            matrix.add_diagonal(prism.points[i], h.block<3, 3>(bi, bi));
-          }
-          for (std::size_t j = i + 1; j < 6; ++j, ++k) {
-            const std::size_t pair = pattern.prism_pairs[p * 15 + k];
-            if (!mine(matrix.coupling_column(pair))) {
+        empty[slot] = any ? 0 : 1;
+      },
+      [&](std::size_t first, std::size_t last) {
+        // Added by column ranges side by side, each range's blocks in prism order: every value
+        // gets its terms in the same order as one thread would add them.
+        for_column_ranges(matrix, [&](int low, int high) {
+          const auto mine = [low, high](int column) { return column >= low && column < high; };
+          for (std::size_t p = first; p < last; ++p) {
+            if (empty[p - first] != 0) {
               continue;
             }
-            const auto bj = static_cast<Eigen::Index>(3 * j);
-            // The block at (first, second) of the pair as stored.
-            const bool same_order = pattern.pairs[pair].first == prism.points[i];
-            matrix.add_coupling(
-                pair, same_order ? Mat3(h.block<3, 3>(bi, bj)) : Mat3(h.block<3, 3>(bj, bi)));
+            const Prism& prism = tissue.prisms[p];
+            const PrismHessian& h = element[p - first];
+            for (std::size_t i = 0, k = 0; i < 6; ++i) {
+              const auto bi = static_cast<Eigen::Index>(3 * i);
+              if (mine(matrix.row(prism.points[i]))) {
+                matrix.add_diagonal(prism.points[i], h.block<3, 3>(bi, bi));
+              }
+              for (std::size_t j = i + 1; j < 6; ++j, ++k) {
+                const std::size_t pair = pattern.prism_pairs[p * 15 + k];
+                if (!mine(matrix.coupling_column(pair))) {
+                  continue;
+                }
+                const auto bj = static_cast<Eigen::Index>(3 * j);
+                // The block at (first, second) of the pair as stored.
+                const bool same_order = pattern.pairs[pair].first == prism.points[i];
+                matrix.add_coupling(
+                    pair, same_order ? Mat3(h.block<3, 3>(bi, bj)) : Mat3(h.block<3, 3>(bj, bi)));
+              }
+            }
           }
-        }
-      }
-    });
-  }
+        });
+      });
 }
 
 }  // namespace incise::planning

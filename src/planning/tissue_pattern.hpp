@@ -3,11 +3,13 @@
 // tetrahedra added to a PointBlockMatrix over them: shared by Newton's prediction and the
 // continuum's equilibrium initialisation.
 
+#include <algorithm>
 #include <functional>
 #include <span>
 #include <utility>
 #include <vector>
 
+#include "incise/core/parallel_for.hpp"
 #include "incise/planning/layered_tissue.hpp"
 #include "point_block_matrix.hpp"
 
@@ -28,6 +30,27 @@ struct CouplingPattern {
 void for_column_ranges(const PointBlockMatrix& matrix, const std::function<void(int, int)>& add);
 /// Fewer points than this to a range are not worth another thread's walk over the elements.
 inline constexpr int kLeastPointsPerRange = 2048;
+
+/// Prisms per block of per-prism terms held at once (a few MB at most).
+inline constexpr std::size_t kPrismBlock = 4096;
+
+/// For blocks of kPrismBlock prisms: compute(p, k) for each prism p of the block (k its place
+/// in the block) on worker threads, then take(first, last) for the block once they are all
+/// computed. A take() that adds the block's terms in prism order gives the same sums, to the
+/// bit, on any thread count.
+template <typename Compute, typename Take>
+void for_prism_blocks(std::size_t prisms, std::size_t grain, const Compute& compute,
+                      const Take& take) {
+  for (std::size_t first = 0; first < prisms; first += kPrismBlock) {
+    const std::size_t last = std::min(first + kPrismBlock, prisms);
+    parallel_for(first, last, grain, [&](std::size_t begin, std::size_t end) {
+      for (std::size_t p = begin; p < end; ++p) {
+        compute(p, p - first);
+      }
+    });
+    take(first, last);
+  }
+}
 
 /// Which of a prism's second derivatives add_prism_hessians adds.
 struct PrismTerms {
