@@ -10,7 +10,8 @@
 // usage: cut_cost_bench [--cells 10,20,40] [--model corotational-fem|mass-spring]
 //                       [--cutter subdivision|xfem] [--blade-x 0.05] [--per-frame 1]
 //                       [--preconditioner block-jacobi|two-level] [--paired-every 3]
-//                       [--products single|double] [--tolerance 1e-6]
+//                       [--products single|double] [--tolerance 1e-6] [--threads N]
+// --threads N: the engine's worker threads (default: every core the process may use).
 // --paired-every K (0: off): every K-th cutting frame is also stepped from the same state with
 // the blade held still (the engine resumed from a checkpoint taken just before it), so the cut's
 // own extra is measured without the body's motion, which differs from frame to frame.
@@ -18,7 +19,9 @@
 // Frames 1-10 are "before", 16-45 (the blade moving inside) "cutting", 46-65 "after".
 
 #include <fmt/format.h>
+#include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -97,6 +100,7 @@ int main(int argc, char** argv) {
   bool per_frame = false;           // --per-frame 1: every frame on stderr
   int paired_every = 3;
   double tolerance = 1e-6;  // CG's relative residual (1e-3: the viewer's real-time bodies)
+  std::unique_ptr<tbb::global_control> threads;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--cells") == 0) {
       sizes = incise::bench::comma_separated_ints(argv[i + 1]);
@@ -116,6 +120,10 @@ int main(int argc, char** argv) {
       paired_every = std::atoi(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--per-frame") == 0) {
       per_frame = std::strcmp(argv[i + 1], "0") != 0;
+    } else if (std::strcmp(argv[i], "--threads") == 0) {
+      threads = std::make_unique<tbb::global_control>(
+          tbb::global_control::max_allowed_parallelism,
+          static_cast<std::size_t>(std::max(1, std::atoi(argv[i + 1]))));
     }
   }
   std::printf(

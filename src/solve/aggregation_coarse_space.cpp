@@ -95,6 +95,10 @@ using ModeMatrix = AggregationCoarseSpace::ModeMatrix;
 using Modes = AggregationCoarseSpace::Modes;
 using VertexModes = AggregationCoarseSpace::VertexModes;
 constexpr int kModes = AggregationCoarseSpace::kModes;
+/// Per task in the coarse solve's passes: aggregates (some 1,500 vertices), or top-level groups
+/// (some 20 aggregates each).
+constexpr std::size_t kAggregateGrain = 64;
+constexpr std::size_t kGroupGrain = 4;
 
 /// A displacement field's rigid coordinates: translation (m) and small rotation about a centre:
 /// u(x) = t + w x (x - centre) = [I, -[x - centre]x] (t, w).
@@ -265,6 +269,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     }
     auto [top, top_count] = greedy_aggregates(aggregate_graph, std::vector<char>(aggregates, 1));
     top_of_ = std::move(top);
+    collect_top_members(static_cast<std::size_t>(top_count));
     top_columns.assign(static_cast<std::size_t>(top_count), {});
     for (std::size_t a = 0; a < aggregates; ++a) {
       auto& row = top_columns[static_cast<std::size_t>(top_of_[a])];
@@ -303,6 +308,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     top_dropped_.assign(top_columns.size(), 0);
   } else {
     top_of_.clear();
+    collect_top_members(0);
     top_slot_.clear();
     top_blocks_.clear();
     level_motion_.clear();
@@ -468,6 +474,21 @@ void AggregationCoarseSpace::collect_members() {
     if (aggregate_of_[i] >= 0) {
       members_[static_cast<std::size_t>(aggregate_of_[i])].push_back(static_cast<VertexId>(i));
     }
+  }
+}
+
+void AggregationCoarseSpace::collect_top_members(std::size_t groups) {
+  top_first_.assign(groups + 1, 0);
+  for (const int t : top_of_) {
+    ++top_first_[static_cast<std::size_t>(t) + 1];
+  }
+  for (std::size_t t = 0; t < groups; ++t) {
+    top_first_[t + 1] += top_first_[t];
+  }
+  top_members_.resize(top_of_.size());
+  std::vector<std::size_t> next(top_first_.begin(), top_first_.end() - 1);
+  for (std::size_t a = 0; a < top_of_.size(); ++a) {
+    top_members_[next[static_cast<std::size_t>(top_of_[a])]++] = static_cast<int>(a);
   }
 }
 
@@ -672,6 +693,7 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
   diagonal_slot_ = std::move(diagonal_slot);
   top_diagonal_slot_ = std::move(top_diagonal_slot);
   top_of_ = std::move(top_of);
+  collect_top_members(three_level ? static_cast<std::size_t>(groups) : 0);
   top_slot_ = std::move(top_slot);
   top_map_ = std::move(top_map);
   level_motion_ = std::move(level_motion);
@@ -806,20 +828,27 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
   if (aggregates == 0) {
     return 0.0;
   }
-  coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * aggregates));
-  // P^T r on the calling thread (it runs beside the clusters' solve): P_v^T r_v =
-  // W_a^T (r_v, d_v x r_v), summed over the members in vertex order (a streaming pass) before
-  // W_a^T.
-  raw_rhs_.assign(aggregates, Modes::Zero());
-  for (std::size_t i = 0; i < aggregate_of_.size(); ++i) {
-    const int a = aggregate_of_[i];
-    if (a >= 0) {
-      Modes& raw = raw_rhs_[static_cast<std::size_t>(a)];
-      raw.head<3>() += residual[i];
-      raw.tail<3>() += offset_[i].cross(residual[i]);
+  // P^T r: P_v^T r_v = W_a^T (r_v, d_v x r_v), summed over each aggregate's members in vertex
+  // order before W_a^T. Every pass below is on the worker threads, each sum in a fixed order
+  // (the same bits on any thread count): this solve runs beside the clusters' and, done on
+  // one thread, was a CG iteration's critical path on 16 cores (BENCHMARKS.md).
+  const auto restrict_to = [&](std::size_t a) {
+    Modes raw = Modes::Zero();
+    for (const VertexId v : members_[a]) {
+      raw.head<3>() += residual[v];
+      raw.tail<3>() += offset_[v].cross(residual[v]);
     }
-  }
+    raw_rhs_[a] = raw;
+    return raw;
+  };
+  raw_rhs_.resize(aggregates);
   if (!three_level_) {
+    parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
+      for (std::size_t a = first; a != last; ++a) {
+        restrict_to(a);
+      }
+    });
+    coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * aggregates));
     for (std::size_t a = 0; a < aggregates; ++a) {
       coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a)).noalias() =
           raw_from_modes_[a].transpose() * raw_rhs_[a];
@@ -832,23 +861,38 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
     return coarse_rhs_.dot(solution);
   }
   // Three levels: each aggregate's block-Jacobi correction plus the top level's exact one,
-  // in raw rigid coordinates: motion_a = W_a L_a W_a^T raw_a + W_a Q_a y_t.
-  Eigen::VectorXd top_rhs = Eigen::VectorXd::Zero(scalar_.rows());
+  // in raw rigid coordinates: motion_a = W_a L_a W_a^T raw_a + W_a Q_a y_t. One pass by top
+  // group restricts its aggregates and sums their part of the group's right-hand side (in
+  // aggregate order); after the top solve, one pass by aggregate forms the motions.
+  const std::size_t groups = top_first_.size() - 1;
+  coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * groups));
+  parallel_for(0, groups, kGroupGrain, [&](std::size_t first, std::size_t last) {
+    for (std::size_t t = first; t != last; ++t) {
+      Modes group_rhs = Modes::Zero();
+      for (std::size_t k = top_first_[t]; k != top_first_[t + 1]; ++k) {
+        const auto a = static_cast<std::size_t>(top_members_[k]);
+        group_rhs.noalias() += top_motion_[a].transpose() * restrict_to(a);
+      }
+      coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * t)) = group_rhs;
+    }
+  });
+  const Eigen::VectorXd top_solution = factor_->solve(coarse_rhs_);
+  own_part_.resize(aggregates);
+  parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
+    for (std::size_t a = first; a != last; ++a) {
+      Modes& motion = coarse_motion_[a];
+      motion.noalias() = level_motion_[a] * raw_rhs_[a];
+      own_part_[a] = raw_rhs_[a].dot(motion);
+      motion.noalias() += top_motion_[a] * top_solution.segment<kModes>(
+                                               static_cast<Eigen::Index>(kModes * top_of_[a]));
+    }
+  });
+  // r.z in the aggregates' order, then the top level's part.
   double sum = 0.0;
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    const Modes& raw = raw_rhs_[a];
-    coarse_motion_[a].noalias() = level_motion_[a] * raw;
-    sum += raw.dot(coarse_motion_[a]);
-    top_rhs.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a])).noalias() +=
-        top_motion_[a].transpose() * raw;
+  for (const double part : own_part_) {
+    sum += part;
   }
-  const Eigen::VectorXd top_solution = factor_->solve(top_rhs);
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    coarse_motion_[a].noalias() +=
-        top_motion_[a] *
-        top_solution.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a]));
-  }
-  return sum + top_rhs.dot(top_solution);
+  return sum + coarse_rhs_.dot(top_solution);
 }
 
 }  // namespace incise

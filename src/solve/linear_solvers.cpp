@@ -311,8 +311,9 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   // (P^T r).(A_c^-1 P^T r), so it needs no pass of its own).
   auto precondition_two_level = [&](bool set_direction) {
     // The clusters and the coarse solve read r and write apart (z on clustered rows; the
-    // coarse solution), so they run at once: the coarse solve is sequential and would
-    // otherwise leave the other cores idle.
+    // coarse solution), so they run at once: the coarse solve's factorised solve is
+    // sequential and would otherwise leave the other cores idle (its passes run on the workers
+    // that the clusters leave free).
     double cluster_sum = 0.0;
     double coarse_sum = 0.0;
     parallel_invoke([&] { cluster_sum = clusters_->apply_clusters(residual_, preconditioned_); },

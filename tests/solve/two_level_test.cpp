@@ -362,6 +362,37 @@ TEST(AggregationCoarseSpace, ThreeLevelCorrectionIsSymmetricAndPositive) {
   }
 }
 
+TEST(AggregationCoarseSpace, ThreeLevelSolveGivesTheSameBitsWhateverTheThreadCount) {
+  // The coarse solve's passes run on the worker threads; each sum must keep one order, so that
+  // a run (and its replay, or a checkpoint resumed elsewhere) is the same on any machine. The
+  // box is large enough for several tasks in each pass.
+  std::mt19937 random(17);
+  const HeldLaplacian held = held_box_laplacian(16, random);  // (clang 14: no captured bindings)
+  BoxGridOptions grid;
+  grid.cells = {16, 16, 16};
+  const TetMesh box = make_box_grid(grid);
+  const std::vector<Vec3> r = random_field(held.matrix.rows(), random, held.constrained);
+  auto solve_on = [&](int threads) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                    static_cast<std::size_t>(threads));
+    AggregationCoarseSpace coarse;
+    coarse.set_exact_limit(0);
+    EXPECT_TRUE(coarse.update(held.matrix, held.constrained, box.rest_positions()));
+    EXPECT_TRUE(coarse.three_level());
+    EXPECT_GT(coarse.aggregate_count(), 128U) << "too few aggregates for several tasks";
+    const double r_pe = coarse.solve(r);
+    std::vector<Vec3> prolonged(r.size(), Vec3::Zero());
+    coarse.add_correction(prolonged);
+    return std::make_pair(r_pe, prolonged);
+  };
+  const auto [one_sum, one] = solve_on(1);
+  const auto [two_sum, two] = solve_on(2);
+  EXPECT_EQ(one_sum, two_sum) << "r.(P e) differs between 1 and 2 threads";
+  for (std::size_t v = 0; v < one.size(); ++v) {
+    ASSERT_EQ(one[v], two[v]) << "vertex " << v << " differs between 1 and 2 threads";
+  }
+}
+
 /// An edit like a cut's on `matrix`: a new vertex stiffly tied to vertex 1 and to its
 /// neighbours (values refilled from `seed`).
 void add_vertex_beside_one(BlockSparseMatrix& matrix, std::vector<char>& constrained,

@@ -22,9 +22,9 @@
 // hierarchy for every matrix, where this one keeps its factor for ten steps and follows a cut
 // in between by letting new vertices join their neighbours' aggregates.
 //
-// Threads: one caller at a time (update()'s Galerkin sum runs on the worker pool, each coarse
-// row summed by one task: deterministic); correction() may be read from any thread between
-// calls.
+// Threads: one caller at a time (update()'s Galerkin sum and solve()'s passes run on the worker
+// pool, each coarse row, aggregate or group summed by one task: deterministic); correction()
+// may be read from any thread between calls.
 
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -77,7 +77,7 @@ class AggregationCoarseSpace {
 
   /// Solves the coarse system for the residual r (restricted by P^T); the correction of
   /// vertex i is then correction(i). Returns r.(P e), the correction's part of r.z, as
-  /// (P^T r).e.
+  /// (P^T r).e. Its passes run on the worker threads, the factorised solve on the caller's.
   double solve(std::span<const Vec3> residual);
   /// The coarse correction at vertex i (zero for a held vertex).
   [[nodiscard]] Vec3 correction(std::size_t vertex) const {
@@ -108,6 +108,8 @@ class AggregationCoarseSpace {
               std::span<const Vec3> positions);
   /// members_ from aggregate_of_, each in vertex order.
   void collect_members();
+  /// top_first_ and top_members_ from top_of_ (`groups` top-level groups; 0: two levels).
+  void collect_top_members(std::size_t groups);
   /// Each aggregate's centre and orthonormal modes at `positions`, every member's offset,
   /// and with three levels the top groups' modes in their aggregates' coordinates.
   void shape_modes(std::span<const Vec3> positions);
@@ -157,6 +159,8 @@ class AggregationCoarseSpace {
   /// Scalar coarse matrix: nonzero -> (slot, entry in the 6x6 block).
   std::vector<std::pair<int, int>> scalar_source_;
   Eigen::SparseMatrix<double, Eigen::ColMajor, int> scalar_;
+  /// solve(): the factorised system's right-hand side (the aggregates' modes; with three levels
+  /// the top groups').
   Eigen::VectorXd coarse_rhs_;
   std::vector<Modes> raw_rhs_;  ///< per aggregate: its members' summed force and moment
   std::unique_ptr<DirectFactorization> factor_;
@@ -171,9 +175,14 @@ class AggregationCoarseSpace {
   std::vector<int> diagonal_slot_;           ///< each aggregate's own block among coarse_blocks_
   std::vector<int> top_diagonal_slot_;       ///< each top-level group's own block
   std::vector<int> top_of_;                  ///< three levels: each aggregate's top-level aggregate
-  std::vector<int> top_slot_;                ///< coarse slot -> top-level slot
-  std::vector<ModeMatrix> top_blocks_;       ///< the top level's matrix
-  std::vector<ModeMatrix> top_map_;          ///< per aggregate: its modes from its group's
+  /// Three levels: each group's aggregates, in order, at top_members_[top_first_[t] ..
+  /// top_first_[t + 1]).
+  std::vector<std::size_t> top_first_;
+  std::vector<int> top_members_;
+  std::vector<double> own_part_;        ///< solve(): each aggregate's own part of r.z
+  std::vector<int> top_slot_;           ///< coarse slot -> top-level slot
+  std::vector<ModeMatrix> top_blocks_;  ///< the top level's matrix
+  std::vector<ModeMatrix> top_map_;     ///< per aggregate: its modes from its group's
   /// Per aggregate, raw rigid coordinates in and out: W_a L_a W_a^T (L_a the inverse of its
   /// own block) and W_a Q_a (its motion from its group's modes).
   std::vector<ModeMatrix> level_motion_, top_motion_;
