@@ -402,9 +402,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<tbb::global_control> threads;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--threads") == 0) {
-      threads = std::make_unique<tbb::global_control>(
-          tbb::global_control::max_allowed_parallelism,
-          static_cast<std::size_t>(std::max(1, std::atoi(argv[i + 1]))));
+      threads = incise::bench::thread_limit(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--relax") == 0) {
       settings.relax = std::atoi(argv[i + 1]);
     } else if (std::strcmp(argv[i], "--aggressive") == 0) {

@@ -1,7 +1,11 @@
 #pragma once
 // Command-line helpers shared by the benchmarks.
 
+#include <tbb/global_control.h>
+
+#include <algorithm>
 #include <cstdlib>
+#include <memory>
 #include <vector>
 
 namespace incise::bench {
@@ -28,6 +32,13 @@ inline std::vector<int> comma_separated_ints(const char* text) {
     values.push_back(static_cast<int>(value));
   }
   return values;
+}
+
+/// --threads N: holds TBB to N workers (at least 1) while the result lives.
+inline std::unique_ptr<tbb::global_control> thread_limit(const char* text) {
+  return std::make_unique<tbb::global_control>(
+      tbb::global_control::max_allowed_parallelism,
+      static_cast<std::size_t>(std::max(1, std::atoi(text))));
 }
 
 }  // namespace incise::bench

@@ -21,7 +21,6 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
-#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -121,9 +120,7 @@ int main(int argc, char** argv) {
     } else if (std::strcmp(argv[i], "--per-frame") == 0) {
       per_frame = std::strcmp(argv[i + 1], "0") != 0;
     } else if (std::strcmp(argv[i], "--threads") == 0) {
-      threads = std::make_unique<tbb::global_control>(
-          tbb::global_control::max_allowed_parallelism,
-          static_cast<std::size_t>(std::max(1, std::atoi(argv[i + 1]))));
+      threads = incise::bench::thread_limit(argv[i + 1]);
     }
   }
   std::printf(
