@@ -190,10 +190,17 @@ def _longest_stall_beside(work):
     return max(b - a for a, b in zip(inside, inside[1:])), span["end"] - span["start"]
 
 
-def _released_the_gil(work):
-    stall, ran = _longest_stall_beside(work)
-    assert ran > 0.05, f"the work took {ran:.3f} s: too short to tell"
-    return stall < 0.25 * ran
+def _released_the_gil(work, tries=3):
+    """True when `work` let this thread run for most of its time. Held, the GIL stalls this
+    thread for all of `work` on every try; released, a try can still see a long stall when the
+    work's own worker threads take both cores from this one (CI runs other tests beside this
+    one), so the best of a few tries is taken."""
+    for _ in range(tries):
+        stall, ran = _longest_stall_beside(work)
+        assert ran > 0.05, f"the work took {ran:.3f} s: too short to tell"
+        if stall < 0.25 * ran:
+            return True
+    return False
 
 
 def test_the_gil_test_tells_held_from_released():
@@ -210,7 +217,11 @@ def test_the_gil_is_released_by_cut_render_and_plan(source_dir, tmp_path):
     sim = incise.Simulation()
     sim.render(64, 48)  # the context made once, on this thread
     pictures = []
-    assert _released_the_gil(lambda: pictures.extend(sim.render(640, 480) for _ in range(12)))
+
+    def render_twelve():
+        pictures[:] = [sim.render(640, 480) for _ in range(12)]
+
+    assert _released_the_gil(render_twelve)
     # Drawn on the second thread by the renderer made on this one, and back here after.
     assert len(pictures) == 12 and all(np.array_equal(p, pictures[0]) for p in pictures)
     assert np.array_equal(sim.render(640, 480), pictures[0]) and pictures[0].std() > 0
