@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include "incise/core/error.hpp"
 #include "incise/mesh/generators.hpp"
@@ -672,6 +674,48 @@ TEST(FemSolver, ProductsOfSeveralVectorsAtOnceMatchOneByOne) {
     matrix.multiply_rows_single(0, n, fields[m], alone.data());
     EXPECT_EQ(max_difference(alone, together[m]), 0.0) << "vector " << m;
   }
+}
+
+TEST(FemSolver, RowsACutMovesAndAddsLeaveTheMatricesWhereTheyAreUntilHalfAgainAsManyBlocks) {
+  // A cut moves every row it edits to the end of the shared storage and adds rows and blocks.
+  // A matrix that outgrew its capacity was copied into fresh pages within the cutting frame,
+  // a hitch of 20-60x the frame's usual update on the 50k body (BENCHMARKS.md). Here a cut's
+  // edits, repeated: a new vertex coupled to four rows a step, each edited row moved.
+  Body body(box({8, 8, 8}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
+  BlockSparseMatrix stiffness;
+  stiffness.build_pattern(body.mesh);
+  BlockSparseMatrix system;
+  system.match_pattern(stiffness);
+  system.refresh_single_precision();
+  const std::size_t blocks = stiffness.block_count();
+  const Mat3* stiffness_values = stiffness.values().data();
+  const Mat3* system_values = system.values().data();
+  std::mt19937 random(5);
+  int packed = 0;
+  while (stiffness.block_count() < blocks + 2 * blocks / 5) {
+    const auto vertex = static_cast<VertexId>(stiffness.rows());
+    stiffness.add_rows(stiffness.rows() + 1);
+    std::vector<VertexId> coupled{vertex};
+    for (int k = 0; k < 4; ++k) {
+      const auto row = static_cast<VertexId>(random() % vertex);
+      std::vector<VertexId> columns(stiffness.row_columns(row).begin(),
+                                    stiffness.row_columns(row).end());
+      columns.push_back(vertex);  // the largest: still sorted
+      stiffness.edit_row(row, columns);
+      coupled.push_back(row);
+    }
+    std::sort(coupled.begin(), coupled.end());
+    coupled.erase(std::unique(coupled.begin(), coupled.end()), coupled.end());
+    stiffness.edit_row(vertex, coupled);
+    packed += stiffness.compact_if_fragmented() ? 1 : 0;
+    system.match_pattern(stiffness);
+    system.refresh_single_precision();
+    ASSERT_EQ(stiffness.values().data(), stiffness_values)
+        << "copied at " << stiffness.block_count() << " blocks of " << blocks;
+    ASSERT_EQ(system.values().data(), system_values)
+        << "copied at " << system.block_count() << " blocks of " << blocks;
+  }
+  EXPECT_GT(packed, 0) << "the storage was never packed: the test did not reach that far";
 }
 
 TEST(FemSolver, AFloatGalerkinStartStopsOnTheTrueResidual) {
