@@ -8,31 +8,11 @@
 #endif
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/mesh/vertex_graph.hpp"
 
 namespace incise {
-
-namespace {
-
-/// values.resize(size, fill...), keeping twice `size` as capacity when it must grow past it,
-/// where core/growth.hpp keeps a quarter more. A matrix's storage grows by every row an edit
-/// moves (the old place is reclaimed only when the rows are packed, at a quarter of the
-/// storage) and by the blocks a cut adds, and reaching the capacity copies every block into
-/// fresh pages, a page fault each 4 kB, in the frame of the edit that reached it. With a
-/// quarter more, the 50k-tet body's stiffness and system matrices were copied twice in its
-/// 30 cutting frames, each time a hitch of 20-60x the frame's usual update (BENCHMARKS.md).
-/// Twice the storage holds half again as many blocks, packed, before a copy. Capacity never
-/// touched costs address space only.
-template <typename T, typename... Fill>
-void resize_for_moved_rows(std::vector<T>& values, std::size_t size, const Fill&... fill) {
-  if (size > values.capacity()) {
-    values.reserve(2 * size + 16);
-  }
-  values.resize(size, fill...);
-}
-
-}  // namespace
 
 BlockSparseMatrix::BlockSparseMatrix() : pattern_(std::make_shared<BlockPattern>()) {}
 
@@ -72,8 +52,9 @@ void BlockSparseMatrix::match_pattern(const BlockSparseMatrix& other) {
 }
 
 void BlockSparseMatrix::fit_values() {
-  // New blocks zero; capacity kept so an edit does not copy the whole matrix.
-  resize_for_moved_rows(values_, pattern_->columns.storage().size(), Mat3(Mat3::Zero()));
+  // New blocks zero; capacity kept so an edit does not copy the whole matrix (core/growth.hpp).
+  resize_keeping(values_, pattern_->columns.storage().size(), capacity_for_moved_rows,
+                 Mat3(Mat3::Zero()));
 }
 
 void BlockSparseMatrix::zero_values() {
@@ -241,7 +222,7 @@ void BlockSparseMatrix::multiply_rows(std::size_t begin, std::size_t end, std::s
 
 void BlockSparseMatrix::refresh_single_precision() {
   const std::size_t count = 9 * values_.size();
-  resize_for_moved_rows(single_values_, count);
+  resize_keeping(single_values_, count, capacity_for_moved_rows);
   const double* source = values_.data()->data();
   float* target = single_values_.data();
   parallel_for(0, count, 1 << 15, [&](std::size_t first, std::size_t last) {

@@ -21,13 +21,30 @@ void reserve_for_edits(std::vector<T>& values) {
   values.reserve(capacity_for_edits(values.size()));
 }
 
+/// The capacity kept for `size` elements of storage that edited rows move through (a block
+/// matrix's values): twice as many. Each row an edit moves leaves its old place behind until
+/// the rows are packed, at a quarter of the storage, so a quarter more capacity was always
+/// reached first, and every block was copied into fresh pages within a cutting frame (a hitch
+/// of 20-60x the frame's usual update on the 50k body, BENCHMARKS.md). Twice the storage holds
+/// half again as many blocks, packed, before a copy.
+[[nodiscard]] constexpr std::size_t capacity_for_moved_rows(std::size_t size) {
+  return 2 * size + 16;
+}
+
+/// values.resize(size, fill...), keeping capacity(size) when it must grow past its capacity.
+template <typename T, typename... Fill>
+void resize_keeping(std::vector<T>& values, std::size_t size, std::size_t (*capacity)(std::size_t),
+                    const Fill&... fill) {
+  if (size > values.capacity()) {
+    values.reserve(capacity(size));
+  }
+  values.resize(size, fill...);
+}
+
 /// values.resize(size, fill...), keeping a quarter more capacity when it must grow past it.
 template <typename T, typename... Fill>
 void resize_for_edits(std::vector<T>& values, std::size_t size, const Fill&... fill) {
-  if (size > values.capacity()) {
-    values.reserve(capacity_for_edits(size));
-  }
-  values.resize(size, fill...);
+  resize_keeping(values, size, capacity_for_edits, fill...);
 }
 
 }  // namespace incise
