@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
 
 namespace incise {
@@ -179,7 +180,11 @@ void ClusterJacobi::pack(const BlockSparseMatrix& matrix, std::span<const char> 
       }
     }
   }
-  inverse_.assign(offset, 0.0);
+  // Kept with room (core/growth.hpp): after a cut this runs every frame, and an exact-size
+  // assign reallocated the inverses whenever the clusters grew, each time in fresh pages
+  // (56 % of the page faults of a 220-frame cutting session, BENCHMARKS.md).
+  inverse_.clear();
+  resize_for_edits(inverse_, offset, 0.0);
   single_inverse_.resize(n);  // every entry is set by update()
 }
 

@@ -13,6 +13,8 @@
 #include <span>
 #include <vector>
 
+#include "incise/core/growth.hpp"
+
 namespace incise {
 
 /// Rows of values of varying length packed in one array, each with room to grow: an edit
@@ -39,6 +41,7 @@ class PackedRows {
       room_[i] = end_[i] - begin_[i];
     }
     live_ = values_.size();
+    values_.reserve(capacity_for_moved_rows(live_));
   }
 
   /// Appends empty rows up to `count`.
@@ -62,7 +65,7 @@ class PackedRows {
       const std::size_t begin = values_.size();
       const std::size_t room = values.size() + kRoom;
       if (values_.capacity() < begin + room) {
-        values_.reserve(begin + room + (begin + room) / 4);  // grow with slack
+        values_.reserve(capacity_for_moved_rows(begin + room));  // grow with slack
       }
       values_.resize(begin + room);
       begin_[i] = begin;
@@ -81,7 +84,7 @@ class PackedRows {
       return false;
     }
     std::vector<T> packed;
-    packed.reserve(live_ + live_ / 4);
+    packed.reserve(capacity_for_moved_rows(live_));
     for (std::size_t i = 0; i < begin_.size(); ++i) {
       const std::span<const T> values = row(i);
       begin_[i] = packed.size();
