@@ -242,9 +242,9 @@ TEST(FemModel, FollowsSplitsWithMassConservedAndRestStillForceFree) {
 TEST(FemModel, EditsLeaveThePerElementArraysWhereTheyAreUntilTheBodyHasDoubled) {
   // A long cutting session adds tetrahedra and vertices frame after frame. An array that
   // outgrows its capacity is copied into fresh pages within a frame: with a quarter more
-  // capacity, a session that cut the 50k body through twice had a 110-130 ms frame at every
-  // quarter it added (BENCHMARKS.md). The mesh's, the state's and the model's arrays stay put
-  // until the body has doubled.
+  // capacity, a session that cut the 50k body through twice copied them at every quarter it
+  // added (BENCHMARKS.md). The mesh's, the state's and the model's arrays stay put until the
+  // body has doubled.
   Body body(box({4, 4, 4}, Vec3(0.1, 0.1, 0.1)), material(3e3, 0.45, 1000.0));
   const std::size_t tets = body.mesh.tet_count();
   const std::size_t vertices = body.mesh.vertex_count();

@@ -4,8 +4,8 @@
 // fresh pages: 180 ms in the first cutting frame of the 384k-tet box (BENCHMARKS.md). Twice
 // the size puts that off until the cuts have doubled the body, and a cut then costs what it
 // cuts. A quarter more was not enough: a long session that cut the 50k body through twice
-// copied the arrays at every quarter it added (a frame of 110-130 ms each time, where a
-// frame's model update is 2-3 ms). Capacity never touched costs address space only.
+// copied the per-vertex arrays at every quarter it added, four times (BENCHMARKS.md).
+// Capacity never touched costs address space only.
 
 #include <cstddef>
 #include <vector>
