@@ -145,7 +145,10 @@ InversionGuardOutcome keep_right_side_out(const TetMesh& mesh, std::span<const d
   std::vector<std::uint8_t> counted(tets, 0);
   std::vector<std::uint8_t> marks(tets, 0);
   std::vector<std::uint8_t> seen = below;  // every tetrahedron ever pending
+  // The corners a pass moved, each once (most are shared by several pending tetrahedra): the
+  // tetrahedra around each are checked once.
   std::vector<VertexId> moved;
+  std::vector<std::uint8_t> corner_moved(x.size(), 0);
   std::array<double, 4> weight{};
   for (int pass = 0; pass < parameters.max_passes && !pending.empty(); ++pass) {
     moved.clear();
@@ -187,7 +190,16 @@ InversionGuardOutcome keep_right_side_out(const TetMesh& mesh, std::span<const d
         v[vertex] -= mu * weight[k] * gradient[k];
       }
       // Its neighbours may have been pushed below theirs.
-      moved.insert(moved.end(), tet.begin(), tet.end());
+      for (VertexId corner : tet) {
+        const auto i = static_cast<std::size_t>(corner);
+        if (corner_moved[i] == 0) {
+          corner_moved[i] = 1;
+          moved.push_back(corner);
+        }
+      }
+    }
+    for (VertexId corner : moved) {
+      corner_moved[static_cast<std::size_t>(corner)] = 0;
     }
     pending = failing_around(mesh, moved, marks, [&](TetId t) {
       const Tet& tet = mesh.tet(t);
