@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "incise/core/error.hpp"
+#include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
 #include "incise/solve/direct_factorization.hpp"
 
@@ -19,6 +20,25 @@ AggregationCoarseSpace::AggregationCoarseSpace()
 AggregationCoarseSpace::~AggregationCoarseSpace() = default;
 
 namespace {
+
+/// values = `size` copies of `fill`, in the pages `values` already holds while they suffice,
+/// else with room for twice `size`. The aggregation runs again every tenth step of a body
+/// being cut, each time a little larger: an exact-size assign() mapped fresh pages every time
+/// (500-950 page faults per aggregation on the 50k body, about 12 us each on the 2-core VM:
+/// most of its 7-15 ms; BENCHMARKS.md).
+template <typename T>
+void refill(std::vector<T>& values, std::size_t size, const T& fill) {
+  values.clear();
+  resize_for_edits(values, size, fill);
+}
+
+/// Room for `size` elements in `values`: twice that if it must grow.
+template <typename T>
+void reserve_at_least(std::vector<T>& values, std::size_t size) {
+  if (size > values.capacity()) {
+    values.reserve(capacity_for_edits(size));
+  }
+}
 
 /// A weighted graph in compressed rows (no self loops).
 struct Graph {
@@ -168,8 +188,17 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
                                        std::span<const char> constrained) {
   const std::size_t n = matrix.rows();
   const auto values = matrix.values();
-  // The free vertices' graph, tied by the squared norm of their blocks.
+  // The free vertices' graph, tied by the squared norm of their blocks, built in the last
+  // aggregation's arrays (their pages stay mapped).
   Graph graph;
+  graph.first = std::move(graph_first_);
+  graph.node = std::move(graph_node_);
+  graph.weight = std::move(graph_weight_);
+  graph.first.assign(1, 0);
+  graph.node.clear();
+  graph.weight.clear();
+  reserve_at_least(graph.node, values.size());
+  reserve_at_least(graph.weight, values.size());
   std::vector<char> eligible(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     eligible[i] = constrained[i] == 0 ? 1 : 0;
@@ -187,16 +216,19 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     graph.first.push_back(graph.node.size());
   }
   auto [aggregate, count] = greedy_aggregates(graph, eligible);
+  graph_first_ = std::move(graph.first);
+  graph_node_ = std::move(graph.node);
+  graph_weight_ = std::move(graph.weight);
   // (Aggregating the aggregates once more made the coarse solve 8x smaller but needed 1.6x the
   // iterations on the 384k-tet box: slower in all, measured.)
   aggregate_of_ = std::move(aggregate);
-  members_.assign(static_cast<std::size_t>(count), {});
+  members_.resize(static_cast<std::size_t>(count));  // each emptied and filled again
   collect_members();
 
   // The coarse pattern: aggregate I couples to J when a block of A joins a member of each.
   // Slots are numbered row by row with sorted columns, so the scalar matrix comes out sorted.
   const std::size_t aggregates = members_.size();
-  coarse_slot_.assign(matrix.values().size(), -1);
+  refill(coarse_slot_, matrix.values().size(), -1);
   std::vector<int> seen(aggregates, -1);
   std::vector<int> slot_of(aggregates, -1);
   std::vector<int> neighbours;
@@ -234,6 +266,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     coarse_columns[a] = neighbours;
   }
   slots_by_row_.clear();
+  reserve_at_least(slots_by_row_, matrix.values().size());
   for (std::size_t i = 0; i < matrix.rows(); ++i) {
     for (std::size_t k = matrix.row_begin()[i]; k < matrix.row_end()[i]; ++k) {
       slots_by_row_.push_back(coarse_slot_[k]);
@@ -241,7 +274,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   }
   placed_pattern_ = matrix.pattern();
   placed_version_ = matrix.pattern_version();
-  coarse_blocks_.assign(static_cast<std::size_t>(slots), ModeMatrix::Zero());
+  refill(coarse_blocks_, static_cast<std::size_t>(slots), ModeMatrix(ModeMatrix::Zero()));
   diagonal_slot_.assign(aggregates, -1);
   for (std::size_t a = 0, row_slot = 0; a < aggregates; row_slot += coarse_columns[a].size(), ++a) {
     const auto found =
@@ -301,10 +334,11 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
           std::lower_bound(top_columns[t].begin(), top_columns[t].end(), static_cast<int>(t));
       top_diagonal_slot_[t] = top_row_slot[t] + static_cast<int>(found - top_columns[t].begin());
     }
-    top_blocks_.assign(static_cast<std::size_t>(top_row_slot.back()), ModeMatrix::Zero());
-    level_motion_.assign(aggregates, ModeMatrix::Zero());
-    top_motion_.assign(aggregates, ModeMatrix::Zero());
-    top_map_.assign(aggregates, ModeMatrix::Zero());
+    refill(top_blocks_, static_cast<std::size_t>(top_row_slot.back()),
+           ModeMatrix(ModeMatrix::Zero()));
+    refill(level_motion_, aggregates, ModeMatrix(ModeMatrix::Zero()));
+    refill(top_motion_, aggregates, ModeMatrix(ModeMatrix::Zero()));
+    refill(top_map_, aggregates, ModeMatrix(ModeMatrix::Zero()));
     top_dropped_.assign(top_columns.size(), 0);
   } else {
     top_of_.clear();
@@ -347,7 +381,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   scalar_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
   std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
   std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
-  coarse_motion_.assign(aggregates, Modes::Zero());
+  refill(coarse_motion_, aggregates, Modes(Modes::Zero()));
 }
 
 Vec3 AggregationCoarseSpace::offset_in(std::size_t aggregate, std::span<const Vec3> positions,
@@ -531,7 +565,7 @@ void AggregationCoarseSpace::remember(Look& look, const BlockSparseMatrix& matri
 }
 
 void AggregationCoarseSpace::place_slots(const BlockSparseMatrix& matrix) {
-  coarse_slot_.assign(matrix.values().size(), -1);
+  refill(coarse_slot_, matrix.values().size(), -1);
   std::size_t entry = 0;
   for (std::size_t i = 0; i < matrix.rows(); ++i) {
     for (std::size_t k = matrix.row_begin()[i]; k < matrix.row_end()[i]; ++k) {

@@ -140,6 +140,11 @@ class AggregationCoarseSpace {
   /// The coarse slot of each block of the aggregated pattern, row by row in column order (-1
   /// for none): coarse_slot_ independent of where the storage keeps each row.
   std::vector<int> slots_by_row_;
+  /// The free vertices' graph of the last aggregation (compressed rows), kept so the next one
+  /// is built in pages already mapped.
+  std::vector<std::size_t> graph_first_;
+  std::vector<int> graph_node_;
+  std::vector<double> graph_weight_;
   std::shared_ptr<const BlockPattern> placed_pattern_;  ///< what coarse_slot_ is placed for
   std::uint64_t placed_version_ = 0;
   std::vector<int> aggregate_of_;
