@@ -129,6 +129,23 @@ VertexModes raw_rigid_modes(const Vec3& offset_from_centre) {
   return modes;
 }
 
+/// block += R_i^T a R_j with R_v = raw_rigid_modes(d_v): [[a, -a [d_j]x], [[d_i]x a,
+/// -[d_i]x a [d_j]x]], by columns and rows crossed with the offsets. Row r of -a [d_j]x is
+/// d_j x (row r of a), column c of [d_i]x a is d_i x (column c of a).
+void add_rigid_block(const Mat3& a, const Vec3& offset_i, const Vec3& offset_j,
+                     Eigen::Matrix<double, 6, 6>& block) {
+  Mat3 turned;  // [d_i]x a
+  for (int c = 0; c < 3; ++c) {
+    turned.col(c) = offset_i.cross(a.col(c));
+  }
+  block.topLeftCorner<3, 3>() += a;
+  block.bottomLeftCorner<3, 3>() += turned;
+  for (int r = 0; r < 3; ++r) {
+    block.block<1, 3>(r, 3) += offset_j.cross(Vec3(a.row(r).transpose())).transpose();
+    block.block<1, 3>(3 + r, 3) += offset_j.cross(Vec3(turned.row(r).transpose())).transpose();
+  }
+}
+
 /// Orthonormal modes of a span with Gram matrix `gram` (raw coordinates): W with
 /// W^T gram W = I on the kept modes and zero columns for the dropped ones, and its
 /// pseudo-inverse. Scaled to unit diagonal first, so metres and radians compare; modes below
@@ -778,7 +795,10 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
   // P^T A P: each aggregate's coarse row from its members' rows (rows in parallel, each coarse
   // row summed in member order by one thread: deterministic). With P_v = R_v W_a, R_v =
   // [I, -[d_v]x]: the rows are summed in raw rigid coordinates, R_i^T A_ij R_j, and each coarse
-  // block is turned into the modes' coordinates once, W_a^T (sum) W_b.
+  // block is turned into the modes' coordinates once, W_a^T (sum) W_b. R_i^T A_ij R_j is
+  // [[A, -A [d_j]x], [[d_i]x A, -[d_i]x A [d_j]x]]: nine cross products, where the two dense
+  // products of 6x3 matrices took 3.5x the arithmetic (the 384k-tet box: 27-29 ms a
+  // factorisation, BENCHMARKS.md).
   const auto values = matrix.values();
   const auto row_begin = matrix.row_begin();
   const auto row_end = matrix.row_end();
@@ -788,14 +808,13 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
       for (const VertexId v : members_[a]) {
         const auto i = static_cast<std::size_t>(v);
         const auto columns = matrix.row_columns(v);
-        const VertexModes raw_i = raw_rigid_modes(offset_[i]);
+        const Vec3& offset_i = offset_[i];
         for (std::size_t k = row_begin[i]; k < row_end[i]; ++k) {
           const int slot = coarse_slot_[k];
           if (slot >= 0) {
-            const Eigen::Matrix<double, kModes, 3> left = raw_i.transpose() * values[k];
-            coarse_blocks_[static_cast<std::size_t>(slot)].noalias() +=
-                left *
-                raw_rigid_modes(offset_[static_cast<std::size_t>(columns[k - row_begin[i]])]);
+            add_rigid_block(values[k], offset_i,
+                            offset_[static_cast<std::size_t>(columns[k - row_begin[i]])],
+                            coarse_blocks_[static_cast<std::size_t>(slot)]);
           }
         }
       }
