@@ -24,7 +24,7 @@ namespace {
 /// values = `size` copies of `fill`, in the pages `values` already holds while they suffice,
 /// else with room for twice `size`. The aggregation runs again every tenth step of a body
 /// being cut, each time a little larger: an exact-size assign() mapped fresh pages every time
-/// (500-950 page faults per aggregation on the 50k body, about 12 us each on the 2-core VM:
+/// (350-960 page faults per aggregation on the 50k body, about 12 us each on the 2-core VM:
 /// most of its 7-15 ms; BENCHMARKS.md).
 template <typename T>
 void refill(std::vector<T>& values, std::size_t size, const T& fill) {
@@ -797,8 +797,8 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
   // [I, -[d_v]x]: the rows are summed in raw rigid coordinates, R_i^T A_ij R_j, and each coarse
   // block is turned into the modes' coordinates once, W_a^T (sum) W_b. R_i^T A_ij R_j is
   // [[A, -A [d_j]x], [[d_i]x A, -[d_i]x A [d_j]x]]: nine cross products, where the two dense
-  // products of 6x3 matrices took 3.5x the arithmetic (the 384k-tet box: 27-29 ms a
-  // factorisation, BENCHMARKS.md).
+  // products of 6x3 matrices took about three times the arithmetic (the 384k-tet box: 27-29
+  // ms a factorisation, BENCHMARKS.md).
   const auto values = matrix.values();
   const auto row_begin = matrix.row_begin();
   const auto row_end = matrix.row_end();
