@@ -33,6 +33,11 @@ constexpr double kFirstShift = 1e-3;
 constexpr int kLeastLaggedIterations = 6;
 constexpr int kMostLaggedIterations = 40;
 constexpr double kLaggedTolerance = 1e-2;
+/// The step with a new single-precision factor, refined by its conjugate gradients to this
+/// relative residual (a direct solve's accuracy, for Newton's fast convergence near the
+/// minimum), within kRefinedIterations; else the matrix is factorised in double.
+constexpr double kRefinedTolerance = 1e-10;
+constexpr int kRefinedIterations = 30;
 
 /// How many preconditioned conjugate gradient iterations cost half of a factorisation. An
 /// iteration is a solve with the factor (4 flops per factor nonzero; memory-bound triangular
@@ -48,7 +53,10 @@ constexpr double kLaggedTolerance = 1e-2;
 /// ageing factor cost more than the factorisations they save (25k-59k points 6-20 % slower
 /// than at 2): a fresh factor also serves the steps after it, which the count does not weigh.
 /// Counted in operations, not timed, so that a prediction takes the same steps on any machine
-/// and under any load (the planning viewer's replays rely on it).
+/// and under any load (the planning viewer's replays rely on it). The factorisations are now in
+/// single precision, 3-4x faster than CHOLMOD's in double for the same flops (session 49), but
+/// a budget of a quarter or a sixth of them instead of half took the same time or more (10k-59k
+/// points: one more factorisation, the same steps): half stays.
 int lagged_iterations(const DirectFactorization& factor,
                       const DirectFactorization::SparseMatrix& matrix) {
   constexpr double kSolveSlowdown = 2.0;
@@ -104,10 +112,12 @@ enum class LaggedSolve {
 /// earlier, nearby matrix). Not solved, leaving `x` unusable, on negative curvature or when the
 /// relative residual is not below kLaggedTolerance within lagged_iterations(): then the matrix
 /// has moved too far from the factorised one and is factorised itself (negative curvature says
-/// beforehand that a Cholesky factorisation of it would fail).
+/// beforehand that a Cholesky factorisation of it would fail). With `tolerance` and
+/// `most_iterations` (> 0), to that residual within that many: the refinement of a step with
+/// a new single-precision factor of the matrix itself.
 LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
-                         DirectFactorization& factor, const Eigen::VectorXd& b,
-                         Eigen::VectorXd& x) {
+                         DirectFactorization& factor, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                         double tolerance = kLaggedTolerance, int most_iterations = 0) {
   const auto a = matrix.selfadjointView<Eigen::Lower>();
   // The factor preconditions in single precision (half the bytes to read, on worker threads):
   // its steps are wanted to kLaggedTolerance, not to sixteen digits.
@@ -125,14 +135,14 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
   };
   // The residual is checked as soon as it is updated, before the next solve with the factor
   // (the costliest part of an iteration: a converged step needs none after its last update).
-  const auto converged = [&] { return r.norm() <= kLaggedTolerance * b_norm; };
+  const auto converged = [&] { return r.norm() <= tolerance * b_norm; };
   if (converged()) {
     return finite();
   }
   Eigen::VectorXd z = precondition(r);
   Eigen::VectorXd p = z;
   double rz = r.dot(z);
-  const int most = lagged_iterations(factor, matrix);
+  const int most = most_iterations > 0 ? most_iterations : lagged_iterations(factor, matrix);
   for (int iteration = 0; iteration < most; ++iteration) {
     const Eigen::VectorXd ap = a * p;
     const double curvature = p.dot(ap);
@@ -237,11 +247,20 @@ void NewtonWorkspace::factorize_at(const TissueEnergy& energy, std::span<const V
   if (d.rows == 0) {
     return;
   }
+  // For the lagged solves only: in single precision where floats suffice.
+  const auto factorize = [this, &d](bool positive_only) {
+    const auto& matrix = d.hessian->matrix();
+    if (factorization().factorize_single_precision(matrix)) {
+      return true;
+    }
+    return positive_only ? factorization().factorize_positive_definite(matrix)
+                         : factorization().factorize(matrix);
+  };
   assemble_hessian(tissue, d.pattern, x, false, *d.hessian);
-  if (!factorization().factorize_positive_definite(d.hessian->matrix())) {
+  if (!factorize(true)) {
     assemble_hessian(tissue, d.pattern, x, true, *d.hessian);
     d.hessian->damp_diagonal(1e-12, 0.0);
-    if (!factorization().factorize(d.hessian->matrix())) {
+    if (!factorize(false)) {
       throw InputError(
           "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
           "(a free point held by no spring?)");
@@ -354,13 +373,36 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
                rhs.dot(step) > 0.0;
       lap(result.solve_seconds);
     }
+    // A new factorisation in single precision, its step refined by conjugate gradients in
+    // double; in double (CHOLMOD, solved directly) where floats do not suffice: a matrix not
+    // positive definite in floats, or a step the refinement does not reach. `solved`: the
+    // step is taken.
+    bool solved = false;
+    const auto factorize_fresh = [&](bool positive_only) {
+      const auto& matrix = hessian.matrix();
+      const bool single = factorization.factorize_single_precision(matrix);
+      lap(result.factorization_seconds);
+      if (single) {
+        solved = lagged_solve(matrix, factorization, rhs, step, kRefinedTolerance,
+                              kRefinedIterations) == LaggedSolve::kSolved;
+        lap(result.solve_seconds);
+        if (solved) {
+          return true;
+        }
+      } else if (positive_only) {
+        return false;  // not positive definite (in floats): the convex form is factorised next
+      }
+      const bool factorized = positive_only ? factorization.factorize_positive_definite(matrix)
+                                            : factorization.factorize(matrix);
+      lap(result.factorization_seconds);
+      return factorized;
+    };
     if (lagged) {
       ++result.lagged_steps;
     } else {
       // A factorisation of the exact Hessian where it is positive definite: fast convergence
       // near the minimum. Else of its convex part, which always gives a descent direction.
-      bool factorized = !convexified && factorization.factorize_positive_definite(hessian.matrix());
-      lap(result.factorization_seconds);
+      bool factorized = !convexified && factorize_fresh(true);
       if (!factorized && !convexified) {
         ++result.indefinite_attempts;
       }
@@ -368,8 +410,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
         if (!convexified) {
           convexify();
         }
-        factorized = factorization.factorize(hessian.matrix());
-        lap(result.factorization_seconds);
+        factorized = factorize_fresh(false);
       }
       have_factor = factorized;
       if (!factorized) {
@@ -382,8 +423,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
         continue;
       }
       ++result.factorizations;
-      step = factorization.solve(rhs);
-      lap(result.solve_seconds);
+      if (!solved) {
+        step = factorization.solve(rhs);
+        lap(result.solve_seconds);
+      }
     }
     const double slope = -rhs.dot(step);  // g . p
     if (!(slope < 0.0)) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "incise/core/error.hpp"
 #include "incise/solve/linear_solvers.hpp"
 
 #ifdef INCISE_HAVE_CHOLMOD
@@ -31,6 +32,7 @@ struct DirectFactorization::Backends {
   Cost cholmod_cost;  ///< from the analysis
   SinglePrecisionSupernodes single;
   bool single_current = false;  ///< `single` copies the last factor
+  bool double_current = false;  ///< `cholmod` holds the last factor (not single precision only)
 #endif
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt;
   bool ldlt_analyzed = false;
@@ -76,6 +78,15 @@ struct DirectFactorization::Backends {
 #ifdef INCISE_HAVE_CHOLMOD
   /// CHOLMOD's supernodal Cholesky (the pattern analysed once); false when not positive definite.
   bool factorize_cholmod(const SparseMatrix& matrix) {
+    analyse_cholmod(matrix);
+    cholmod.factorize(matrix);
+    single_current = false;
+    using_cholmod = cholmod.info() == Eigen::Success;
+    double_current = using_cholmod;
+    return using_cholmod;
+  }
+  /// CHOLMOD's analysis of the matrix's pattern, once per pattern.
+  void analyse_cholmod(const SparseMatrix& matrix) {
     if (!cholmod_analyzed) {
       single.forget_pattern();  // the analysis makes a new factor, perhaps at the same address
       cholmod.analyzePattern(matrix);
@@ -83,10 +94,6 @@ struct DirectFactorization::Backends {
       cholmod_analyzed = true;
       cholmod_cost = {cholmod.cholmod().lnz, cholmod.cholmod().fl};
     }
-    cholmod.factorize(matrix);
-    single_current = false;
-    using_cholmod = cholmod.info() == Eigen::Success;
-    return using_cholmod;
   }
 #endif
   /// LDL^T (the pattern analysed once): takes symmetric indefinite matrices whose pivots stay
@@ -158,6 +165,21 @@ bool DirectFactorization::factorize_positive_definite(const SparseMatrix& matrix
 #endif
 }
 
+bool DirectFactorization::factorize_single_precision(const SparseMatrix& matrix) {
+  backends_->follow_pattern(matrix);
+#ifdef INCISE_HAVE_CHOLMOD
+  Backends& b = *backends_;
+  b.analyse_cholmod(matrix);
+  b.double_current = false;
+  b.single_current =
+      b.cholmod.factor() != nullptr && b.single.factorize(*b.cholmod.factor(), matrix);
+  b.using_cholmod = b.single_current;
+  return b.single_current;
+#else
+  return false;
+#endif
+}
+
 int DirectFactorization::analyses() const {
   return backends_->analyses;
 }
@@ -165,6 +187,8 @@ int DirectFactorization::analyses() const {
 Eigen::VectorXd DirectFactorization::solve(const Eigen::VectorXd& rhs) const {
 #ifdef INCISE_HAVE_CHOLMOD
   if (backends_->using_cholmod) {
+    INCISE_ASSERT(backends_->double_current,
+                  "DirectFactorization::solve after a single-precision factorisation");
     return backends_->cholmod.solve(rhs);
   }
 #endif

@@ -15,29 +15,6 @@ namespace {
 /// (and so the answer) do not depend on the threads there are.
 constexpr std::size_t kSubtrees = 16;
 
-struct Supernodes {
-  const int* super;
-  const int* pi;
-  const int* px;
-  const int* rows;
-  int count;
-  explicit Supernodes(const cholmod_factor& l)
-      : super(static_cast<const int*>(l.super)),
-        pi(static_cast<const int*>(l.pi)),
-        px(static_cast<const int*>(l.px)),
-        rows(static_cast<const int*>(l.s)),
-        count(static_cast<int>(l.nsuper)) {}
-  [[nodiscard]] int columns(int s) const { return super[s + 1] - super[s]; }
-  [[nodiscard]] int height(int s) const { return pi[s + 1] - pi[s]; }
-  /// Supernode s's dense columns in `values` (height x columns, column-major).
-  using Block = Eigen::Map<const Eigen::MatrixXf, 0, Eigen::OuterStride<>>;
-  [[nodiscard]] Block block(int s, const std::vector<float>& values) const {
-    return {values.data() + px[s], height(s), columns(s), Eigen::OuterStride<>(height(s))};
-  }
-  /// Its rows below its diagonal block.
-  [[nodiscard]] const int* rows_below(int s) const { return rows + pi[s] + columns(s); }
-};
-
 }  // namespace
 
 void SinglePrecisionSupernodes::copy(const cholmod_factor& factor) {
@@ -70,7 +47,7 @@ void SinglePrecisionSupernodes::copy(const cholmod_factor& factor) {
 }
 
 void SinglePrecisionSupernodes::split(const cholmod_factor& factor) {
-  const Supernodes l(factor);
+  const SupernodeView l(factor);
   const auto n = static_cast<std::size_t>(factor.n);
   // The supernodal elimination tree: a supernode's parent holds its first row below its
   // diagonal block. Supernodes come children first.
@@ -143,9 +120,9 @@ void SinglePrecisionSupernodes::split(const cholmod_factor& factor) {
 }
 
 void SinglePrecisionSupernodes::forward(int s, float* top_sums, float* below_values) {
-  const Supernodes l(*factor_);
+  const SupernodeView l(*factor_);
   const int columns = l.columns(s);
-  const Supernodes::Block block = l.block(s, values_);
+  const SupernodeView::Block block = l.block(s, values_);
   auto y = work_.segment(l.super[s], columns);
   block.topRows(columns).triangularView<Eigen::Lower>().solveInPlace(y);
   const int below = l.height(s) - columns;
@@ -168,9 +145,9 @@ void SinglePrecisionSupernodes::forward(int s, float* top_sums, float* below_val
 }
 
 void SinglePrecisionSupernodes::backward(int s, float* below_values) {
-  const Supernodes l(*factor_);
+  const SupernodeView l(*factor_);
   const int columns = l.columns(s);
-  const Supernodes::Block block = l.block(s, values_);
+  const SupernodeView::Block block = l.block(s, values_);
   auto y = work_.segment(l.super[s], columns);
   const int below = l.height(s) - columns;
   if (below > 0) {
@@ -201,7 +178,7 @@ Eigen::VectorXd SinglePrecisionSupernodes::solve(const Eigen::VectorXd& b) {
       }
     }
   });
-  const Supernodes l(*factor_);
+  const SupernodeView l(*factor_);
   for (const int s : top_) {
     for (int c = l.super[s]; c < l.super[s + 1]; ++c) {
       const auto place = static_cast<std::size_t>(top_position_[static_cast<std::size_t>(c)]);

@@ -96,6 +96,60 @@ TEST(DirectFactorization, SinglePrecisionSolvesAgreeWithTheDoubleOnesOnAnyThread
   EXPECT_LT((4.0 * quarter - exact).norm(), 1e-5 * exact.norm());
 }
 
+TEST(DirectFactorization, ASinglePrecisionFactorisationSolvesLikeTheDoubleOneOnAnyThreadCount) {
+  if (!has_cholmod_backend()) {
+    GTEST_SKIP() << "built without CHOLMOD: no single-precision factorisation";
+  }
+  const SparseMatrix matrix = grid_matrix(18, 1.0, true);  // 17,496 unknowns
+  DirectFactorization reference;
+  ASSERT_TRUE(reference.factorize_positive_definite(matrix));
+  std::mt19937 random(11);
+  std::uniform_real_distribution<double> entry(-1.0, 1.0);
+  Eigen::VectorXd b(matrix.rows());
+  for (Eigen::Index i = 0; i < b.size(); ++i) {
+    b[i] = entry(random);
+  }
+  const Eigen::VectorXd exact = reference.solve(b);
+  const auto a = matrix.selfadjointView<Eigen::Lower>();
+  // Factorised in floats under each thread count: the same factor (so the same answer), bit
+  // for bit, and the double factor's answer to single precision.
+  std::vector<Eigen::VectorXd> answers;
+  for (const int threads : {1, 2, 5}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                    static_cast<std::size_t>(threads));
+    DirectFactorization single;
+    ASSERT_TRUE(single.factorize_single_precision(matrix));
+    answers.push_back(single.solve_single_precision(b));
+  }
+  EXPECT_EQ(answers[0], answers[1]);
+  EXPECT_EQ(answers[0], answers[2]);
+  EXPECT_LT((answers[0] - exact).norm(), 1e-5 * exact.norm());
+  EXPECT_LT((a * answers[0] - b).norm(), 1e-5 * b.norm());
+  EXPECT_GT((answers[0] - exact).norm(), 0.0);  // floats, not the double solve
+
+  // Refactorised on the same pattern (the plan kept), then in double: each solve follows the
+  // last factorisation.
+  DirectFactorization factor;
+  ASSERT_TRUE(factor.factorize_single_precision(matrix));
+  ASSERT_TRUE(factor.factorize_single_precision(4.0 * matrix));
+  EXPECT_LT((4.0 * factor.solve_single_precision(b) - exact).norm(), 1e-5 * exact.norm());
+  ASSERT_TRUE(factor.factorize_positive_definite(2.0 * matrix));
+  EXPECT_LT((2.0 * factor.solve(b) - exact).norm(), 1e-10 * exact.norm());
+  EXPECT_LT((2.0 * factor.solve_single_precision(b) - exact).norm(), 1e-5 * exact.norm());
+  ASSERT_TRUE(factor.factorize_single_precision(matrix));
+  EXPECT_LT((factor.solve_single_precision(b) - exact).norm(), 1e-5 * exact.norm());
+
+  // Not positive definite: refused, as in double.
+  SparseMatrix indefinite = matrix;
+  indefinite.coeffRef(600, 600) = -1.0;
+  EXPECT_FALSE(reference.factorize_positive_definite(indefinite));
+  EXPECT_FALSE(factor.factorize_single_precision(indefinite));
+  // Beyond a float's range: refused, where the double factorisation succeeds.
+  EXPECT_FALSE(factor.factorize_single_precision(1e40 * matrix));
+  ASSERT_TRUE(factor.factorize_positive_definite(1e40 * matrix));
+  EXPECT_LT((1e40 * factor.solve(b) - exact).norm(), 1e-10 * exact.norm());
+}
+
 TEST(DirectFactorization, SinglePrecisionSolvesFollowANewPattern) {
   if (!has_cholmod_backend()) {
     GTEST_SKIP() << "built without CHOLMOD: solve_single_precision is solve";

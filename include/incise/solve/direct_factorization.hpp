@@ -29,6 +29,12 @@ class DirectFactorization {
   /// Factorises the matrix only if it is positive definite (no indefinite fallback): false
   /// otherwise, quickly, so that a caller can fall back to a convexified matrix.
   [[nodiscard]] bool factorize_positive_definite(const SparseMatrix& matrix);
+  /// Factorises the matrix (lower triangle read) in single precision, for
+  /// solve_single_precision() only (solve() is then not available): false when it is not
+  /// positive definite in floats, or without CHOLMOD (whose analysis it uses). Half the bytes
+  /// and about half the time of factorize() on one core, and its independent subtrees on
+  /// TBB's workers; the same factor on any number of threads.
+  [[nodiscard]] bool factorize_single_precision(const SparseMatrix& matrix);
   /// The solution of the last factorised matrix for `rhs`.
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const;
   /// The same solution from a single-precision copy of CHOLMOD's factor (made on the first
