@@ -233,7 +233,15 @@ DirectFactorization::Cost DirectFactorization::cost() const {
 }
 
 std::string DirectFactorization::backend() const {
-  return backends_->using_cholmod ? "cholmod-supernodal" : "simplicial-ldlt";
+  if (!backends_->using_cholmod) {
+    return "simplicial-ldlt";
+  }
+#ifdef INCISE_HAVE_CHOLMOD
+  if (!backends_->double_current) {
+    return "single-precision-supernodal";
+  }
+#endif
+  return "cholmod-supernodal";
 }
 
 std::size_t auto_direct_limit() {

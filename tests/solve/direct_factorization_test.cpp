@@ -119,6 +119,7 @@ TEST(DirectFactorization, ASinglePrecisionFactorisationSolvesLikeTheDoubleOneOnA
                                     static_cast<std::size_t>(threads));
     DirectFactorization single;
     ASSERT_TRUE(single.factorize_single_precision(matrix));
+    EXPECT_EQ(single.backend(), "single-precision-supernodal");
     answers.push_back(single.solve_single_precision(b));
   }
   EXPECT_EQ(answers[0], answers[1]);
@@ -134,6 +135,7 @@ TEST(DirectFactorization, ASinglePrecisionFactorisationSolvesLikeTheDoubleOneOnA
   ASSERT_TRUE(factor.factorize_single_precision(4.0 * matrix));
   EXPECT_LT((4.0 * factor.solve_single_precision(b) - exact).norm(), 1e-5 * exact.norm());
   ASSERT_TRUE(factor.factorize_positive_definite(2.0 * matrix));
+  EXPECT_EQ(factor.backend(), "cholmod-supernodal");
   EXPECT_LT((2.0 * factor.solve(b) - exact).norm(), 1e-10 * exact.norm());
   EXPECT_LT((2.0 * factor.solve_single_precision(b) - exact).norm(), 1e-5 * exact.norm());
   ASSERT_TRUE(factor.factorize_single_precision(matrix));

@@ -43,7 +43,8 @@ class DirectFactorization {
   /// number: for preconditioning. solve() itself where the factor is not CHOLMOD's. Its
   /// sweeps run on TBB's workers; one caller at a time (it keeps the copy and a work vector).
   [[nodiscard]] Eigen::VectorXd solve_single_precision(const Eigen::VectorXd& rhs);
-  /// "cholmod-supernodal" or "simplicial-ldlt": which backend factorised last.
+  /// "cholmod-supernodal", "single-precision-supernodal" (factorize_single_precision) or
+  /// "simplicial-ldlt": which backend factorised last.
   [[nodiscard]] std::string backend() const;
 
   /// The last factor's size: its nonzeros and the floating-point operations that made it
