@@ -111,40 +111,25 @@ int chunk_count(int begin, int end) {
   return end > begin ? (end - 1) / kRowChunk + 1 - first_chunk(begin) : 0;
 }
 
-/// Rows [lower, upper) of rows[0..count): the positions whose map lies in [lower, upper) (the
-/// map rises with the position).
+/// The positions of rows[0..count) whose place in the block (`map`) lies in [lower, upper):
+/// a range, as the places rise with the position.
 std::pair<int, int> rows_within(const int* rows, int count, const std::vector<int>& map, int lower,
                                 int upper) {
-  const auto local = [&](int position) { return map[static_cast<std::size_t>(rows[position])]; };
-  int first = 0;
-  int last = count;
-  {
-    int low = 0;
+  const auto first_placed_at = [&](int from, int place) {
+    int low = from;
     int high = count;
     while (low < high) {
-      const int middle = (low + high) / 2;
-      if (local(middle) < lower) {
+      const int middle = low + (high - low) / 2;
+      if (map[static_cast<std::size_t>(rows[middle])] < place) {
         low = middle + 1;
       } else {
         high = middle;
       }
     }
-    first = low;
-  }
-  {
-    int low = first;
-    int high = count;
-    while (low < high) {
-      const int middle = (low + high) / 2;
-      if (local(middle) < upper) {
-        low = middle + 1;
-      } else {
-        high = middle;
-      }
-    }
-    last = low;
-  }
-  return {first, last};
+    return low;
+  };
+  const int first = first_placed_at(0, lower);
+  return {first, first_placed_at(first, upper)};
 }
 
 }  // namespace
