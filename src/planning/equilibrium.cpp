@@ -108,13 +108,11 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
       // The exact tangent (positive definite near the scanned state), else its convex form
       // (once each: the tangent is factorised only once when it is positive definite).
       add_prism_hessians(tissue, pattern, x, {.tets = true}, stiffness);
-      bool factorised_now = factorization.factorize_single_precision(stiffness.matrix()) ||
-                            factorization.factorize_positive_definite(stiffness.matrix());
+      bool factorised_now = factorization.factorize_preconditioner(stiffness.matrix(), true);
       if (!factorised_now) {
         stiffness.clear();
         add_prism_hessians(tissue, pattern, x, {.tets = true, .convex = true}, stiffness);
-        factorised_now = factorization.factorize_single_precision(stiffness.matrix()) ||
-                         factorization.factorize(stiffness.matrix());
+        factorised_now = factorization.factorize_preconditioner(stiffness.matrix(), false);
       }
       if (!factorised_now) {
         throw InputError(

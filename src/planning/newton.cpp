@@ -248,19 +248,11 @@ void NewtonWorkspace::factorize_at(const TissueEnergy& energy, std::span<const V
     return;
   }
   // For the lagged solves only: in single precision where floats suffice.
-  const auto factorize = [this, &d](bool positive_only) {
-    const auto& matrix = d.hessian->matrix();
-    if (factorization().factorize_single_precision(matrix)) {
-      return true;
-    }
-    return positive_only ? factorization().factorize_positive_definite(matrix)
-                         : factorization().factorize(matrix);
-  };
   assemble_hessian(tissue, d.pattern, x, false, *d.hessian);
-  if (!factorize(true)) {
+  if (!factorization().factorize_preconditioner(d.hessian->matrix(), true)) {
     assemble_hessian(tissue, d.pattern, x, true, *d.hessian);
     d.hessian->damp_diagonal(1e-12, 0.0);
-    if (!factorize(false)) {
+    if (!factorization().factorize_preconditioner(d.hessian->matrix(), false)) {
       throw InputError(
           "Newton's prediction: the tissue's stiffness matrix cannot be factorised "
           "(a free point held by no spring?)");

@@ -180,6 +180,14 @@ bool DirectFactorization::factorize_single_precision(const SparseMatrix& matrix)
 #endif
 }
 
+bool DirectFactorization::factorize_preconditioner(const SparseMatrix& matrix,
+                                                   bool positive_definite_only) {
+  if (factorize_single_precision(matrix)) {
+    return true;
+  }
+  return positive_definite_only ? factorize_positive_definite(matrix) : factorize(matrix);
+}
+
 int DirectFactorization::analyses() const {
   return backends_->analyses;
 }

@@ -55,10 +55,7 @@ void SinglePrecisionSupernodes::plan_factorization(
   permuted_values_.resize(entries);
   // Each supernode's rows below its block fall into ancestors' columns in runs (the rows are
   // sorted, the supernodes' columns consecutive): a run is an update to that ancestor.
-  std::vector<int> of_column(n);
-  for (int s = 0; s < l.count; ++s) {
-    std::fill(of_column.begin() + l.super[s], of_column.begin() + l.super[s + 1], s);
-  }
+  const std::vector<int> of_column = l.supernode_of_columns(n);
   std::vector<int> count(static_cast<std::size_t>(l.count) + 1, 0);
   const auto for_each_run = [&](int d, const auto& take) {
     const int* rows = l.rows + l.pi[d];
@@ -88,7 +85,7 @@ void SinglePrecisionSupernodes::plan_factorization(
     });
   }
   maps_.assign(subtrees_.size() + 1, std::vector<int>(n, 0));
-  products_.assign(subtrees_.size() + 1, {});
+  products_.assign(subtrees_.size(), {});
   subtree_failed_.assign(subtrees_.size(), 0);
   plan_made_ = true;
 }

@@ -51,10 +51,7 @@ void SinglePrecisionSupernodes::split(const cholmod_factor& factor) {
   const auto n = static_cast<std::size_t>(factor.n);
   // The supernodal elimination tree: a supernode's parent holds its first row below its
   // diagonal block. Supernodes come children first.
-  std::vector<int> of_column(n);
-  for (int s = 0; s < l.count; ++s) {
-    std::fill(of_column.begin() + l.super[s], of_column.begin() + l.super[s + 1], s);
-  }
+  const std::vector<int> of_column = l.supernode_of_columns(n);
   std::vector<int> parent(static_cast<std::size_t>(l.count), -1);
   std::vector<std::vector<int>> children(static_cast<std::size_t>(l.count));
   std::vector<int> roots;

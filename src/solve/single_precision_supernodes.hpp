@@ -10,6 +10,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <algorithm>
+#include <cstddef>
 #include <vector>
 
 namespace incise {
@@ -36,6 +38,14 @@ struct SupernodeView {
   }
   /// Its rows below its diagonal block.
   [[nodiscard]] const int* rows_below(int s) const { return rows + pi[s] + columns(s); }
+  /// The supernode that holds each of the `n` columns.
+  [[nodiscard]] std::vector<int> supernode_of_columns(std::size_t n) const {
+    std::vector<int> of_column(n);
+    for (int s = 0; s < count; ++s) {
+      std::fill(of_column.begin() + super[s], of_column.begin() + super[s + 1], s);
+    }
+    return of_column;
+  }
 };
 
 class SinglePrecisionSupernodes {
@@ -115,9 +125,9 @@ class SinglePrecisionSupernodes {
   };
   std::vector<int> update_first_;
   std::vector<Update> update_;
-  std::vector<float> permuted_values_;              ///< P A P^T's lower values, in floats
-  std::vector<std::vector<int>> maps_;              ///< per subtree: room for a row map
-  std::vector<std::vector<float>> products_;        ///< per subtree: room for an update
+  std::vector<float> permuted_values_;        ///< P A P^T's lower values, in floats
+  std::vector<std::vector<int>> maps_;        ///< per subtree, then the top: room for a row map
+  std::vector<std::vector<float>> products_;  ///< per subtree: room for an update
   std::vector<std::vector<float>> chunk_products_;  ///< per chunk of a top supernode's rows
   std::vector<char> subtree_failed_;                ///< per subtree: a pivot not above zero
 };

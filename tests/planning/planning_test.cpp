@@ -247,6 +247,17 @@ TEST(Equilibrium, ScannedStateBalancesUnderGravityAndPrestrain) {
   }
 }
 
+/// The tissue's rest positions with every point that is not soft (bone, boundary) moved.
+std::vector<Vec3> with_bone_moved(const LayeredTissue& tissue, const RigidMove& move) {
+  std::vector<Vec3> x = tissue.rest;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (tissue.kind[i] != PointKind::kSoft) {
+      x[i] = move.apply(x[i]);
+    }
+  }
+  return x;
+}
+
 struct Balanced {
   Head head;
   LayeredTissue tissue;
@@ -258,12 +269,7 @@ struct Balanced {
   /// Minimises with bone points moved by `move`.
   std::vector<Vec3> predict(const RigidMove& move, Minimizer method, MinimizeResult& result,
                             const Vec3& gravity_now) const {
-    std::vector<Vec3> x = tissue.rest;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      if (tissue.kind[i] != PointKind::kSoft) {
-        x[i] = move.apply(x[i]);
-      }
-    }
+    std::vector<Vec3> x = with_bone_moved(tissue, move);
     const TissueEnergy energy(tissue, gravity_now);
     MinimizeOptions o;
     o.method = method;
@@ -353,12 +359,7 @@ TEST(Prediction, ANewtonStartKnownIndefiniteTakesTheSameStepsWithoutTryingTheExa
   const Balanced model;
   RigidMove push;
   push.translation = Vec3(0, 0, 0.004);  // m
-  std::vector<Vec3> start = model.tissue.rest;
-  for (std::size_t i = 0; i < start.size(); ++i) {
-    if (model.tissue.kind[i] != PointKind::kSoft) {
-      start[i] = push.apply(start[i]);
-    }
-  }
+  const std::vector<Vec3> start = with_bone_moved(model.tissue, push);
   const TissueEnergy energy(model.tissue, model.gravity);
   MinimizeOptions o;
   o.method = Minimizer::kNewton;
@@ -401,12 +402,7 @@ TEST(Prediction, NewtonTakesTheSameStepsOnAnyThreadCount) {
   (void)initialise_equilibrium(tissue, gravity, 1e-12);
   RigidMove push;
   push.translation = Vec3(0.003, 0, 0.002);  // m
-  std::vector<Vec3> start = tissue.rest;
-  for (std::size_t i = 0; i < start.size(); ++i) {
-    if (tissue.kind[i] != PointKind::kSoft) {
-      start[i] = push.apply(start[i]);
-    }
-  }
+  const std::vector<Vec3> start = with_bone_moved(tissue, push);
   const TissueEnergy energy(tissue, gravity);
   MinimizeOptions options_newton;
   options_newton.method = Minimizer::kNewton;

@@ -56,6 +56,17 @@ SparseMatrix grid_matrix(int n, double scale, bool diagonals = false) {
   return matrix;
 }
 
+/// Entries uniform in [-1, 1], from `seed`.
+Eigen::VectorXd random_vector(Eigen::Index size, unsigned seed) {
+  std::mt19937 random(seed);
+  std::uniform_real_distribution<double> entry(-1.0, 1.0);
+  Eigen::VectorXd v(size);
+  for (Eigen::Index i = 0; i < size; ++i) {
+    v[i] = entry(random);
+  }
+  return v;
+}
+
 TEST(DirectFactorization, SinglePrecisionSolvesAgreeWithTheDoubleOnesOnAnyThreadCount) {
   if (!has_cholmod_backend()) {
     GTEST_SKIP() << "built without CHOLMOD: solve_single_precision is solve";
@@ -63,12 +74,7 @@ TEST(DirectFactorization, SinglePrecisionSolvesAgreeWithTheDoubleOnesOnAnyThread
   const SparseMatrix matrix = grid_matrix(18, 1.0);  // 17,496 unknowns
   DirectFactorization factor;
   ASSERT_TRUE(factor.factorize_positive_definite(matrix));
-  std::mt19937 random(7);
-  std::uniform_real_distribution<double> entry(-1.0, 1.0);
-  Eigen::VectorXd b(matrix.rows());
-  for (Eigen::Index i = 0; i < b.size(); ++i) {
-    b[i] = entry(random);
-  }
+  const Eigen::VectorXd b = random_vector(matrix.rows(), 7);
   const Eigen::VectorXd exact = factor.solve(b);
   const auto a = matrix.selfadjointView<Eigen::Lower>();
   ASSERT_LT((a * exact - b).norm(), 1e-10 * b.norm());
@@ -103,12 +109,7 @@ TEST(DirectFactorization, ASinglePrecisionFactorisationSolvesLikeTheDoubleOneOnA
   const SparseMatrix matrix = grid_matrix(18, 1.0, true);  // 17,496 unknowns
   DirectFactorization reference;
   ASSERT_TRUE(reference.factorize_positive_definite(matrix));
-  std::mt19937 random(11);
-  std::uniform_real_distribution<double> entry(-1.0, 1.0);
-  Eigen::VectorXd b(matrix.rows());
-  for (Eigen::Index i = 0; i < b.size(); ++i) {
-    b[i] = entry(random);
-  }
+  const Eigen::VectorXd b = random_vector(matrix.rows(), 11);
   const Eigen::VectorXd exact = reference.solve(b);
   const auto a = matrix.selfadjointView<Eigen::Lower>();
   // Factorised in floats under each thread count: the same factor (so the same answer), bit

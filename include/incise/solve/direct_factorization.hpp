@@ -35,6 +35,10 @@ class DirectFactorization {
   /// and about half the time of factorize() on one core, and its independent subtrees on
   /// TBB's workers; the same factor on any number of threads.
   [[nodiscard]] bool factorize_single_precision(const SparseMatrix& matrix);
+  /// A factor for solve_single_precision(): factorize_single_precision() where floats suffice,
+  /// else factorize_positive_definite() (`positive_definite_only`) or factorize(), in double.
+  [[nodiscard]] bool factorize_preconditioner(const SparseMatrix& matrix,
+                                              bool positive_definite_only);
   /// The solution of the last factorised matrix for `rhs`.
   [[nodiscard]] Eigen::VectorXd solve(const Eigen::VectorXd& rhs) const;
   /// The same solution from a single-precision copy of CHOLMOD's factor (made on the first
