@@ -175,6 +175,16 @@ void bind_planning(py::module_& module) {
             out["residual_force"] = residual;
             out["factorizations"] = result.factorizations;
             out["lagged_steps"] = result.lagged_steps;
+            py::list steps;
+            for (const planning::NewtonStep& step : result.newton_steps) {
+              steps.append(py::dict(py::arg("lagged_iterations") = step.lagged_iterations,
+                                    py::arg("lagged_budget") = step.lagged_budget,
+                                    py::arg("lagged") = step.lagged,
+                                    py::arg("convexified") = step.convexified,
+                                    py::arg("factorized") = step.factorized,
+                                    py::arg("step_length") = step.step_length));
+            }
+            out["steps"] = steps;
             out["pattern_analyses"] = result.pattern_analyses;
             out["stage_seconds"] = py::dict(py::arg("assembly") = result.assembly_seconds,
                                             py::arg("factorization") = result.factorization_seconds,
@@ -186,8 +196,11 @@ void bind_planning(py::module_& module) {
           "Predicts the soft tissue for the moves made: from the last prediction (warm) or from "
           "the scanned state (what incise plan computes). Returns converged, iterations (Newton "
           "steps), seconds, message, residual_force (N), factorizations, lagged_steps (steps "
-          "solved with an earlier factorisation, kept between predictions), pattern_analyses "
-          "(analyses of the Hessian's pattern: 0 once the session's equilibrium or an earlier "
+          "solved with an earlier factorisation, kept between predictions), steps (each Newton "
+          "step: lagged_iterations and lagged_budget, its conjugate gradients with the factor in "
+          "hand and the most allowed; lagged, convexified, factorized; step_length), "
+          "pattern_analyses (analyses of the Hessian's pattern: 0 once the session's equilibrium "
+          "or an earlier "
           "prediction made one) and stage_seconds (assembly, factorization, solve, "
           "line_search: where the time went).")
       .def(

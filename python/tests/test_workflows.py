@@ -97,6 +97,8 @@ def test_a_plan_session_moves_a_segment_stops_at_contact_and_saves_what_plan_rep
     # Where the time went, and how many factorisations it took (the session keeps the last).
     assert set(warm["stage_seconds"]) == {"assembly", "factorization", "solve", "line_search"}
     assert 0 <= warm["lagged_steps"] <= warm["iterations"]
+    assert len(warm["steps"]) == warm["iterations"]
+    assert sum(step["lagged"] for step in warm["steps"]) == warm["lagged_steps"]
     assert warm["factorizations"] >= 0
     assert warm["pattern_analyses"] == 0  # the equilibrium's analysis of the same pattern
     after_warm = session.skin_after.copy()

@@ -114,10 +114,12 @@ enum class LaggedSolve {
 /// has moved too far from the factorised one and is factorised itself (negative curvature says
 /// beforehand that a Cholesky factorisation of it would fail). With `tolerance` and
 /// `most_iterations` (> 0), to that residual within that many: the refinement of a step with
-/// a new single-precision factor of the matrix itself.
+/// a new single-precision factor of the matrix itself, or a short lagged solve with an ageing
+/// factor. `iterations_used`, if given, receives the iterations it took.
 LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
                          DirectFactorization& factor, const Eigen::VectorXd& b, Eigen::VectorXd& x,
-                         double tolerance = kLaggedTolerance, int most_iterations = 0) {
+                         double tolerance = kLaggedTolerance, int most_iterations = 0,
+                         int* iterations_used = nullptr) {
   const auto a = matrix.selfadjointView<Eigen::Lower>();
   // The factor preconditions in single precision (half the bytes to read, on worker threads):
   // its steps are wanted to kLaggedTolerance, not to sixteen digits.
@@ -144,6 +146,9 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
   double rz = r.dot(z);
   const int most = most_iterations > 0 ? most_iterations : lagged_iterations(factor, matrix);
   for (int iteration = 0; iteration < most; ++iteration) {
+    if (iterations_used != nullptr) {
+      *iterations_used = iteration + 1;
+    }
     const Eigen::VectorXd ap = a * p;
     const double curvature = p.dot(ap);
     if (!(curvature > 0.0)) {
@@ -179,6 +184,9 @@ struct NewtonWorkspace::Data {
   /// it, starts with the convex form instead of finding that out again (an assembly and a few
   /// solves with the factor; the step taken is the same).
   bool first_step_indefinite = false;
+  /// A lagged solve with the factor in hand took more than half its budget: the Hessian has
+  /// moved far from the factorised one, and the next lagged solves get kLeastLaggedIterations.
+  bool factor_ageing = false;
 };
 
 NewtonWorkspace::NewtonWorkspace() = default;
@@ -205,6 +213,7 @@ DirectFactorization& NewtonWorkspace::lend_factorization() {
 void NewtonWorkspace::forget_factor() {
   if (data_) {
     data_->have_factor = false;
+    data_->factor_ageing = false;
     data_->first_step_indefinite = false;
   }
 }
@@ -259,6 +268,7 @@ void NewtonWorkspace::factorize_at(const TissueEnergy& energy, std::span<const V
     }
   }
   d.have_factor = true;
+  d.factor_ageing = false;
 }
 
 MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
@@ -307,6 +317,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
   Eigen::VectorXd rhs(rows);
   result.message = "iteration limit";
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    NewtonStep& record = result.newton_steps.emplace_back();
     for (std::size_t i = 0; i < n; ++i) {
       if (row[i] >= 0) {
         rhs.segment<3>(row[i]) = -g[i];
@@ -335,14 +346,25 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     // First, conjugate gradients on it preconditioned by the last factorisation: a few solves
     // with a factor already paid for, instead of a new factorisation, while the Hessian has not
     // moved far from the one factorised.
+    //
+    // A factor whose last lagged solve needed most of its budget is ageing: the iterates move
+    // on and the next Hessian is farther from the factorised one, so the next solve gets a
+    // short budget before a new factorisation. (The 59k-point phantom's third step spent 25
+    // iterations, 0.45 s, failing to reach the tolerance before factorising: 2.76-2.91 ->
+    // 2.49-2.56 s for its prediction, the same steps after it.)
+    const int full_budget = have_factor ? lagged_iterations(factorization, hessian.matrix()) : 0;
+    const int budget = data.factor_ageing ? kLeastLaggedIterations : full_budget;
+    int used = 0;  // iterations of the last lagged solve
+    record.lagged_budget = have_factor ? budget : 0;
     const LaggedSolve outcome = known_indefinite ? LaggedSolve::kNegativeCurvature
-                                : have_factor
-                                    ? lagged_solve(hessian.matrix(), factorization, rhs, step)
-                                    : LaggedSolve::kNotConverged;
+                                : have_factor ? lagged_solve(hessian.matrix(), factorization, rhs,
+                                                             step, kLaggedTolerance, budget, &used)
+                                              : LaggedSolve::kNotConverged;
     if (iteration == 0 && !start_convex) {  // what the exact Hessian showed, if it was tried
       data.first_step_indefinite = outcome == LaggedSolve::kNegativeCurvature;
     }
     bool lagged = outcome == LaggedSolve::kSolved && rhs.dot(step) > 0.0;  // descent
+    record.lagged_iterations += used;
     lap(result.solve_seconds);
     // The Hessian replaced by its convex form (positive semi-definite by construction), and the
     // shift grown for the exact ones to come.
@@ -361,8 +383,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       // interactive nudges: each starts indefinite and is one factorisation cheaper so).
       convexify();
       lagged = have_factor &&
-               lagged_solve(hessian.matrix(), factorization, rhs, step) == LaggedSolve::kSolved &&
+               lagged_solve(hessian.matrix(), factorization, rhs, step, kLaggedTolerance, budget,
+                            &used) == LaggedSolve::kSolved &&
                rhs.dot(step) > 0.0;
+      record.lagged_iterations += used;
       lap(result.solve_seconds);
     }
     // A new factorisation in single precision, its step refined by conjugate gradients in
@@ -389,8 +413,10 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       lap(result.factorization_seconds);
       return factorized;
     };
+    record.lagged = lagged;
     if (lagged) {
       ++result.lagged_steps;
+      data.factor_ageing = data.factor_ageing || 2 * used > full_budget;
     } else {
       // A factorisation of the exact Hessian where it is positive definite: fast convergence
       // near the minimum. Else of its convex part, which always gives a descent direction.
@@ -405,6 +431,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
         factorized = factorize_fresh(false);
       }
       have_factor = factorized;
+      data.factor_ageing = false;
       if (!factorized) {
         if (damping >= 1.0) {
           throw InputError(
@@ -415,11 +442,13 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
         continue;
       }
       ++result.factorizations;
+      record.factorized = true;
       if (!solved) {
         step = factorization.solve(rhs);
         lap(result.solve_seconds);
       }
     }
+    record.convexified = convexified;
     const double slope = -rhs.dot(step);  // g . p
     if (!(slope < 0.0)) {
       // A factorised matrix that gave no descent direction (rounding in a nearly singular
@@ -452,6 +481,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
           trial_value <= value && largest_free(trial_gradient, free) < gradient;
       if (sufficient || at_rounding) {
         accepted = true;
+        record.step_length = alpha;
         value = trial_value;
         std::copy(trial.begin(), trial.end(), x.begin());
         std::swap(g, trial_gradient);

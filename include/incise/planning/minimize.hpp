@@ -8,6 +8,7 @@
 #include <functional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "incise/core/types.hpp"
 
@@ -31,6 +32,18 @@ struct MinimizeOptions {
 };
 
 /// What a minimisation did (the plan report's `prediction`).
+/// What one Newton step did (MinimizeResult::newton_steps).
+struct NewtonStep {
+  /// Conjugate gradient iterations with the factor in hand (lagged solves, on the exact
+  /// Hessian and then its convex form), and the most each solve was allowed.
+  int lagged_iterations = 0;
+  int lagged_budget = 0;
+  bool lagged = false;       ///< solved with the factor in hand
+  bool convexified = false;  ///< on the Hessian's convex form (the exact one was indefinite)
+  bool factorized = false;   ///< a new factorisation
+  double step_length = 0.0;  ///< the accepted fraction of the Newton step (0: none accepted)
+};
+
 struct MinimizeResult {
   bool converged = false;         ///< the gradient tolerance was met
   int iterations = 0;             ///< iterations (Newton steps)
@@ -57,6 +70,9 @@ struct MinimizeResult {
   double line_search_seconds = 0.0;    ///< s
   double seconds = 0.0;                ///< s in all
   std::string message;                 ///< why it stopped
+  /// Newton: each step tried, in order (one more than `iterations` when the last found no
+  /// decrease and ended the minimisation).
+  std::vector<NewtonStep> newton_steps;
 };
 
 /// The largest Euclidean norm of a point's entry over the points marked free: the measure of
