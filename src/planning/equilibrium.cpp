@@ -93,6 +93,7 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
   const int rows = soft_rows(tissue, row);
   const CouplingPattern pattern = coupling_pattern(tissue);
   PointBlockMatrix stiffness(row, rows, pattern.pairs);
+  const std::vector<PointBlockMatrix::Target> targets = prism_targets(tissue, pattern, stiffness);
   DirectFactorization own;
   DirectFactorization& factorization = lent != nullptr ? *lent : own;
   std::vector<Vec3> rest(x.begin(), x.end());
@@ -107,11 +108,11 @@ EquilibriumReport balance_continuum(LayeredTissue& tissue, const TissueEnergy& e
       stiffness.clear();
       // The exact tangent (positive definite near the scanned state), else its convex form
       // (once each: the tangent is factorised only once when it is positive definite).
-      add_prism_hessians(tissue, pattern, x, {.tets = true}, stiffness);
+      add_prism_hessians(tissue, targets, x, {.tets = true}, stiffness);
       bool factorised_now = factorization.factorize_preconditioner(stiffness.matrix(), true);
       if (!factorised_now) {
         stiffness.clear();
-        add_prism_hessians(tissue, pattern, x, {.tets = true, .convex = true}, stiffness);
+        add_prism_hessians(tissue, targets, x, {.tets = true, .convex = true}, stiffness);
         factorised_now = factorization.factorize_preconditioner(stiffness.matrix(), false);
       }
       if (!factorised_now) {

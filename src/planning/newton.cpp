@@ -74,8 +74,9 @@ int lagged_iterations(const DirectFactorization& factor,
 /// The Hessian of the energy over the free points; with `convex`, its positive semi-definite
 /// form: the transverse term of compressed springs (negative: they buckle) left out, the
 /// tetrahedra's convex form, the volume term's curvature left out.
-void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& pattern,
-                      std::span<const Vec3> x, bool convex, PointBlockMatrix& hessian) {
+void assemble_hessian(const LayeredTissue& tissue,
+                      std::span<const PointBlockMatrix::Target> targets, std::span<const Vec3> x,
+                      bool convex, PointBlockMatrix& hessian) {
   hessian.clear();
   for (std::size_t s = 0; s < tissue.springs.size(); ++s) {
     const Spring& spring = tissue.springs[s];
@@ -97,7 +98,7 @@ void assemble_hessian(const LayeredTissue& tissue, const CouplingPattern& patter
     hessian.add_coupling(s, -block);
   }
   add_prism_hessians(
-      tissue, pattern, x,
+      tissue, targets, x,
       {.tets = tissue.elasticity == TissueElasticity::kContinuum, .volume = true, .convex = convex},
       hessian);
 }
@@ -179,6 +180,7 @@ struct NewtonWorkspace::Data {
   int rows = 0;
   CouplingPattern pattern;
   std::optional<PointBlockMatrix> hessian;
+  std::vector<PointBlockMatrix::Target> prism_targets;  ///< where the prisms' blocks go in it
   bool have_factor = false;
   /// The last minimisation's first exact Hessian was indefinite: the next one, a nudge like
   /// it, starts with the convex form instead of finding that out again (an assembly and a few
@@ -242,6 +244,7 @@ NewtonWorkspace::Data& NewtonWorkspace::data_for(const LayeredTissue& tissue,
   }
   d.pattern = coupling_pattern(tissue);
   d.hessian.emplace(d.row, d.rows, d.pattern.pairs);
+  d.prism_targets = prism_targets(tissue, d.pattern, *d.hessian);
   return d;
 }
 
@@ -257,9 +260,9 @@ void NewtonWorkspace::factorize_at(const TissueEnergy& energy, std::span<const V
     return;
   }
   // For the lagged solves only: in single precision where floats suffice.
-  assemble_hessian(tissue, d.pattern, x, false, *d.hessian);
+  assemble_hessian(tissue, d.prism_targets, x, false, *d.hessian);
   if (!factorization().factorize_preconditioner(d.hessian->matrix(), true)) {
-    assemble_hessian(tissue, d.pattern, x, true, *d.hessian);
+    assemble_hessian(tissue, d.prism_targets, x, true, *d.hessian);
     d.hessian->damp_diagonal(1e-12, 0.0);
     if (!factorization().factorize_preconditioner(d.hessian->matrix(), false)) {
       throw InputError(
@@ -302,7 +305,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     return result;
   }
 
-  const CouplingPattern& pattern = data.pattern;
+  const std::vector<PointBlockMatrix::Target>& targets = data.prism_targets;
   PointBlockMatrix& hessian = *data.hessian;
   DirectFactorization& factorization = space.factorization();
   const int analyses_before = factorization.analyses();
@@ -338,7 +341,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     const bool known_indefinite =
         iteration == 0 && (start_convex || (have_factor && data.first_step_indefinite));
     if (!known_indefinite) {
-      assemble_hessian(tissue, pattern, x, false, hessian);
+      assemble_hessian(tissue, targets, x, false, hessian);
       hessian.damp_diagonal(damping + shift, 0.0);
       lap(result.assembly_seconds);
     }
@@ -373,7 +376,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       convexified = true;
       shift = shift == 0.0 ? kFirstShift : shift * 10.0;
       ++result.convexified_steps;
-      assemble_hessian(tissue, pattern, x, true, hessian);
+      assemble_hessian(tissue, targets, x, true, hessian);
       hessian.damp_diagonal(std::max(damping, 1e-12), 0.0);
       lap(result.assembly_seconds);
     };

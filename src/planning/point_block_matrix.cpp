@@ -3,6 +3,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <cstddef>
+#include <cstdlib>
 
 #include "incise/core/error.hpp"
 
@@ -81,8 +82,9 @@ PointBlockMatrix::PointBlockMatrix(std::vector<int> first_row, int rows,
   matrix_.resizeNonZeros(outer[rows]);
   std::fill(matrix_.valuePtr(), matrix_.valuePtr() + matrix_.nonZeros(), 0.0);
   int* inner = matrix_.innerIndexPtr();
-  diagonal_slot_.assign(n * 6, -1);
-  coupling_slot_.assign(pairs.size() * 9, -1);
+  diagonal_first_.assign(n, -1);
+  coupling_first_.assign(pairs.size(), -1);
+  below_diagonal_.assign(block_columns, 0);
   coupling_transposed_.assign(pairs.size(), 0);
   coupling_column_.assign(pairs.size(), -1);
   // Column r0 + c holds the diagonal block's rows r0 + c to r0 + 2, then 3 rows per block
@@ -93,23 +95,21 @@ PointBlockMatrix::PointBlockMatrix(std::vector<int> first_row, int rows,
       continue;
     }
     const int r0 = 3 * static_cast<int>(b);
-    const auto i = static_cast<std::size_t>(point_of_block[b]);
-    for (int r = 0, k = 0; r < 3; ++r) {
-      for (int c = 0; c <= r; ++c, ++k) {
-        const int slot = outer[r0 + c] + (r - c);
-        inner[slot] = r0 + r;
-        diagonal_slot_[i * 6 + static_cast<std::size_t>(k)] = slot;
+    below_diagonal_[b] = distinct[b];
+    diagonal_first_[static_cast<std::size_t>(point_of_block[b])] = outer[r0];
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c <= r; ++c) {
+        inner[outer[r0 + c] + (r - c)] = r0 + r;
       }
     }
     for (std::size_t k = begin[b]; k < begin[b + 1]; ++k) {
       const auto [high, p] = below[k];
       coupling_transposed_[p] = row(pairs[p].first) < row(pairs[p].second) ? 1 : 0;
       coupling_column_[p] = r0;
+      coupling_first_[p] = outer[r0] + 3 + 3 * place[k];
       for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {
-          const int slot = outer[r0 + c] + (3 - c) + 3 * place[k] + r;
-          inner[slot] = high + r;
-          coupling_slot_[p * 9 + static_cast<std::size_t>(3 * r + c)] = slot;
+          inner[outer[r0 + c] + (3 - c) + 3 * place[k] + r] = high + r;
         }
       }
     }
@@ -120,43 +120,72 @@ void PointBlockMatrix::clear() {
   std::fill(matrix_.valuePtr(), matrix_.valuePtr() + matrix_.nonZeros(), 0.0);
 }
 
-void PointBlockMatrix::add_diagonal(int point, const Mat3& block) {
-  const auto base = static_cast<std::size_t>(point) * 6;
-  if (diagonal_slot_[base] < 0) {
+PointBlockMatrix::Target PointBlockMatrix::diagonal_target(int point) const {
+  const int first = diagonal_first_[static_cast<std::size_t>(point)];
+  if (first < 0) {
+    return {};
+  }
+  return {first, 2 + 3 * below_diagonal_[static_cast<std::size_t>(row(point) / 3)]};
+}
+
+PointBlockMatrix::Target PointBlockMatrix::coupling_target(std::size_t pair, bool as_given) const {
+  const int first = coupling_first_[pair];
+  if (first < 0) {
+    return {};
+  }
+  const int step = 2 + 3 * below_diagonal_[static_cast<std::size_t>(coupling_column_[pair] / 3)];
+  const bool transposed = (coupling_transposed_[pair] != 0) == as_given;
+  return {first, transposed ? -step : step};
+}
+
+void PointBlockMatrix::add_diagonal(const Target& target, const Mat3& block) {
+  if (target.first < 0) {
     return;
   }
-  double* values = matrix_.valuePtr();
-  for (int r = 0, k = 0; r < 3; ++r) {
-    for (int c = 0; c <= r; ++c, ++k) {
-      values[diagonal_slot_[base + static_cast<std::size_t>(k)]] += block(r, c);
+  double* column = matrix_.valuePtr() + target.first;
+  column[0] += block(0, 0);
+  column[1] += block(1, 0);
+  column[2] += block(2, 0);
+  column += target.step;
+  column[1] += block(1, 1);
+  column[2] += block(2, 1);
+  column += target.step - 1;
+  column[2] += block(2, 2);
+}
+
+void PointBlockMatrix::add_coupling(const Target& target, const Mat3& block) {
+  if (target.first < 0) {
+    return;
+  }
+  double* column = matrix_.valuePtr() + target.first;
+  const bool transposed = target.step < 0;
+  const int step = std::abs(target.step);
+  for (int c = 0; c < 3; ++c) {
+    for (int r = 0; r < 3; ++r) {
+      column[r] += transposed ? block(c, r) : block(r, c);
     }
+    column += c == 0 ? step : step - 1;
   }
 }
 
+void PointBlockMatrix::add_diagonal(int point, const Mat3& block) {
+  add_diagonal(diagonal_target(point), block);
+}
+
 void PointBlockMatrix::add_coupling(std::size_t pair, const Mat3& block) {
-  const std::size_t base = pair * 9;
-  if (coupling_slot_[base] < 0) {
-    return;
-  }
-  double* values = matrix_.valuePtr();
-  const bool transposed = coupling_transposed_[pair] != 0;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) {
-      values[coupling_slot_[base + static_cast<std::size_t>(3 * r + c)]] +=
-          transposed ? block(c, r) : block(r, c);
-    }
-  }
+  add_coupling(coupling_target(pair, true), block);
 }
 
 void PointBlockMatrix::damp_diagonal(double relative, double absolute) {
   double* values = matrix_.valuePtr();
   for (std::size_t i = 0; i < first_row_.size(); ++i) {
-    if (diagonal_slot_[i * 6] < 0) {
+    const Target target = diagonal_target(static_cast<int>(i));
+    if (target.first < 0) {
       continue;
     }
-    for (int r = 0; r < 3; ++r) {
-      // (r, r) in the packed lower block: slots 0, 2, 5
-      double& diagonal = values[diagonal_slot_[i * 6 + static_cast<std::size_t>(r * (r + 3) / 2)]];
+    // (0, 0), (1, 1) and (2, 2) at first, first + step + 1, first + 2 step + 1.
+    for (const int offset : {0, target.step + 1, 2 * target.step + 1}) {
+      double& diagonal = values[target.first + offset];
       diagonal += relative * diagonal + absolute;
     }
   }

@@ -27,25 +27,46 @@ class PointBlockMatrix {
   void add_diagonal(int point, const Mat3& block);
   /// Adds `block` at (a, b) of pair `pair` = (a, b), and its transpose at (b, a).
   void add_coupling(std::size_t pair, const Mat3& block);
+
+  /// Where a block's values lie: its (0, 0) (`first`, -1 when the block is not in the system)
+  /// and how far on its next column starts (`step`; negative: the block given is added
+  /// transposed). Looked up once for an element's blocks, then added for each assembly
+  /// without the lookups (the planning Hessian's prisms: 21 blocks each).
+  struct Target {
+    int first = -1;
+    int step = 0;
+  };
+  [[nodiscard]] Target diagonal_target(int point) const;
+  /// The target of a block at (a, b) of pair `pair` = (a, b) (`as_given`), or at (b, a).
+  [[nodiscard]] Target coupling_target(std::size_t pair, bool as_given) const;
+  /// Adds a symmetric `block` at a diagonal_target() (its lower part).
+  void add_diagonal(const Target& target, const Mat3& block);
+  /// Adds `block` at a coupling_target() and its transpose at the mirrored place.
+  void add_coupling(const Target& target, const Mat3& block);
+  /// The first value of column `column` (0 to rows()): a target whose `first` lies in
+  /// [value_start(low), value_start(high)) is in columns [low, high) (whole points' columns).
+  /// Adds to blocks in disjoint column ranges touch disjoint values: they may run on separate
+  /// threads.
+  [[nodiscard]] int value_start(int column) const { return matrix_.outerIndexPtr()[column]; }
   /// Each diagonal entry d becomes d (1 + relative) + absolute.
   void damp_diagonal(double relative, double absolute);
 
   [[nodiscard]] const DirectFactorization::SparseMatrix& matrix() const { return matrix_; }
   [[nodiscard]] int row(int point) const { return first_row_[static_cast<std::size_t>(point)]; }
-  /// The first of the three columns that hold pair `pair`'s stored block (the smaller of its
-  /// points' first rows), -1 where it is not in the system; a point's diagonal block is in
-  /// columns row(point) to row(point) + 2. Adds to blocks in disjoint column ranges touch
-  /// disjoint values: they may run on separate threads.
-  [[nodiscard]] int coupling_column(std::size_t pair) const { return coupling_column_[pair]; }
   [[nodiscard]] int rows() const { return static_cast<int>(matrix_.rows()); }
 
  private:
   std::vector<int> first_row_;
   DirectFactorization::SparseMatrix matrix_;
-  std::vector<int> diagonal_slot_;  ///< per point: its packed lower block (6), or -1
-  std::vector<int> coupling_slot_;  ///< per pair: the 3x3 block below the diagonal (9), or -1
+  // A block's values lie in its three columns, rows in order: (r, c) at first + r + offset(c),
+  // offset = 0, 2 + 3 d, 3 + 6 d = 0, step, 2 step - 1, d the coupling blocks below the
+  // diagonal in its block column (the diagonal block stores r >= c). A slot and a count a
+  // block, not nine slots (36 bytes read at random per add).
+  std::vector<int> diagonal_first_;        ///< per point: its diagonal block's (0, 0), or -1
+  std::vector<int> coupling_first_;        ///< per pair: its stored block's (0, 0), or -1
+  std::vector<int> below_diagonal_;        ///< per block column: d, the coupling blocks below
   std::vector<char> coupling_transposed_;  ///< per pair: the stored block is (b, a)
-  std::vector<int> coupling_column_;       ///< per pair: see coupling_column()
+  std::vector<int> coupling_column_;       ///< per pair: the first column of its stored block
 };
 
 }  // namespace incise::planning

@@ -59,24 +59,46 @@ void for_column_ranges(const PointBlockMatrix& matrix, const std::function<void(
   });
 }
 
-void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& pattern,
-                        std::span<const Vec3> x, const PrismTerms& terms,
-                        PointBlockMatrix& matrix) {
+std::vector<PointBlockMatrix::Target> prism_targets(const LayeredTissue& tissue,
+                                                    const CouplingPattern& pattern,
+                                                    const PointBlockMatrix& matrix) {
+  std::vector<PointBlockMatrix::Target> targets(tissue.prisms.size() * 21);
+  for (std::size_t p = 0; p < tissue.prisms.size(); ++p) {
+    const Prism& prism = tissue.prisms[p];
+    const std::span<PointBlockMatrix::Target> mine(targets.data() + p * 21, 21);
+    for (std::size_t i = 0, k = 0; i < 6; ++i) {
+      mine[prism_block(i, i)] = matrix.diagonal_target(prism.points[i]);
+      for (std::size_t j = i + 1; j < 6; ++j, ++k) {
+        const std::size_t pair = pattern.prism_pairs[p * 15 + k];
+        // The prism's block (i, j) is the pair's (first, second) when its first is point i.
+        mine[prism_block(i, j)] =
+            matrix.coupling_target(pair, pattern.pairs[pair].first == prism.points[i]);
+      }
+    }
+  }
+  return targets;
+}
+
+void add_prism_hessians(const LayeredTissue& tissue,
+                        std::span<const PointBlockMatrix::Target> targets, std::span<const Vec3> x,
+                        const PrismTerms& terms, PointBlockMatrix& matrix) {
   const bool volume = terms.volume && tissue.volume_weight > 0.0;
   if (!terms.tets && !volume) {
     return;
   }
-  // A prism's matrix (its three tetrahedra's and its volume term's, over its six corners) for a
-  // block of prisms in parallel (the eigen-decompositions are most of the work), then added
-  // into the matrix in prism order, 21 blocks each: the sum is the same for any thread count.
-  std::vector<PrismHessian> element(std::min(kPrismBlock, tissue.prisms.size()));  // 2.6 kB each
+  // A prism's matrix (its three tetrahedra's and its volume term's, over its six corners, as
+  // its 21 blocks on and above the diagonal) for a block of prisms in parallel, then added into
+  // the matrix in prism order: the sum is the same for any thread count.
+  std::vector<PrismBlocks> element(std::min(kPrismBlock, tissue.prisms.size()));  // 1.5 kB each
   std::vector<char> empty(element.size());
   for_prism_blocks(
       tissue.prisms.size(), 64,
       [&](std::size_t p, std::size_t slot) {
         const Prism& prism = tissue.prisms[p];
-        PrismHessian& h = element[slot];
-        h.setZero();
+        PrismBlocks& h = element[slot];
+        for (Mat3& block : h) {
+          block.setZero();
+        }
         bool any = false;
         for (std::size_t t = 0; t < 3 && terms.tets; ++t) {
           const PrismTet& tet = prism.tets[t];
@@ -84,14 +106,17 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
             continue;
           }
           any = true;
-          const ElementMatrix k = neo_hookean_stiffness(tet_corners(prism, tet, x), tet.rest,
-                                                        prism.material, terms.convex);
-          for (std::size_t a = 0; a < 4; ++a) {
-            const auto ia = static_cast<Eigen::Index>(3 * tet.corners[a]);
-            for (std::size_t b = 0; b < 4; ++b) {
-              const auto ib = static_cast<Eigen::Index>(3 * tet.corners[b]);
-              h.block<3, 3>(ia, ib) +=
-                  k.block<3, 3>(static_cast<Eigen::Index>(3 * a), static_cast<Eigen::Index>(3 * b));
+          const ElementStiffnessBlocks k = neo_hookean_stiffness_blocks(
+              tet_corners(prism, tet, x), tet.rest, prism.material, terms.convex);
+          for (std::size_t a = 0, next = 0; a < 4; ++a) {
+            const auto ia = static_cast<std::size_t>(tet.corners[a]);
+            for (std::size_t b = a; b < 4; ++b, ++next) {
+              const auto ib = static_cast<std::size_t>(tet.corners[b]);
+              if (ia <= ib) {
+                h[prism_block(ia, ib)] += k[next];
+              } else {
+                h[prism_block(ib, ia)] += k[next].transpose();
+              }
             }
           }
         }
@@ -106,14 +131,14 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
           // kappa / |V0| ((grad V)(grad V)^T + (V - V0) grad^2 V); the convex form keeps
           // the first.
           for (std::size_t i = 0; i < 6; ++i) {
-            for (std::size_t j = 0; j < 6; ++j) {
-              h.block<3, 3>(static_cast<Eigen::Index>(3 * i), static_cast<Eigen::Index>(3 * j)) +=
-                  weight * dv[i] * dv[j].transpose();
+            const Vec3 weighted = weight * dv[i];
+            for (std::size_t j = i; j < 6; ++j) {
+              h[prism_block(i, j)].noalias() += weighted * dv[j].transpose();
             }
           }
           if (!terms.convex) {
-            h += (weight * (prism_volume(corners) - prism.rest_volume)) *
-                 prism_volume_hessian(corners);
+            add_prism_volume_hessian(corners, weight * (prism_volume(corners) - prism.rest_volume),
+                                     h);
           }
         }
         empty[slot] = any ? 0 : 1;
@@ -122,28 +147,24 @@ void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& patt
         // Added by column ranges side by side, each range's blocks in prism order: every value
         // gets its terms in the same order as one thread would add them.
         for_column_ranges(matrix, [&](int low, int high) {
-          const auto mine = [low, high](int column) { return column >= low && column < high; };
+          const int from = matrix.value_start(low);
+          const int to = matrix.value_start(high);
           for (std::size_t p = first; p < last; ++p) {
             if (empty[p - first] != 0) {
               continue;
             }
-            const Prism& prism = tissue.prisms[p];
-            const PrismHessian& h = element[p - first];
+            const PrismBlocks& h = element[p - first];
+            const PointBlockMatrix::Target* target = targets.data() + p * 21;
             for (std::size_t i = 0, k = 0; i < 6; ++i) {
-              const auto bi = static_cast<Eigen::Index>(3 * i);
-              if (mine(matrix.row(prism.points[i]))) {
-                matrix.add_diagonal(prism.points[i], h.block<3, 3>(bi, bi));
-              }
-              for (std::size_t j = i + 1; j < 6; ++j, ++k) {
-                const std::size_t pair = pattern.prism_pairs[p * 15 + k];
-                if (!mine(matrix.coupling_column(pair))) {
-                  continue;
+              for (std::size_t j = i; j < 6; ++j, ++k) {
+                if (target[k].first < from || target[k].first >= to) {
+                  continue;  // another range's, or not in the system
                 }
-                const auto bj = static_cast<Eigen::Index>(3 * j);
-                // The block at (first, second) of the pair as stored.
-                const bool same_order = pattern.pairs[pair].first == prism.points[i];
-                matrix.add_coupling(
-                    pair, same_order ? Mat3(h.block<3, 3>(bi, bj)) : Mat3(h.block<3, 3>(bj, bi)));
+                if (i == j) {
+                  matrix.add_diagonal(target[k], h[k]);
+                } else {
+                  matrix.add_coupling(target[k], h[k]);
+                }
               }
             }
           }

@@ -60,9 +60,17 @@ struct PrismTerms {
   bool convex = false;
 };
 
+/// Where each prism's 21 blocks (PrismBlocks' order) go in a matrix over `pattern`: looked up
+/// once, for every assembly of that matrix.
+[[nodiscard]] std::vector<PointBlockMatrix::Target> prism_targets(const LayeredTissue& tissue,
+                                                                  const CouplingPattern& pattern,
+                                                                  const PointBlockMatrix& matrix);
+
 /// Adds the prisms' second derivatives at positions x (m), per prism one 18 x 18 matrix of the
-/// chosen terms, added in prism order (the same sum for any thread count).
-void add_prism_hessians(const LayeredTissue& tissue, const CouplingPattern& pattern,
-                        std::span<const Vec3> x, const PrismTerms& terms, PointBlockMatrix& matrix);
+/// chosen terms, added in prism order (the same sum for any thread count); `targets` from
+/// prism_targets() for this matrix.
+void add_prism_hessians(const LayeredTissue& tissue,
+                        std::span<const PointBlockMatrix::Target> targets, std::span<const Vec3> x,
+                        const PrismTerms& terms, PointBlockMatrix& matrix);
 
 }  // namespace incise::planning

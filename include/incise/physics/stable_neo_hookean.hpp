@@ -16,6 +16,7 @@
 // construction, exact where J = alpha). Vectors of F are column-major: F(i, k) at i + 3 k.
 
 #include <Eigen/Core>
+#include <array>
 
 #include "incise/physics/corotational.hpp"
 
@@ -53,6 +54,14 @@ using Mat9 = Eigen::Matrix<double, 9, 9>;
                                                           const TetRestShape& rest,
                                                           const NeoHookeanParameters& p,
                                                           const ElementForces& w);
+/// The 3x3 blocks K_ab of d^2E/dx^2 (N/m) with a <= b, in the order (0,0), (0,1), (0,2),
+/// (0,3), (1,1), (1,2), (1,3), (2,2), (2,3), (3,3) (K_ba = K_ab^T): exact, or positive
+/// semi-definite.
+using ElementStiffnessBlocks = std::array<Mat3, 10>;
+[[nodiscard]] ElementStiffnessBlocks neo_hookean_stiffness_blocks(const Corners& x,
+                                                                  const TetRestShape& rest,
+                                                                  const NeoHookeanParameters& p,
+                                                                  bool convex);
 /// d^2E/dx^2 (N/m), corners in order, x, y, z per corner: exact, or positive semi-definite.
 [[nodiscard]] ElementMatrix neo_hookean_stiffness(const Corners& x, const TetRestShape& rest,
                                                   const NeoHookeanParameters& p, bool convex);

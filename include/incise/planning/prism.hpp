@@ -34,4 +34,15 @@ using PrismHessian = Eigen::Matrix<double, 18, 18>;
 /// exact (up to rounding) for any step: they are taken at the prism's own size.
 [[nodiscard]] PrismHessian prism_volume_hessian(const PrismPoints& p);
 
+/// A symmetric 18 x 18 matrix over a prism's corners as its 21 3x3 blocks (a, b) with a <= b,
+/// row by row: (0,0), (0,1), ..., (0,5), (1,1), ..., (5,5); block (b, a) is (a, b)^T.
+using PrismBlocks = std::array<Mat3, 21>;
+/// The place of block (a, b), a <= b, in PrismBlocks.
+[[nodiscard]] constexpr std::size_t prism_block(std::size_t a, std::size_t b) {
+  return a * 6 - a * (a - 1) / 2 + (b - a);
+}
+/// prism_volume_hessian's blocks (a, b) with a <= b (m), scaled by `scale` and added to
+/// `blocks`.
+void add_prism_volume_hessian(const PrismPoints& p, double scale, PrismBlocks& blocks);
+
 }  // namespace incise::planning
