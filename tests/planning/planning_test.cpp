@@ -462,6 +462,32 @@ TEST(Prediction, AFactorThatNeededMostOfItsBudgetGetsAShortOneNext) {
                              "longer tests the rule";
 }
 
+TEST(Prediction, RightAfterAnIndefiniteHessianItsConvexFormIsFactorised) {
+  // A 2 cm push with a 0.4 rad turn: the first step's exact Hessian is indefinite (tried, then
+  // its convex form factorised), and so is the next one, whose lagged solve fails: its convex
+  // form is factorised without a second failed attempt on the exact one.
+  Head head;
+  LayeredTissueOptions o = options(3);
+  o.elasticity = TissueElasticity::kContinuum;
+  LayeredTissue tissue = build_layered_tissue(head.skin, head.bone, o);
+  const Vec3 gravity(0, 0, -9.81);
+  (void)initialise_equilibrium(tissue, gravity, 1e-12);
+  RigidMove push;
+  push.translation = Vec3(0.012, 0, 0.016);  // m
+  push.angle = 0.4;                          // rad
+  std::vector<Vec3> x = with_bone_moved(tissue, push);
+  const TissueEnergy energy(tissue, gravity);
+  MinimizeOptions options_newton;
+  options_newton.method = Minimizer::kNewton;
+  options_newton.gradient_tolerance = 1e-4 * largest_weight(tissue, 9.81);
+  const MinimizeResult result = minimize_newton(energy, x, free_points(tissue), options_newton);
+  ASSERT_TRUE(result.converged) << result.message;
+  ASSERT_GE(result.newton_steps.size(), 2U);
+  EXPECT_TRUE(result.newton_steps[0].convexified && result.newton_steps[0].factorized);
+  EXPECT_TRUE(result.newton_steps[1].convexified && result.newton_steps[1].factorized);
+  EXPECT_EQ(result.indefinite_attempts, 1);  // the first step's only
+}
+
 TEST(Prediction, ForceMinimisationReachesTheSameRestState) {
   // Without volume preservation both objectives have the same minimiser (zero forces); with
   // it they differ (F_F + k F_V is not an energy). Both elasticities.
