@@ -31,19 +31,19 @@ struct MinimizeOptions {
   int lbfgs_memory = 8;        ///< L-BFGS's pairs of earlier steps
 };
 
-/// What a minimisation did (the plan report's `prediction`).
-/// What one Newton step did (MinimizeResult::newton_steps).
+/// What one Newton step did (MinimizeResult::newton_steps; the plan report's `newton.steps`).
 struct NewtonStep {
   /// Conjugate gradient iterations with the factor in hand (lagged solves, on the exact
-  /// Hessian and then its convex form), and the most each solve was allowed.
+  /// Hessian and then its convex form).
   int lagged_iterations = 0;
-  int lagged_budget = 0;
+  int lagged_budget = 0;     ///< the most each of those solves was allowed (0: no factor)
   bool lagged = false;       ///< solved with the factor in hand
   bool convexified = false;  ///< on the Hessian's convex form (the exact one was indefinite)
   bool factorized = false;   ///< a new factorisation
   double step_length = 0.0;  ///< the accepted fraction of the Newton step (0: none accepted)
 };
 
+/// What a minimisation did (the plan report's `prediction`).
 struct MinimizeResult {
   bool converged = false;         ///< the gradient tolerance was met
   int iterations = 0;             ///< iterations (Newton steps)
