@@ -124,6 +124,9 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
                          DirectFactorization& factor, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                          double tolerance = kLaggedTolerance, int most_iterations = 0,
                          int* iterations_used = nullptr) {
+  if (iterations_used != nullptr) {
+    *iterations_used = 0;
+  }
   const auto a = matrix.selfadjointView<Eigen::Lower>();
   // The factor preconditions in single precision (half the bytes to read, on worker threads):
   // its steps are wanted to kLaggedTolerance, not to sixteen digits.
