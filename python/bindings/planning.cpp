@@ -175,16 +175,8 @@ void bind_planning(py::module_& module) {
             out["residual_force"] = residual;
             out["factorizations"] = result.factorizations;
             out["lagged_steps"] = result.lagged_steps;
-            py::list steps;
-            for (const planning::NewtonStep& step : result.newton_steps) {
-              steps.append(py::dict(py::arg("lagged_iterations") = step.lagged_iterations,
-                                    py::arg("lagged_budget") = step.lagged_budget,
-                                    py::arg("lagged") = step.lagged,
-                                    py::arg("convexified") = step.convexified,
-                                    py::arg("factorized") = step.factorized,
-                                    py::arg("step_length") = step.step_length));
-            }
-            out["steps"] = steps;
+            out["steps"] = py::module_::import("json").attr("loads")(
+                planning::newton_steps_report(result.newton_steps).dump());
             out["pattern_analyses"] = result.pattern_analyses;
             out["stage_seconds"] = py::dict(py::arg("assembly") = result.assembly_seconds,
                                             py::arg("factorization") = result.factorization_seconds,

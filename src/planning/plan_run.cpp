@@ -22,24 +22,6 @@
 
 namespace incise::planning {
 
-namespace {
-
-/// Each Newton step of the prediction, for the report: what it solved with.
-nlohmann::json newton_steps_json(const std::vector<NewtonStep>& steps) {
-  nlohmann::json list = nlohmann::json::array();
-  for (const NewtonStep& step : steps) {
-    list.push_back({{"lagged_iterations", step.lagged_iterations},
-                    {"lagged_budget", step.lagged_budget},
-                    {"lagged", step.lagged},
-                    {"convexified", step.convexified},
-                    {"factorized", step.factorized},
-                    {"step_length", step.step_length}});
-  }
-  return list;
-}
-
-}  // namespace
-
 PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& out_dir,
                      const PlanProgress& progress) {
   const auto start = Clock::now();
@@ -128,7 +110,7 @@ PlanSummary run_plan(const PlanDescription& plan, const std::filesystem::path& o
                         {"convexified_steps", prediction.convexified_steps},
                         {"pattern_analyses", prediction.pattern_analyses},
                         {"indefinite_attempts", prediction.indefinite_attempts},
-                        {"steps", newton_steps_json(prediction.newton_steps)},
+                        {"steps", newton_steps_report(prediction.newton_steps)},
                         {"seconds",
                          {{"assembly", prediction.assembly_seconds},
                           {"factorization", prediction.factorization_seconds},

@@ -436,6 +436,19 @@ const nlohmann::json& PlanSession::preparation_report() const {
 const nlohmann::json& PlanSession::preparation_seconds() const {
   return state_->seconds;
 }
+
+nlohmann::json newton_steps_report(const std::vector<NewtonStep>& steps) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const NewtonStep& step : steps) {
+    list.push_back({{"lagged_iterations", step.lagged_iterations},
+                    {"lagged_budget", step.lagged_budget},
+                    {"lagged", step.lagged},
+                    {"convexified", step.convexified},
+                    {"factorized", step.factorized},
+                    {"step_length", step.step_length}});
+  }
+  return list;
+}
 std::span<const std::pair<int, int>> PlanSession::cut_skin_springs() const {
   return state_->cut_skin_springs;
 }

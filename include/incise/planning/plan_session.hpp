@@ -92,4 +92,9 @@ class PlanSession {
   std::unique_ptr<State> state_;
 };
 
+/// Each Newton step of a prediction as report.json's `newton.steps` (and Python's
+/// `predict()["steps"]`): lagged_iterations, lagged_budget, lagged, convexified, factorized,
+/// step_length.
+[[nodiscard]] nlohmann::json newton_steps_report(const std::vector<NewtonStep>& steps);
+
 }  // namespace incise::planning
