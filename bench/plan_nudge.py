@@ -4,8 +4,9 @@ nudged step by step, each nudge predicted warm from the last, as `incise plan --
 after each prediction the Hessian is factorised where it ended (PlanSession.prepare_next_nudge,
 which the viewer runs while the user looks and moves the hand), so that the next nudge needs no
 factorisation of its own. Prints per nudge the seconds from the move to the prediction (the
-wait after releasing the mouse), Newton steps, factorisations and the residual force, and the
-seconds of the factorisation that followed it (--no-prepare: none, each nudge predicted with
+wait after releasing the mouse), Newton steps, factorisations, the conjugate gradient iterations
+with the factor in hand and the residual force, and the seconds of the factorisation that
+followed it (--no-prepare: none, each nudge predicted with
 whatever factor the last left, refactorised when it no longer serves).
 
 usage: PYTHONPATH=build/ci/python /usr/bin/python3 bench/plan_nudge.py
@@ -46,9 +47,9 @@ def main():
     print(f"plan {args.plan}, {args.layers} layers, {points} points: prepared in {prepared:.2f} s; "
           "scanned state "
           f"predicted in {first['seconds']:.2f} s ({first['iterations']} steps)")
-    print("| nudge | moved mm | predict s | Newton steps | factorisations | lagged | "
+    print("| nudge | moved mm | predict s | Newton steps | factorisations | lagged | lagged CG | "
           "assembly / factorisation / solve / line search s | residual N | then prepared s |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     times = []
     for k in range(1, args.nudges + 1):
         translate = [k * c for c in args.step]
@@ -60,6 +61,7 @@ def main():
         prepared = 0.0 if args.no_prepare else session.prepare_next_nudge()
         print(f"| {k} | {translate} | {result['seconds']:.3f} | {result['iterations']} | "
               f"{result['factorizations']} | {result['lagged_steps']} | "
+              f"{sum(step['lagged_iterations'] for step in result['steps'])} | "
               + " / ".join(f"{v:.3f}" for v in result["stage_seconds"].values())
               + f" | {result['residual_force']:.2g} | {prepared:.3f} |")
     print(f"median nudge: {statistics.median(times):.3f} s")

@@ -91,14 +91,29 @@ double neo_hookean_energy(const Corners& x, const TetRestShape& rest,
   return rest.volume * neo_hookean_energy_density(deformation_gradient(x, rest), p);
 }
 
-ElementForces neo_hookean_forces(const Corners& x, const TetRestShape& rest,
-                                 const NeoHookeanParameters& p) {
-  const Mat3 stress = neo_hookean_stress(deformation_gradient(x, rest), p);
+namespace {
+
+ElementForces forces_from(const Mat3& F, const TetRestShape& rest, const NeoHookeanParameters& p) {
+  const Mat3 stress = neo_hookean_stress(F, p);
   ElementForces f;
   for (std::size_t a = 0; a < 4; ++a) {
     f[a] = -rest.volume * (stress * rest.gradients[a]);
   }
   return f;
+}
+
+}  // namespace
+
+ElementForces neo_hookean_forces(const Corners& x, const TetRestShape& rest,
+                                 const NeoHookeanParameters& p) {
+  return forces_from(deformation_gradient(x, rest), rest, p);
+}
+
+double neo_hookean_energy_and_forces(const Corners& x, const TetRestShape& rest,
+                                     const NeoHookeanParameters& p, ElementForces& forces) {
+  const Mat3 F = deformation_gradient(x, rest);
+  forces = forces_from(F, rest, p);
+  return rest.volume * neo_hookean_energy_density(F, p);
 }
 
 ElementForces neo_hookean_stiffness_product(const Corners& x, const TetRestShape& rest,

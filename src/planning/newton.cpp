@@ -36,6 +36,12 @@ constexpr double kRecentlyIndefiniteShift = 1e-4;
 constexpr int kLeastLaggedIterations = 6;
 constexpr int kMostLaggedIterations = 40;
 constexpr double kLaggedTolerance = 1e-2;
+/// A lagged solve goes on until no residual entry is above kFinalStepMargin times the gradient
+/// tolerance where that is at least kReachableGoal times the largest gradient (a few more
+/// iterations than kLaggedTolerance takes). A point's residual is at most sqrt(3) times its
+/// largest entry: 0.87 times the tolerance, the rest for Newton's quadratic term.
+constexpr double kFinalStepMargin = 0.5;
+constexpr double kReachableGoal = 1e-4;
 /// The step with a new single-precision factor, refined by its conjugate gradients to this
 /// relative residual (a direct solve's accuracy, for Newton's fast convergence near the
 /// minimum), within kRefinedIterations; else the matrix is factorised in double.
@@ -119,13 +125,19 @@ enum class LaggedSolve {
 /// beforehand that a Cholesky factorisation of it would fail). With `tolerance` and
 /// `most_iterations` (> 0), to that residual within that many: the refinement of a step with
 /// a new single-precision factor of the matrix itself, or a short lagged solve with an ageing
-/// factor. `iterations_used`, if given, receives the iterations it took.
+/// factor. `iterations_used`, if given, receives the iterations it took; with a `goal` (N, the
+/// largest residual entry wanted: a step within reach of the gradient tolerance),
+/// `iterations_to_tolerance` those that reached `tolerance` (0 if it was not).
 LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
                          DirectFactorization& factor, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                          double tolerance = kLaggedTolerance, int most_iterations = 0,
-                         int* iterations_used = nullptr) {
+                         int* iterations_used = nullptr, double goal = 0.0,
+                         int* iterations_to_tolerance = nullptr) {
   if (iterations_used != nullptr) {
     *iterations_used = 0;
+  }
+  if (iterations_to_tolerance != nullptr) {
+    *iterations_to_tolerance = 0;
   }
   const auto a = matrix.selfadjointView<Eigen::Lower>();
   // The factor preconditions in single precision (half the bytes to read, on worker threads):
@@ -144,8 +156,25 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
   };
   // The residual is checked as soon as it is updated, before the next solve with the factor
   // (the costliest part of an iteration: a converged step needs none after its last update).
-  const auto converged = [&] { return r.norm() <= tolerance * b_norm; };
-  if (converged()) {
+  //
+  // With a `goal` (> 0), solved as soon as no residual entry is above it; past the tolerance,
+  // the iterations go on toward it for at most as many again as the tolerance took (and within
+  // the budget): solved either way.
+  int reached_tolerance = -1;  // the iterations the tolerance took, once it was reached
+  const auto converged = [&](int iterations) {
+    const bool at_goal = goal > 0.0 && r.lpNorm<Eigen::Infinity>() <= goal;
+    if (reached_tolerance < 0) {
+      if (r.norm() > tolerance * b_norm) {
+        return at_goal;
+      }
+      reached_tolerance = iterations;
+      if (iterations_to_tolerance != nullptr) {
+        *iterations_to_tolerance = iterations;
+      }
+    }
+    return !(goal > 0.0) || at_goal || iterations >= 2 * reached_tolerance;
+  };
+  if (converged(0)) {
     return finite();
   }
   Eigen::VectorXd z = precondition(r);
@@ -159,12 +188,12 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
     const Eigen::VectorXd ap = a * p;
     const double curvature = p.dot(ap);
     if (!(curvature > 0.0)) {
-      return LaggedSolve::kNegativeCurvature;
+      return reached_tolerance >= 0 ? finite() : LaggedSolve::kNegativeCurvature;
     }
     const double step = rz / curvature;
     x += step * p;
     r -= step * ap;
-    if (converged()) {
+    if (converged(iteration + 1)) {
       return finite();
     }
     z = precondition(r);
@@ -172,7 +201,7 @@ LaggedSolve lagged_solve(const DirectFactorization::SparseMatrix& matrix,
     p = z + (rz_next / rz) * p;
     rz = rz_next;
   }
-  return LaggedSolve::kNotConverged;
+  return reached_tolerance >= 0 ? finite() : LaggedSolve::kNotConverged;
 }
 
 }  // namespace
@@ -340,15 +369,29 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       seconds += std::chrono::duration<double>(now - mark).count();
       mark = now;
     };
+    // A step whose gradient is within reach of the tolerance is solved toward it: the linear
+    // residual left is the gradient after the step but for Newton's quadratic term (smaller
+    // here), and a few more iterations can spare a whole step (an assembly, an evaluation and
+    // the solve). Its Hessian is not shifted: a shift left from an indefinite Hessian some steps
+    // ago would leave shift * diagonal * step in the gradient (the 59k-point phantom's sixth
+    // step: 6.9e-6 N left of it against a tolerance of 3.1e-6 N, and a seventh step).
+    const double goal = kFinalStepMargin * options.gradient_tolerance;
+    const bool within_reach = goal >= kReachableGoal * gradient;
     // A warm start whose last first step met an indefinite Hessian goes to the convex form at
     // once (below, as if the exact one had just shown negative curvature).
     // So does a start the caller knows to be indefinite (without a factor, it is factorised
     // in its convex form below, as after a failed attempt on the exact one).
     const bool known_indefinite =
         iteration == 0 && (start_convex || (have_factor && data.first_step_indefinite));
-    if (!known_indefinite) {
+    // An ageing factor right after an indefinite Hessian: its short lagged solve on the exact
+    // Hessian failed wherever seen (the 59k-point phantom's third step, 0.15 s; a sphere model
+    // pushed 2.4 cm and turned 0.6 rad), and the convex form is factorised next either way
+    // (below): it is, without the exact Hessian's assembly and solve.
+    const bool straight_to_convex = have_factor && data.factor_ageing && !within_reach &&
+                                    shift >= kRecentlyIndefiniteShift && !known_indefinite;
+    if (!known_indefinite && !straight_to_convex) {
       assemble_hessian(tissue, targets, x, false, hessian);
-      hessian.damp_diagonal(damping + shift, 0.0);
+      hessian.damp_diagonal(damping + (within_reach ? 0.0 : shift), 0.0);
       lap(result.assembly_seconds);
     }
     Eigen::VectorXd step;
@@ -363,16 +406,20 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     // 2.49-2.56 s for its prediction, the same steps after it.)
     const int full_budget = have_factor ? lagged_iterations(factorization, hessian.matrix()) : 0;
     const int budget = data.factor_ageing ? kLeastLaggedIterations : full_budget;
-    int used = 0;  // iterations of the last lagged solve
-    record.lagged_budget = have_factor ? budget : 0;
-    const LaggedSolve outcome = known_indefinite ? LaggedSolve::kNegativeCurvature
-                                : have_factor ? lagged_solve(hessian.matrix(), factorization, rhs,
-                                                             step, kLaggedTolerance, budget, &used)
-                                              : LaggedSolve::kNotConverged;
+    int used = 0;          // iterations of the last lagged solve
+    int to_tolerance = 0;  // of them, those that reached kLaggedTolerance
+    record.lagged_budget = have_factor && !straight_to_convex ? budget : 0;
+    const LaggedSolve outcome =
+        known_indefinite ? LaggedSolve::kNegativeCurvature
+        : have_factor && !straight_to_convex
+            ? lagged_solve(hessian.matrix(), factorization, rhs, step, kLaggedTolerance, budget,
+                           &used, within_reach ? goal : 0.0, &to_tolerance)
+            : LaggedSolve::kNotConverged;
     if (iteration == 0 && !start_convex) {  // what the exact Hessian showed, if it was tried
       data.first_step_indefinite = outcome == LaggedSolve::kNegativeCurvature;
     }
     bool lagged = outcome == LaggedSolve::kSolved && rhs.dot(step) > 0.0;  // descent
+    int used_convex = 0;  // iterations of a lagged solve on the convex form
     record.lagged_iterations += used;
     lap(result.solve_seconds);
     // The Hessian replaced by its convex form (positive semi-definite by construction), and the
@@ -395,6 +442,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
                lagged_solve(hessian.matrix(), factorization, rhs, step, kLaggedTolerance, budget,
                             &used) == LaggedSolve::kSolved &&
                rhs.dot(step) > 0.0;
+      used_convex = used;
       record.lagged_iterations += used;
       lap(result.solve_seconds);
     }
@@ -425,7 +473,8 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     record.lagged = lagged;
     if (lagged) {
       ++result.lagged_steps;
-      data.factor_ageing = data.factor_ageing || 2 * used > full_budget;
+      data.factor_ageing =
+          data.factor_ageing || 2 * std::max(to_tolerance, used_convex) > full_budget;
     } else {
       // A factorisation of the exact Hessian where it is positive definite: fast convergence
       // near the minimum. Else of its convex part, which always gives a descent direction.
@@ -522,6 +571,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     }
     result.iterations = iteration + 1;
     gradient = largest_free(g, free);
+    record.gradient = gradient;
     // Newton halves the gradient within a few steps until rounding stops it: twenty steps
     // without halving the best so far mean the floor.
     if (gradient < 0.5 * best_gradient) {

@@ -445,7 +445,8 @@ nlohmann::json newton_steps_report(const std::vector<NewtonStep>& steps) {
                     {"lagged", step.lagged},
                     {"convexified", step.convexified},
                     {"factorized", step.factorized},
-                    {"step_length", step.step_length}});
+                    {"step_length", step.step_length},
+                    {"gradient", step.gradient}});
   }
   return list;
 }

@@ -65,10 +65,10 @@ void TissueEnergy::add_elastic(std::span<const Vec3> x, std::span<Vec3> gradient
           const PrismTet& tet = prism.tets[t];
           if (tet.rest.volume != 0.0) {
             const Corners corners = tet_corners(prism, tet, x);
-            tet_energy[3 * k + t] = neo_hookean_energy(corners, tet.rest, prism.material);
-            if (with_gradient) {
-              tet_forces[3 * k + t] = neo_hookean_forces(corners, tet.rest, prism.material);
-            }
+            tet_energy[3 * k + t] =
+                with_gradient ? neo_hookean_energy_and_forces(corners, tet.rest, prism.material,
+                                                              tet_forces[3 * k + t])
+                              : neo_hookean_energy(corners, tet.rest, prism.material);
           }
         }
       },

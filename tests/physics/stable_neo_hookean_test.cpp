@@ -103,6 +103,11 @@ TEST(StableNeoHookean, ElementForcesAndStiffnessAreDerivativesOfTheEnergy) {
   x[3] += Vec3(-0.004, 0.002, -0.011);  // through the opposite face: inverted
   const ElementForces f = neo_hookean_forces(x, rest, p);
   EXPECT_LT((f[0] + f[1] + f[2] + f[3]).norm(), 1e-12);
+  ElementForces both;
+  EXPECT_EQ(neo_hookean_energy_and_forces(x, rest, p, both), neo_hookean_energy(x, rest, p));
+  for (std::size_t a = 0; a < 4; ++a) {
+    EXPECT_EQ(both[a], f[a]);  // the same numbers as the two calls
+  }
   const ElementMatrix k = neo_hookean_stiffness(x, rest, p, false);
   EXPECT_LT((k - k.transpose()).norm(), 1e-9 * k.norm());
   // The product without the matrix.

@@ -427,7 +427,7 @@ TEST(Prediction, NewtonTakesTheSameStepsOnAnyThreadCount) {
 
 /// Newton's prediction, without a workspace, of the 5 cm head with three continuum layers,
 /// balanced, after its bone is moved by `push`.
-MinimizeResult newton_after_push(const RigidMove& push) {
+MinimizeResult newton_after_push(const RigidMove& push, double* tolerance = nullptr) {
   Head head;
   LayeredTissueOptions o = options(3);
   o.elasticity = TissueElasticity::kContinuum;
@@ -439,6 +439,9 @@ MinimizeResult newton_after_push(const RigidMove& push) {
   MinimizeOptions options_newton;
   options_newton.method = Minimizer::kNewton;
   options_newton.gradient_tolerance = 1e-4 * largest_weight(tissue, 9.81);
+  if (tolerance != nullptr) {
+    *tolerance = options_newton.gradient_tolerance;
+  }
   return minimize_newton(energy, x, free_points(tissue), options_newton);
 }
 
@@ -481,6 +484,57 @@ TEST(Prediction, RightAfterAnIndefiniteHessianItsConvexFormIsFactorised) {
   EXPECT_TRUE(result.newton_steps[0].convexified && result.newton_steps[0].factorized);
   EXPECT_TRUE(result.newton_steps[1].convexified && result.newton_steps[1].factorized);
   EXPECT_EQ(result.indefinite_attempts, 1);  // the first step's only
+}
+
+TEST(Prediction, AnAgeingFactorRightAfterAnIndefiniteHessianGoesStraightToTheConvexForm) {
+  // A 3 cm push with a 0.6 rad turn: the first two steps' exact Hessians are indefinite, the
+  // third step's lagged solve needs more than half its budget. The fourth step's exact Hessian
+  // is not assembled and tried with the ageing factor (6 iterations that failed): its convex
+  // form is factorised at once.
+  RigidMove push;
+  push.translation = Vec3(0.018, 0, 0.024);  // m
+  push.angle = 0.6;                          // rad
+  const MinimizeResult result = newton_after_push(push);
+  ASSERT_TRUE(result.converged) << result.message;
+  ASSERT_GE(result.newton_steps.size(), 4U);
+  const std::vector<NewtonStep>& steps = result.newton_steps;
+  ASSERT_TRUE(steps[0].convexified && steps[1].convexified)
+      << "the model no longer tests the rule: its first two Hessians are not both indefinite";
+  ASSERT_TRUE(steps[2].lagged && 2 * steps[2].lagged_iterations > steps[2].lagged_budget)
+      << "the model no longer tests the rule: the third step's factor is not ageing";
+  EXPECT_EQ(steps[3].lagged_iterations, 0);
+  EXPECT_EQ(steps[3].lagged_budget, 0);
+  EXPECT_TRUE(steps[3].convexified && steps[3].factorized);
+  EXPECT_EQ(result.indefinite_attempts, 1);  // the first step's only
+}
+
+TEST(Prediction, AStepWithinReachOfTheToleranceIsTheLast) {
+  // Once the largest gradient is within 5,000 times the tolerance, the step is solved toward
+  // it (its conjugate gradients until no residual entry is above half the tolerance) on the
+  // exact Hessian without the shift left from an earlier indefinite one: that step ends the
+  // minimisation. Solved to kLaggedTolerance (1e-2) only, the 1 cm and 2 cm pushes took another
+  // step, the 2 cm one a factorisation more.
+  for (const double scale : {0.5, 1.0, 2.0}) {
+    SCOPED_TRACE("push scaled by " + std::to_string(scale));
+    RigidMove push;
+    push.translation = Vec3(0.006, 0, 0.008) * scale;  // m
+    push.angle = 0.2 * scale;                          // rad
+    double tolerance = 0.0;
+    const MinimizeResult result = newton_after_push(push, &tolerance);
+    ASSERT_TRUE(result.converged) << result.message;
+    double before = result.initial_gradient;
+    int within_reach = 0;
+    std::ostringstream steps;
+    for (const NewtonStep& step : result.newton_steps) {
+      if (before <= 0.5 * tolerance / 1e-4) {
+        ++within_reach;
+      }
+      steps << " " << before << " -> " << step.gradient << " (" << step.lagged_iterations << " CG"
+            << (step.factorized ? ", factorised)" : ")");
+      before = step.gradient;
+    }
+    EXPECT_EQ(within_reach, 1) << "tolerance " << tolerance << ", steps:" << steps.str();
+  }
 }
 
 TEST(Prediction, ForceMinimisationReachesTheSameRestState) {

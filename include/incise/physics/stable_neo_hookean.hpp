@@ -49,6 +49,10 @@ using Mat9 = Eigen::Matrix<double, 9, 9>;
                                         const NeoHookeanParameters& p);
 [[nodiscard]] ElementForces neo_hookean_forces(const Corners& x, const TetRestShape& rest,
                                                const NeoHookeanParameters& p);
+/// Both, from one deformation gradient (the same numbers as the two calls).
+[[nodiscard]] double neo_hookean_energy_and_forces(const Corners& x, const TetRestShape& rest,
+                                                   const NeoHookeanParameters& p,
+                                                   ElementForces& forces);
 /// The stiffness applied to corner displacements w: (d^2E/dx^2) w (N), exact.
 [[nodiscard]] ElementForces neo_hookean_stiffness_product(const Corners& x,
                                                           const TetRestShape& rest,
