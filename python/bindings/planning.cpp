@@ -191,7 +191,7 @@ void bind_planning(py::module_& module) {
           "solved with an earlier factorisation, kept between predictions), steps (each Newton "
           "step: lagged_iterations and lagged_budget, its conjugate gradients with the factor in "
           "hand and the most allowed; lagged, convexified, factorized; step_length; gradient, the "
-          "largest free gradient entry after it, N), pattern_analyses (analyses of the Hessian's "
+          "largest free point's gradient after it, N), pattern_analyses (analyses of the Hessian's "
           "pattern: 0 once the session's equilibrium or an earlier prediction made one) and "
           "stage_seconds (assembly, factorization, solve, line_search: where the time went).")
       .def(

@@ -407,7 +407,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     const int full_budget = have_factor ? lagged_iterations(factorization, hessian.matrix()) : 0;
     const int budget = data.factor_ageing ? kLeastLaggedIterations : full_budget;
     int used = 0;          // iterations of the last lagged solve
-    int to_tolerance = 0;  // of them, those that reached kLaggedTolerance
+    int to_tolerance = 0;  // of the solve taken, those that reached kLaggedTolerance
     record.lagged_budget = have_factor && !straight_to_convex ? budget : 0;
     const LaggedSolve outcome =
         known_indefinite ? LaggedSolve::kNegativeCurvature
@@ -419,7 +419,6 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
       data.first_step_indefinite = outcome == LaggedSolve::kNegativeCurvature;
     }
     bool lagged = outcome == LaggedSolve::kSolved && rhs.dot(step) > 0.0;  // descent
-    int used_convex = 0;  // iterations of a lagged solve on the convex form
     record.lagged_iterations += used;
     lap(result.solve_seconds);
     // The Hessian replaced by its convex form (positive semi-definite by construction), and the
@@ -442,7 +441,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
                lagged_solve(hessian.matrix(), factorization, rhs, step, kLaggedTolerance, budget,
                             &used) == LaggedSolve::kSolved &&
                rhs.dot(step) > 0.0;
-      used_convex = used;
+      to_tolerance = used;  // (no goal: solved when the tolerance is reached)
       record.lagged_iterations += used;
       lap(result.solve_seconds);
     }
@@ -473,8 +472,7 @@ MinimizeResult minimize_newton(const TissueEnergy& energy, std::span<Vec3> x,
     record.lagged = lagged;
     if (lagged) {
       ++result.lagged_steps;
-      data.factor_ageing =
-          data.factor_ageing || 2 * std::max(to_tolerance, used_convex) > full_budget;
+      data.factor_ageing = data.factor_ageing || 2 * to_tolerance > full_budget;
     } else {
       // A factorisation of the exact Hessian where it is positive definite: fast convergence
       // near the minimum. Else of its convex part, which always gives a descent direction.

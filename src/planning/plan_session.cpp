@@ -450,6 +450,7 @@ nlohmann::json newton_steps_report(const std::vector<NewtonStep>& steps) {
   }
   return list;
 }
+
 std::span<const std::pair<int, int>> PlanSession::cut_skin_springs() const {
   return state_->cut_skin_springs;
 }

@@ -41,7 +41,7 @@ struct NewtonStep {
   bool convexified = false;  ///< on the Hessian's convex form (the exact one was indefinite)
   bool factorized = false;   ///< a new factorisation
   double step_length = 0.0;  ///< the accepted fraction of the Newton step (0: none accepted)
-  double gradient = 0.0;     ///< the largest free gradient entry after the step
+  double gradient = 0.0;     ///< the largest free point's gradient after the step (N)
 };
 
 /// What a minimisation did (the plan report's `prediction`).

@@ -94,7 +94,7 @@ class PlanSession {
 
 /// Each Newton step of a prediction as report.json's `newton.steps` (and Python's
 /// `predict()["steps"]`): lagged_iterations, lagged_budget, lagged, convexified, factorized,
-/// step_length.
+/// step_length, gradient.
 [[nodiscard]] nlohmann::json newton_steps_report(const std::vector<NewtonStep>& steps);
 
 }  // namespace incise::planning
