@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
 #include <utility>
 
@@ -119,6 +120,9 @@ constexpr int kModes = AggregationCoarseSpace::kModes;
 /// (some 20 aggregates each).
 constexpr std::size_t kAggregateGrain = 64;
 constexpr std::size_t kGroupGrain = 4;
+/// The damped V-cycle smoother's largest eigenvalue on P^T A P at most (below 2, where the cycle
+/// would stop being positive definite).
+constexpr double kSmootherReach = 1.6;
 
 /// A displacement field's rigid coordinates: translation (m) and small rotation about a centre:
 /// u(x) = t + w x (x - centre) = [I, -[x - centre]x] (t, w).
@@ -300,10 +304,12 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
         static_cast<int>(row_slot + static_cast<std::size_t>(found - coarse_columns[a].begin()));
   }
 
+  collect_slot_rows();
+
   // A large coarse system costs more to solve than a product at every iteration (7,600
   // unknowns on the 384k-tet box: 4 ms against 3.5). Above exact_limit_ unknowns the
   // aggregates are aggregated once more: their level gets its block-Jacobi, and only the top
-  // level is factorised (additive three-level).
+  // level is factorised (a V-cycle over the two, see solve()).
   three_level_ = kModes * aggregates > exact_limit_;
   std::vector<std::vector<int>> top_columns;
   if (three_level_) {
@@ -353,8 +359,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     }
     refill(top_blocks_, static_cast<std::size_t>(top_row_slot.back()),
            ModeMatrix(ModeMatrix::Zero()));
-    refill(level_motion_, aggregates, ModeMatrix(ModeMatrix::Zero()));
-    refill(top_motion_, aggregates, ModeMatrix(ModeMatrix::Zero()));
+    refill(own_inverse_, aggregates, ModeMatrix(ModeMatrix::Zero()));
     refill(top_map_, aggregates, ModeMatrix(ModeMatrix::Zero()));
     top_dropped_.assign(top_columns.size(), 0);
   } else {
@@ -362,8 +367,7 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
     collect_top_members(0);
     top_slot_.clear();
     top_blocks_.clear();
-    level_motion_.clear();
-    top_motion_.clear();
+    own_inverse_.clear();
     top_map_.clear();
     top_dropped_.clear();
   }
@@ -625,8 +629,10 @@ void AggregationCoarseSpace::save_state(StateWriter& out) const {
   out.values(top_of_);
   out.values(top_slot_);
   out.values(top_map_);
-  out.values(level_motion_);
-  out.values(top_motion_);
+  out.values(own_inverse_);
+  if (three_level_) {
+    out.values(coarse_blocks_);  // the V-cycle's products: P^T A P as last factorised
+  }
   out.value(static_cast<std::uint64_t>(coarse_blocks_.size()));
   out.value(static_cast<std::uint64_t>(top_blocks_.size()));
   // The coarse matrix as factorised (the factor is made again from it).
@@ -672,8 +678,9 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
   auto top_of = in.values<int>("aggregate groups");
   auto top_slot = in.values<int>("group slots");
   auto top_map = in.values<ModeMatrix>("group modes");
-  auto level_motion = in.values<ModeMatrix>("aggregate inverses");
-  auto top_motion = in.values<ModeMatrix>("group motions");
+  auto own_inverse = in.values<ModeMatrix>("aggregate inverses");
+  auto coarse_blocks =
+      three_level ? in.values<ModeMatrix>("coarse blocks") : std::vector<ModeMatrix>{};
   const auto slots = in.value<std::uint64_t>("coarse slot count");
   const auto top_slots = in.value<std::uint64_t>("group slot count");
   const auto unknowns = in.value<std::int64_t>("coarse unknowns");
@@ -713,8 +720,8 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
     valid = top_of.size() == aggregates && within(top_of, groups, false) &&
             top_slot.size() == slots && within(top_slot, top_slots, false) &&
             top_diagonal_slot.size() == groups && within(top_diagonal_slot, top_slots, false) &&
-            top_map.size() == aggregates && level_motion.size() == aggregates &&
-            top_motion.size() == aggregates;
+            top_map.size() == aggregates && own_inverse.size() == aggregates &&
+            coarse_blocks.size() == slots && std::is_sorted(slot_row.begin(), slot_row.end());
   } else if (valid) {
     valid = top_of.empty() && top_slot.empty() && top_slots == 0;
   }
@@ -747,9 +754,16 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
   collect_top_members(three_level ? static_cast<std::size_t>(groups) : 0);
   top_slot_ = std::move(top_slot);
   top_map_ = std::move(top_map);
-  level_motion_ = std::move(level_motion);
-  top_motion_ = std::move(top_motion);
-  coarse_blocks_.assign(static_cast<std::size_t>(slots), ModeMatrix::Zero());
+  own_inverse_ = std::move(own_inverse);
+  if (three_level) {
+    coarse_blocks_ = std::move(coarse_blocks);
+  } else {
+    coarse_blocks_.assign(static_cast<std::size_t>(slots), ModeMatrix::Zero());
+  }
+  collect_slot_rows();
+  if (three_level) {
+    prepare_cycle();
+  }
   top_blocks_.assign(static_cast<std::size_t>(top_slots), ModeMatrix::Zero());
   coarse_motion_.assign(static_cast<std::size_t>(aggregates), Modes::Zero());
   const auto size = static_cast<Eigen::Index>(unknowns);
@@ -833,14 +847,25 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
   });
   const std::vector<ModeMatrix>* factored = &coarse_blocks_;
   if (three_level_) {
-    for (std::size_t a = 0; a < level_motion_.size(); ++a) {
-      const ModeMatrix inverse =
-          Eigen::LLT<ModeMatrix>(coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])])
-              .solve(ModeMatrix::Identity());
-      // In raw rigid coordinates, so CG's pass reads two 6x6 matrices per aggregate.
-      level_motion_[a].noalias() = raw_from_modes_[a] * (0.5 * (inverse + inverse.transpose())) *
-                                   raw_from_modes_[a].transpose();
-      top_motion_[a].noalias() = raw_from_modes_[a] * top_map_[a];
+    parallel_for(0, own_inverse_.size(), kAggregateGrain, [&](std::size_t first, std::size_t last) {
+      for (std::size_t a = first; a != last; ++a) {
+        const ModeMatrix inverse =
+            Eigen::LLT<ModeMatrix>(coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])])
+                .solve(ModeMatrix::Identity());
+        own_inverse_[a] = 0.5 * (inverse + inverse.transpose());
+      }
+    });
+    // The V-cycle is positive definite (CG needs it) when the damped smoother's largest
+    // eigenvalue on P^T A P is below 2. Undamped it is 1.9 on the peers' box at 48k and 384k
+    // tets: too close, so it is damped to kSmootherReach, which cost 4-8 % more iterations
+    // than no damping there.
+    prepare_cycle();
+    const double reach = smoother_reach();
+    if (reach > kSmootherReach) {
+      const double damping = kSmootherReach / reach;
+      for (ModeMatrix& inverse : own_inverse_) {
+        inverse *= damping;
+      }
     }
     std::fill(top_blocks_.begin(), top_blocks_.end(), ModeMatrix::Zero());
     for (std::size_t s = 0; s < coarse_blocks_.size(); ++s) {
@@ -913,39 +938,182 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
     }
     return coarse_rhs_.dot(solution);
   }
-  // Three levels: each aggregate's block-Jacobi correction plus the top level's exact one,
-  // in raw rigid coordinates: motion_a = W_a L_a W_a^T raw_a + W_a Q_a y_t. One pass by top
-  // group restricts its aggregates and sums their part of the group's right-hand side (in
-  // aggregate order); after the top solve, one pass by aggregate forms the motions.
+  // Three levels: one symmetric V-cycle on P^T A P y = c, in the aggregates' modes: y = w L c
+  // (each aggregate's own block), y += Q (c - P^T A P y) (the top level's exact solve), y += w L
+  // (c - P^T A P y). Each pass below is by aggregate or by group, every sum in a fixed order.
   const std::size_t groups = top_first_.size() - 1;
+  cycle_rhs_.resize(aggregates);
+  cycle_solution_.resize(aggregates);
+  cycle_residual_.resize(aggregates);
+  parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
+    for (std::size_t a = first; a != last; ++a) {
+      cycle_rhs_[a].noalias() = raw_from_modes_[a].transpose() * restrict_to(a);
+      cycle_solution_[a].noalias() = own_inverse_[a] * cycle_rhs_[a];
+    }
+  });
+  // By group: its aggregates' residuals after the smoothing, and their part of its right-hand
+  // side (in aggregate order).
   coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * groups));
   parallel_for(0, groups, kGroupGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t t = first; t != last; ++t) {
       Modes group_rhs = Modes::Zero();
       for (std::size_t k = top_first_[t]; k != top_first_[t + 1]; ++k) {
         const auto a = static_cast<std::size_t>(top_members_[k]);
-        group_rhs.noalias() += top_motion_[a].transpose() * restrict_to(a);
+        cycle_residual_[a] = coarse_residual(a, cycle_rhs_[a], cycle_solution_);
+        group_rhs.noalias() += top_map_[a].transpose() * cycle_residual_[a];
       }
       coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * t)) = group_rhs;
     }
   });
   const Eigen::VectorXd top_solution = factor_->solve(coarse_rhs_);
+  // y += Q e; then c - P^T A (y + Q e) = (c - P^T A y) - P^T A Q e, with (P^T A Q e)_a = sum
+  // over its coupled groups t of K_at e_t; y += w L of that.
   own_part_.resize(aggregates);
   parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t a = first; a != last; ++a) {
-      Modes& motion = coarse_motion_[a];
-      motion.noalias() = level_motion_[a] * raw_rhs_[a];
-      own_part_[a] = raw_rhs_[a].dot(motion);
-      motion.noalias() += top_motion_[a] * top_solution.segment<kModes>(
-                                               static_cast<Eigen::Index>(kModes * top_of_[a]));
+      cycle_solution_[a].noalias() +=
+          top_map_[a] *
+          top_solution.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a]));
+      Modes left = cycle_residual_[a];
+      for (std::size_t k = top_coupling_first_[a]; k != top_coupling_first_[a + 1]; ++k) {
+        left.noalias() -= top_coupling_[k] * top_solution.segment<kModes>(static_cast<Eigen::Index>(
+                                                 kModes * top_coupling_group_[k]));
+      }
+      cycle_solution_[a].noalias() += own_inverse_[a] * left;
+      coarse_motion_[a].noalias() = raw_from_modes_[a] * cycle_solution_[a];
+      own_part_[a] = cycle_rhs_[a].dot(cycle_solution_[a]);
     }
   });
-  // r.z in the aggregates' order, then the top level's part.
+  // r.z = (P^T r).y, in the aggregates' order.
   double sum = 0.0;
   for (const double part : own_part_) {
     sum += part;
   }
-  return sum + coarse_rhs_.dot(top_solution);
+  return sum;
+}
+
+AggregationCoarseSpace::Modes AggregationCoarseSpace::coarse_residual(
+    std::size_t aggregate, const Modes& c, const std::vector<Modes>& y) const {
+  Modes residual = c;
+  for (std::size_t s = slot_first_[aggregate]; s != slot_first_[aggregate + 1]; ++s) {
+    residual.noalias() -=
+        single_blocks_[s].cast<double>() * y[static_cast<std::size_t>(slot_column_[s])];
+  }
+  return residual;
+}
+
+double AggregationCoarseSpace::smoother_reach() const {
+  // Power iteration on L (P^T A P) from a fixed rough start (a smooth one holds little of the
+  // top eigenvector; minstd_rand's sequence is the same everywhere, so is the damping): twelve
+  // steps put it within a few per cent of the largest eigenvalue on the peers' box, which the
+  // margin below 2 in kSmootherReach covers.
+  const std::size_t aggregates = members_.size();
+  std::vector<Modes> x(aggregates);
+  std::minstd_rand sequence(7);
+  for (Modes& entry : x) {
+    for (int m = 0; m < kModes; ++m) {
+      entry(m) = 2.0 * static_cast<double>(sequence() - std::minstd_rand::min()) /
+                     static_cast<double>(std::minstd_rand::max() - std::minstd_rand::min()) -
+                 1.0;
+    }
+  }
+  std::vector<Modes> product(aggregates);
+  double estimate = 0.0;
+  for (int step = 0; step < 12; ++step) {
+    parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
+      for (std::size_t a = first; a != last; ++a) {
+        product[a] = -(own_inverse_[a] * coarse_residual(a, Modes::Zero(), x));
+      }
+    });
+    double before = 0.0;
+    double after = 0.0;
+    for (std::size_t a = 0; a < aggregates; ++a) {
+      before += x[a].squaredNorm();
+      after += product[a].squaredNorm();
+    }
+    if (before <= 0.0 || after <= 0.0) {
+      return estimate;
+    }
+    estimate = std::sqrt(after / before);
+    const double scale = 1.0 / std::sqrt(after);
+    for (std::size_t a = 0; a < aggregates; ++a) {
+      x[a] = scale * product[a];
+    }
+  }
+  return estimate;
+}
+
+void AggregationCoarseSpace::prepare_cycle() {
+  // The V-cycle is symmetric only if both its products use one symmetric matrix: block (b, a)
+  // is taken as the transpose of block (a, b) for a < b (the sums behind the two differ in
+  // their last bits, and rounding to float can make that 1e-7), and the top correction's
+  // product below uses these rounded blocks too.
+  const std::size_t aggregates = members_.size();
+  single_blocks_.resize(coarse_blocks_.size());
+  parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
+    for (std::size_t a = first; a != last; ++a) {
+      for (std::size_t s = slot_first_[a]; s != slot_first_[a + 1]; ++s) {
+        const auto b = static_cast<std::size_t>(slot_column_[s]);
+        if (b == a) {
+          single_blocks_[s] =
+              (0.5 * (coarse_blocks_[s] + coarse_blocks_[s].transpose())).cast<float>();
+        } else if (a < b) {
+          single_blocks_[s] = coarse_blocks_[s].cast<float>();
+        } else {
+          const auto row_begin = slot_column_.begin() + static_cast<std::ptrdiff_t>(slot_first_[b]);
+          const auto row_end =
+              slot_column_.begin() + static_cast<std::ptrdiff_t>(slot_first_[b + 1]);
+          const auto mirror = std::lower_bound(row_begin, row_end, static_cast<int>(a));
+          INCISE_ASSERT(mirror != row_end && *mirror == static_cast<int>(a),
+                        "coarse pattern not symmetric");
+          single_blocks_[s] =
+              coarse_blocks_[static_cast<std::size_t>(mirror - slot_column_.begin())]
+                  .transpose()
+                  .cast<float>();
+        }
+      }
+    }
+  });
+  // Each aggregate's coupled groups in the order its slots first reach them.
+  top_coupling_first_.assign(1, 0);
+  top_coupling_group_.clear();
+  std::vector<int> place(top_first_.size(), -1);
+  std::vector<std::size_t> slot_place(coarse_blocks_.size());
+  for (std::size_t a = 0; a < aggregates; ++a) {
+    const std::size_t row_first = top_coupling_group_.size();
+    for (std::size_t s = slot_first_[a]; s != slot_first_[a + 1]; ++s) {
+      const int t = top_of_[static_cast<std::size_t>(slot_column_[s])];
+      if (place[static_cast<std::size_t>(t)] < static_cast<int>(row_first)) {
+        place[static_cast<std::size_t>(t)] = static_cast<int>(top_coupling_group_.size());
+        top_coupling_group_.push_back(t);
+      }
+      slot_place[s] = static_cast<std::size_t>(place[static_cast<std::size_t>(t)]);
+    }
+    top_coupling_first_.push_back(top_coupling_group_.size());
+  }
+  top_coupling_.resize(top_coupling_group_.size());
+  parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
+    for (std::size_t a = first; a != last; ++a) {
+      for (std::size_t k = top_coupling_first_[a]; k != top_coupling_first_[a + 1]; ++k) {
+        top_coupling_[k].setZero();
+      }
+      for (std::size_t s = slot_first_[a]; s != slot_first_[a + 1]; ++s) {
+        top_coupling_[slot_place[s]].noalias() +=
+            single_blocks_[s].cast<double>() * top_map_[static_cast<std::size_t>(slot_column_[s])];
+      }
+    }
+  });
+}
+
+void AggregationCoarseSpace::collect_slot_rows() {
+  const std::size_t aggregates = members_.size();
+  slot_first_.assign(aggregates + 1, 0);
+  for (const int a : slot_row_) {
+    ++slot_first_[static_cast<std::size_t>(a) + 1];
+  }
+  for (std::size_t a = 0; a < aggregates; ++a) {
+    slot_first_[a + 1] += slot_first_[a];
+  }
 }
 
 }  // namespace incise

@@ -9,10 +9,13 @@
 // coarse correction to the clusters' block-Jacobi one (additive Schwarz). On a small body the
 // coarse matrix P^T A P is factorised exactly: P (P^T A P)^-1 P^T r. Above 1,000 coarse unknowns
 // its exact solve would cost more than a product at every iteration (4 ms on the 384k-tet box), so
-// the aggregates are aggregated once more and the correction is additive over three levels: each
-// aggregate's own block inverted, plus the top level's exact solve (its groups rigid too). With
-// aggregates that only translated it needed more iterations than the exact coarse solve (125
-// against 92 there) and cost less in all (656 against 892 ms a cutting frame).
+// the aggregates are aggregated once more and the coarse system is solved by one symmetric
+// V-cycle over them: each aggregate's own block inverted (damped), the top level's exact solve
+// (its groups rigid too), each aggregate's block again. With aggregates that only translated it
+// needed more iterations than the exact coarse solve (125 against 92 there) and cost less in all
+// (656 against 892 ms a cutting frame). The V-cycle replaced an additive correction (own blocks
+// plus the top level) that left most of the coarse error: CG needed 110 iterations on the 384k
+// box from a cold start where an exact coarse solve needs 56 (BENCHMARKS.md).
 //
 // Why: block-Jacobi CG needs iterations in proportion to the mesh's resolution (47 / 99 / 209
 // on the peers' box at n = 10 / 20 / 40) and twice as many on a body that a cut has set free
@@ -110,6 +113,8 @@ class AggregationCoarseSpace {
   void collect_members();
   /// top_first_ and top_members_ from top_of_ (`groups` top-level groups; 0: two levels).
   void collect_top_members(std::size_t groups);
+  /// slot_first_ from slot_row_.
+  void collect_slot_rows();
   /// Each aggregate's centre and orthonormal modes at `positions`, every member's offset,
   /// and with three levels the top groups' modes in their aggregates' coordinates.
   void shape_modes(std::span<const Vec3> positions);
@@ -184,13 +189,34 @@ class AggregationCoarseSpace {
   /// top_first_[t + 1]).
   std::vector<std::size_t> top_first_;
   std::vector<int> top_members_;
-  std::vector<double> own_part_;        ///< solve(): each aggregate's own part of r.z
+  std::vector<double> own_part_;        ///< solve(): each aggregate's part of r.z
   std::vector<int> top_slot_;           ///< coarse slot -> top-level slot
   std::vector<ModeMatrix> top_blocks_;  ///< the top level's matrix
   std::vector<ModeMatrix> top_map_;     ///< per aggregate: its modes from its group's
-  /// Per aggregate, raw rigid coordinates in and out: W_a L_a W_a^T (L_a the inverse of its
-  /// own block) and W_a Q_a (its motion from its group's modes).
-  std::vector<ModeMatrix> level_motion_, top_motion_;
+  /// Three levels, per aggregate: the V-cycle's smoother, w L_a (L_a the inverse of its own
+  /// block of P^T A P, w the damping that keeps the cycle positive definite), in its modes.
+  std::vector<ModeMatrix> own_inverse_;
+  std::vector<std::size_t> slot_first_;  ///< each aggregate's first coarse slot (rows in order)
+  /// solve() with three levels, per aggregate in its modes: the right-hand side P^T r, the
+  /// solution, the residual after the first smoothing.
+  std::vector<Modes> cycle_rhs_, cycle_solution_, cycle_residual_;
+  /// Three levels: P^T A P in single precision for the V-cycle's product (half the bytes of a
+  /// pass; the cycle is a preconditioner).
+  std::vector<Eigen::Matrix<float, kModes, kModes>> single_blocks_;
+  /// Three levels: P^T A P times the top level's modes, K_at = sum over b in group t of
+  /// A_ab Q_b, so the top correction's product reads a few blocks per aggregate, not one per
+  /// coupled aggregate: aggregate a's at top_coupling_first_[a] .. [a + 1], their groups in
+  /// top_coupling_group_.
+  std::vector<std::size_t> top_coupling_first_;
+  std::vector<int> top_coupling_group_;
+  std::vector<ModeMatrix> top_coupling_;
+  /// single_blocks_ and top_coupling_ from coarse_blocks_ and top_map_.
+  void prepare_cycle();
+  /// Three levels: aggregate a's entry of the coarse residual c - (P^T A P) y (c its own).
+  [[nodiscard]] Modes coarse_residual(std::size_t aggregate, const Modes& c,
+                                      const std::vector<Modes>& y) const;
+  /// The largest eigenvalue of (own blocks' inverses) (P^T A P), by power iteration.
+  [[nodiscard]] double smoother_reach() const;
   int updates_since_factor_ = 0;
   bool factored_ = false;
 };
