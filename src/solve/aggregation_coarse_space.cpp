@@ -688,6 +688,22 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
   const auto inner = in.values<int>("coarse matrix rows");
   const auto values = in.values<double>("coarse matrix values");
 
+  // The V-cycle finds block (b, a) beside (a, b): slots row by row, each row's columns
+  // increasing, and the pattern symmetric.
+  const auto symmetric_rows = [](const std::vector<int>& rows, const std::vector<int>& columns) {
+    std::vector<std::pair<int, int>> pairs(rows.size());
+    for (std::size_t s = 0; s < rows.size(); ++s) {
+      pairs[s] = {rows[s], columns[s]};
+    }
+    if (std::adjacent_find(pairs.begin(), pairs.end(),
+                           [](const auto& x, const auto& y) { return !(x < y); }) != pairs.end()) {
+      return false;
+    }
+    return std::all_of(pairs.begin(), pairs.end(), [&](const auto& pair) {
+      return std::binary_search(pairs.begin(), pairs.end(),
+                                std::make_pair(pair.second, pair.first));
+    });
+  };
   // Every index in range, every size what the others say: a corrupt checkpoint is refused
   // here, never read out of bounds later.
   const auto within = [](const std::vector<int>& indices, std::uint64_t end, bool minus_one) {
@@ -721,7 +737,7 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
             top_slot.size() == slots && within(top_slot, top_slots, false) &&
             top_diagonal_slot.size() == groups && within(top_diagonal_slot, top_slots, false) &&
             top_map.size() == aggregates && own_inverse.size() == aggregates &&
-            coarse_blocks.size() == slots && std::is_sorted(slot_row.begin(), slot_row.end());
+            coarse_blocks.size() == slots && symmetric_rows(slot_row, slot_column);
   } else if (valid) {
     valid = top_of.empty() && top_slot.empty() && top_slots == 0;
   }
