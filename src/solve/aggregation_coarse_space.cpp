@@ -932,21 +932,16 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
       raw.head<3>() += residual[v];
       raw.tail<3>() += offset_[v].cross(residual[v]);
     }
-    raw_rhs_[a] = raw;
     return raw;
   };
-  raw_rhs_.resize(aggregates);
   if (!three_level_) {
+    coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * aggregates));
     parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
       for (std::size_t a = first; a != last; ++a) {
-        restrict_to(a);
+        coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a)).noalias() =
+            raw_from_modes_[a].transpose() * restrict_to(a);
       }
     });
-    coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * aggregates));
-    for (std::size_t a = 0; a < aggregates; ++a) {
-      coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a)).noalias() =
-          raw_from_modes_[a].transpose() * raw_rhs_[a];
-    }
     const Eigen::VectorXd solution = factor_->solve(coarse_rhs_);
     for (std::size_t a = 0; a < aggregates; ++a) {
       coarse_motion_[a].noalias() =

@@ -172,7 +172,6 @@ class AggregationCoarseSpace {
   /// solve(): the factorised system's right-hand side (the aggregates' modes; with three levels
   /// the top groups').
   Eigen::VectorXd coarse_rhs_;
-  std::vector<Modes> raw_rhs_;  ///< per aggregate: its members' summed force and moment
   std::unique_ptr<DirectFactorization> factor_;
   /// Each aggregate's correction as a raw rigid motion W_a e_a (translation, rotation).
   std::vector<Modes> coarse_motion_;
