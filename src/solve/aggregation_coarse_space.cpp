@@ -120,6 +120,9 @@ constexpr int kModes = AggregationCoarseSpace::kModes;
 /// (some 20 aggregates each).
 constexpr std::size_t kAggregateGrain = 64;
 constexpr std::size_t kGroupGrain = 4;
+/// Vertices per chunk of the restriction's first pass (fixed, so the sums are the same on any
+/// thread count).
+constexpr std::size_t kRestrictChunk = 2048;
 /// The damped V-cycle smoother's largest eigenvalue on P^T A P at most (below 2, where the cycle
 /// would stop being positive definite).
 constexpr double kSmootherReach = 1.6;
@@ -530,6 +533,52 @@ void AggregationCoarseSpace::collect_members() {
       members_[static_cast<std::size_t>(aggregate_of_[i])].push_back(static_cast<VertexId>(i));
     }
   }
+  collect_partials();
+}
+
+void AggregationCoarseSpace::collect_partials() {
+  // One partial sum per aggregate and chunk of vertices it has members in, numbered chunk by
+  // chunk; each aggregate's partials in chunk order.
+  const std::size_t n = aggregate_of_.size();
+  const std::size_t aggregates = members_.size();
+  const std::size_t chunks = (n + kRestrictChunk - 1) / kRestrictChunk;
+  partial_of_.resize(n);
+  chunk_partial_first_.assign(chunks + 1, 0);
+  partial_aggregate_.clear();
+  std::vector<std::size_t> last_chunk(aggregates, chunks);
+  std::vector<int> last_partial(aggregates, -1);
+  for (std::size_t c = 0; c < chunks; ++c) {
+    for (std::size_t i = c * kRestrictChunk; i < std::min(n, (c + 1) * kRestrictChunk); ++i) {
+      const int a = aggregate_of_[i];
+      if (a < 0) {
+        partial_of_[i] = -1;
+        continue;
+      }
+      const auto aggregate = static_cast<std::size_t>(a);
+      if (last_chunk[aggregate] != c) {
+        last_chunk[aggregate] = c;
+        last_partial[aggregate] = static_cast<int>(partial_aggregate_.size());
+        partial_aggregate_.push_back(a);
+      }
+      partial_of_[i] = last_partial[aggregate];
+    }
+    chunk_partial_first_[c + 1] = partial_aggregate_.size();
+  }
+  aggregate_partial_first_.assign(aggregates + 1, 0);
+  for (const int a : partial_aggregate_) {
+    ++aggregate_partial_first_[static_cast<std::size_t>(a) + 1];
+  }
+  for (std::size_t a = 0; a < aggregates; ++a) {
+    aggregate_partial_first_[a + 1] += aggregate_partial_first_[a];
+  }
+  aggregate_partials_.resize(partial_aggregate_.size());
+  std::vector<std::size_t> next(aggregate_partial_first_.begin(),
+                                aggregate_partial_first_.end() - 1);
+  for (std::size_t p = 0; p < partial_aggregate_.size(); ++p) {
+    aggregate_partials_[next[static_cast<std::size_t>(partial_aggregate_[p])]++] =
+        static_cast<int>(p);
+  }
+  partial_sums_.resize(partial_aggregate_.size());
 }
 
 void AggregationCoarseSpace::collect_top_members(std::size_t groups) {
@@ -922,15 +971,34 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
   if (aggregates == 0) {
     return 0.0;
   }
-  // P^T r: P_v^T r_v = W_a^T (r_v, d_v x r_v), summed over each aggregate's members in vertex
-  // order before W_a^T. Every pass below is on the worker threads, each sum in a fixed order
-  // (the same bits on any thread count): this solve runs beside the clusters' and, done on
-  // one thread, was a CG iteration's critical path on 16 cores (BENCHMARKS.md).
+  // P^T r: P_v^T r_v = W_a^T (r_v, d_v x r_v), summed over each aggregate's members before
+  // W_a^T. Every pass below is on the worker threads, each sum in a fixed order (the same bits
+  // on any thread count): this solve runs beside the clusters' and, done on one thread, was a
+  // CG iteration's critical path on 16 cores (BENCHMARKS.md). The members' sums go in vertex
+  // order, chunk by chunk, into partial sums that each aggregate then adds in chunk order: read
+  // member by member, the residual's and offsets' scattered loads took 10 % of a 384k-tet
+  // frame, 2.5x the pass's reads of its whole input in order (BENCHMARKS.md).
+  const std::size_t chunks = chunk_partial_first_.size() - 1;
+  parallel_for(0, chunks, 1, [&](std::size_t first, std::size_t last) {
+    for (std::size_t c = first; c != last; ++c) {
+      for (std::size_t p = chunk_partial_first_[c]; p != chunk_partial_first_[c + 1]; ++p) {
+        partial_sums_[p].setZero();
+      }
+      const std::size_t end = std::min(partial_of_.size(), (c + 1) * kRestrictChunk);
+      for (std::size_t v = c * kRestrictChunk; v < end; ++v) {
+        const int p = partial_of_[v];
+        if (p >= 0) {
+          Modes& sum = partial_sums_[static_cast<std::size_t>(p)];
+          sum.head<3>() += residual[v];
+          sum.tail<3>() += offset_[v].cross(residual[v]);
+        }
+      }
+    }
+  });
   const auto restrict_to = [&](std::size_t a) {
     Modes raw = Modes::Zero();
-    for (const VertexId v : members_[a]) {
-      raw.head<3>() += residual[v];
-      raw.tail<3>() += offset_[v].cross(residual[v]);
+    for (std::size_t k = aggregate_partial_first_[a]; k != aggregate_partial_first_[a + 1]; ++k) {
+      raw += partial_sums_[static_cast<std::size_t>(aggregate_partials_[k])];
     }
     return raw;
   };
@@ -1005,10 +1073,15 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
 
 AggregationCoarseSpace::Modes AggregationCoarseSpace::coarse_residual(
     std::size_t aggregate, const Modes& c, const std::vector<Modes>& y) const {
+  // Column by column, so each column's six floats widen together and the sum stays in
+  // registers (as a whole-block product this was scalar, a quarter of a fine product's time).
   Modes residual = c;
   for (std::size_t s = slot_first_[aggregate]; s != slot_first_[aggregate + 1]; ++s) {
-    residual.noalias() -=
-        single_blocks_[s].cast<double>() * y[static_cast<std::size_t>(slot_column_[s])];
+    const Eigen::Matrix<float, kModes, kModes>& block = single_blocks_[s];
+    const Modes& motion = y[static_cast<std::size_t>(slot_column_[s])];
+    for (int j = 0; j < kModes; ++j) {
+      residual.noalias() -= block.col(j).cast<double>() * motion(j);
+    }
   }
   return residual;
 }

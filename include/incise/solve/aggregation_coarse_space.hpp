@@ -109,8 +109,10 @@ class AggregationCoarseSpace {
   void aggregate(const BlockSparseMatrix& matrix, std::span<const char> constrained);
   void extend(const BlockSparseMatrix& matrix, std::span<const char> constrained,
               std::span<const Vec3> positions);
-  /// members_ from aggregate_of_, each in vertex order.
+  /// members_ from aggregate_of_, each in vertex order, and the restriction's partial sums.
   void collect_members();
+  /// partial_of_, chunk_partial_first_ and aggregate_partials_ from aggregate_of_.
+  void collect_partials();
   /// top_first_ and top_members_ from top_of_ (`groups` top-level groups; 0: two levels).
   void collect_top_members(std::size_t groups);
   /// slot_first_ from slot_row_.
@@ -153,6 +155,16 @@ class AggregationCoarseSpace {
   std::shared_ptr<const BlockPattern> placed_pattern_;  ///< what coarse_slot_ is placed for
   std::uint64_t placed_version_ = 0;
   std::vector<int> aggregate_of_;
+  /// The restriction P^T r in two passes: vertices in fixed chunks, in order, each member
+  /// added to its aggregate's partial sum for the chunk (partial_of_[v], -1 for held ones;
+  /// chunk c's partials at chunk_partial_first_[c] .. [c + 1]); then each aggregate adds its
+  /// partials (aggregate_partials_[aggregate_partial_first_[a] .. [a + 1]], in chunk order).
+  std::vector<int> partial_of_;
+  std::vector<std::size_t> chunk_partial_first_;
+  std::vector<int> partial_aggregate_;
+  std::vector<std::size_t> aggregate_partial_first_;
+  std::vector<int> aggregate_partials_;
+  std::vector<Modes> partial_sums_;  ///< solve(): (sum of r_v, sum of d_v x r_v) per partial
   std::vector<std::vector<VertexId>> members_;
   /// For each live block of A (by storage index), its coarse block's slot, or -1.
   std::vector<int> coarse_slot_;
