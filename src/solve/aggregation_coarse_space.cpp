@@ -977,7 +977,7 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
   // CG iteration's critical path on 16 cores (BENCHMARKS.md). The members' sums go in vertex
   // order, chunk by chunk, into partial sums that each aggregate then adds in chunk order: read
   // member by member, the residual's and offsets' scattered loads took 10 % of a 384k-tet
-  // frame, 2.5x the pass's reads of its whole input in order (BENCHMARKS.md).
+  // frame, about 3x these two passes (BENCHMARKS.md).
   const std::size_t chunks = chunk_partial_first_.size() - 1;
   parallel_for(0, chunks, 1, [&](std::size_t first, std::size_t last) {
     for (std::size_t c = first; c != last; ++c) {
