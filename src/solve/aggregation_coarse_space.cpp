@@ -127,6 +127,30 @@ constexpr std::size_t kRestrictChunk = 2048;
 /// would stop being positive definite).
 constexpr double kSmootherReach = 1.6;
 
+/// first[k] .. first[k + 1]: where the entries with key k (0 <= k < keys) start and end once
+/// sorted by key.
+void key_offsets(std::span<const int> key, std::size_t keys, std::vector<std::size_t>& first) {
+  first.assign(keys + 1, 0);
+  for (const int k : key) {
+    ++first[static_cast<std::size_t>(k) + 1];
+  }
+  for (std::size_t k = 0; k < keys; ++k) {
+    first[k + 1] += first[k];
+  }
+}
+
+/// The indices of `key` grouped by key (a counting sort): key k's at items[first[k] ..
+/// first[k + 1]), in increasing order.
+void group_by_key(std::span<const int> key, std::size_t keys, std::vector<std::size_t>& first,
+                  std::vector<int>& items) {
+  key_offsets(key, keys, first);
+  items.resize(key.size());
+  std::vector<std::size_t> next(first.begin(), first.end() - 1);
+  for (std::size_t i = 0; i < key.size(); ++i) {
+    items[next[static_cast<std::size_t>(key[i])]++] = static_cast<int>(i);
+  }
+}
+
 /// A displacement field's rigid coordinates: translation (m) and small rotation about a centre:
 /// u(x) = t + w x (x - centre) = [I, -[x - centre]x] (t, w).
 VertexModes raw_rigid_modes(const Vec3& offset_from_centre) {
@@ -544,7 +568,7 @@ void AggregationCoarseSpace::collect_partials() {
   const std::size_t chunks = (n + kRestrictChunk - 1) / kRestrictChunk;
   partial_of_.resize(n);
   chunk_partial_first_.assign(chunks + 1, 0);
-  partial_aggregate_.clear();
+  std::vector<int> partial_aggregate;
   std::vector<std::size_t> last_chunk(aggregates, chunks);
   std::vector<int> last_partial(aggregates, -1);
   for (std::size_t c = 0; c < chunks; ++c) {
@@ -557,43 +581,19 @@ void AggregationCoarseSpace::collect_partials() {
       const auto aggregate = static_cast<std::size_t>(a);
       if (last_chunk[aggregate] != c) {
         last_chunk[aggregate] = c;
-        last_partial[aggregate] = static_cast<int>(partial_aggregate_.size());
-        partial_aggregate_.push_back(a);
+        last_partial[aggregate] = static_cast<int>(partial_aggregate.size());
+        partial_aggregate.push_back(a);
       }
       partial_of_[i] = last_partial[aggregate];
     }
-    chunk_partial_first_[c + 1] = partial_aggregate_.size();
+    chunk_partial_first_[c + 1] = partial_aggregate.size();
   }
-  aggregate_partial_first_.assign(aggregates + 1, 0);
-  for (const int a : partial_aggregate_) {
-    ++aggregate_partial_first_[static_cast<std::size_t>(a) + 1];
-  }
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    aggregate_partial_first_[a + 1] += aggregate_partial_first_[a];
-  }
-  aggregate_partials_.resize(partial_aggregate_.size());
-  std::vector<std::size_t> next(aggregate_partial_first_.begin(),
-                                aggregate_partial_first_.end() - 1);
-  for (std::size_t p = 0; p < partial_aggregate_.size(); ++p) {
-    aggregate_partials_[next[static_cast<std::size_t>(partial_aggregate_[p])]++] =
-        static_cast<int>(p);
-  }
-  partial_sums_.resize(partial_aggregate_.size());
+  group_by_key(partial_aggregate, aggregates, aggregate_partial_first_, aggregate_partials_);
+  partial_sums_.resize(partial_aggregate.size());
 }
 
 void AggregationCoarseSpace::collect_top_members(std::size_t groups) {
-  top_first_.assign(groups + 1, 0);
-  for (const int t : top_of_) {
-    ++top_first_[static_cast<std::size_t>(t) + 1];
-  }
-  for (std::size_t t = 0; t < groups; ++t) {
-    top_first_[t + 1] += top_first_[t];
-  }
-  top_members_.resize(top_of_.size());
-  std::vector<std::size_t> next(top_first_.begin(), top_first_.end() - 1);
-  for (std::size_t a = 0; a < top_of_.size(); ++a) {
-    top_members_[next[static_cast<std::size_t>(top_of_[a])]++] = static_cast<int>(a);
-  }
+  group_by_key(top_of_, groups, top_first_, top_members_);
 }
 
 std::uint64_t AggregationCoarseSpace::pattern_hash(const BlockSparseMatrix& matrix) {
@@ -1190,14 +1190,7 @@ void AggregationCoarseSpace::prepare_cycle() {
 }
 
 void AggregationCoarseSpace::collect_slot_rows() {
-  const std::size_t aggregates = members_.size();
-  slot_first_.assign(aggregates + 1, 0);
-  for (const int a : slot_row_) {
-    ++slot_first_[static_cast<std::size_t>(a) + 1];
-  }
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    slot_first_[a + 1] += slot_first_[a];
-  }
+  key_offsets(slot_row_, members_.size(), slot_first_);
 }
 
 }  // namespace incise

@@ -161,7 +161,6 @@ class AggregationCoarseSpace {
   /// partials (aggregate_partials_[aggregate_partial_first_[a] .. [a + 1]], in chunk order).
   std::vector<int> partial_of_;
   std::vector<std::size_t> chunk_partial_first_;
-  std::vector<int> partial_aggregate_;
   std::vector<std::size_t> aggregate_partial_first_;
   std::vector<int> aggregate_partials_;
   std::vector<Modes> partial_sums_;  ///< solve(): (sum of r_v, sum of d_v x r_v) per partial
