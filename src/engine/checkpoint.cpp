@@ -20,11 +20,12 @@ namespace incise {
 namespace {
 
 constexpr std::string_view kMagic = "INCISE-CHECKPOINT\n";
-constexpr std::uint32_t kVersion = 7;  // 2: swept triangles carry their sweep number; 3: xfem;
+constexpr std::uint32_t kVersion = 8;  // 2: swept triangles carry their sweep number; 3: xfem;
                                        // 4: xfem quads' shared lines decided exactly;
                                        // 5: the blade's frame, rest pose and world-to-rest map;
                                        // 6: the two-level preconditioner's state;
-                                       // 7: its three-level V-cycle (the coarse blocks)
+                                       // 7: its three-level V-cycle (the coarse blocks);
+                                       // 8: its levels of groups, made again on reading
 
 std::uint32_t checksum(std::string_view bytes) {
   uLong crc = crc32(0L, Z_NULL, 0);

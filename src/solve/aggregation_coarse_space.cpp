@@ -1,24 +1,34 @@
 #include "incise/solve/aggregation_coarse_space.hpp"
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <random>
 #include <stdexcept>
 #include <utility>
 
+#include "coarse_cycle.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
-#include "incise/solve/direct_factorization.hpp"
 
 namespace incise {
 
 AggregationCoarseSpace::AggregationCoarseSpace()
-    : factor_(std::make_unique<DirectFactorization>()) {}
+    : cycle_(std::make_unique<coarse::CoarseCycle>()) {}
 
 AggregationCoarseSpace::~AggregationCoarseSpace() = default;
+
+std::size_t AggregationCoarseSpace::group_levels() const {
+  return cycle_->group_levels();
+}
+
+std::vector<std::size_t> AggregationCoarseSpace::level_sizes() const {
+  return cycle_->level_sizes();
+}
+
+std::span<const int> AggregationCoarseSpace::group_of(std::size_t level) const {
+  INCISE_ASSERT(level < cycle_->group_levels(), "a coarse level below the top");
+  return cycle_->group_of(level);
+}
 
 namespace {
 
@@ -41,115 +51,21 @@ void reserve_at_least(std::vector<T>& values, std::size_t size) {
   }
 }
 
-/// A weighted graph in compressed rows (no self loops).
-struct Graph {
-  std::vector<std::size_t> first{0};
-  std::vector<int> node;
-  std::vector<double> weight;
-  [[nodiscard]] std::size_t size() const { return first.size() - 1; }
-};
-
-/// Greedy aggregation (Vanek, Mandel and Brezina 1996) of the eligible nodes: a node whose
-/// eligible neighbours are all unclaimed founds an aggregate with them (about one ring, spread
-/// without overlap); the rest join the founded aggregate they are most strongly tied to (so
-/// aggregates do not creep); nodes with none beside them group with their unclaimed
-/// neighbours. Returns each node's aggregate (-1 where not eligible) and the count.
-std::pair<std::vector<int>, int> greedy_aggregates(const Graph& graph,
-                                                   const std::vector<char>& eligible) {
-  const std::size_t n = graph.size();
-  std::vector<int> aggregate(n, -1);
-  int count = 0;
-  auto neighbours = [&](std::size_t i) {
-    return std::span<const int>(graph.node)
-        .subspan(graph.first[i], graph.first[i + 1] - graph.first[i]);
-  };
-  for (std::size_t i = 0; i < n; ++i) {
-    if (eligible[i] == 0 || aggregate[i] >= 0) {
-      continue;
-    }
-    const auto around = neighbours(i);
-    if (!std::all_of(around.begin(), around.end(), [&](int j) {
-          return eligible[static_cast<std::size_t>(j)] == 0 ||
-                 aggregate[static_cast<std::size_t>(j)] < 0;
-        })) {
-      continue;
-    }
-    aggregate[i] = count;
-    for (const int j : around) {
-      if (eligible[static_cast<std::size_t>(j)] != 0) {
-        aggregate[static_cast<std::size_t>(j)] = count;
-      }
-    }
-    ++count;
-  }
-  const std::vector<int> founded = aggregate;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (eligible[i] == 0 || founded[i] >= 0) {
-      continue;
-    }
-    double strongest = -1.0;
-    for (std::size_t k = graph.first[i]; k < graph.first[i + 1]; ++k) {
-      const int other = founded[static_cast<std::size_t>(graph.node[k])];
-      if (other >= 0 && graph.weight[k] > strongest) {
-        strongest = graph.weight[k];
-        aggregate[i] = other;
-      }
-    }
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (eligible[i] == 0 || aggregate[i] >= 0) {
-      continue;
-    }
-    aggregate[i] = count;
-    for (const int j : neighbours(i)) {
-      if (eligible[static_cast<std::size_t>(j)] != 0 &&
-          aggregate[static_cast<std::size_t>(j)] < 0) {
-        aggregate[static_cast<std::size_t>(j)] = count;
-      }
-    }
-    ++count;
-  }
-  return {std::move(aggregate), count};
-}
-
-using ModeMatrix = AggregationCoarseSpace::ModeMatrix;
-using Modes = AggregationCoarseSpace::Modes;
+using coarse::fill_dropped;
+using coarse::Graph;
+using coarse::greedy_aggregates;
+using coarse::group_by_key;
+using coarse::kModes;
+using coarse::ModeMatrix;
+using coarse::Modes;
+using coarse::orthonormal_modes;
+using coarse::OrthonormalModes;
 using VertexModes = AggregationCoarseSpace::VertexModes;
-constexpr int kModes = AggregationCoarseSpace::kModes;
-/// Per task in the coarse solve's passes: aggregates (some 1,500 vertices), or top-level groups
-/// (some 20 aggregates each).
+/// Per task in the coarse solve's passes: aggregates (some 1,500 vertices each).
 constexpr std::size_t kAggregateGrain = 64;
-constexpr std::size_t kGroupGrain = 4;
 /// Vertices per chunk of the restriction's first pass (fixed, so the sums are the same on any
 /// thread count).
 constexpr std::size_t kRestrictChunk = 2048;
-/// The damped V-cycle smoother's largest eigenvalue on P^T A P at most (below 2, where the cycle
-/// would stop being positive definite).
-constexpr double kSmootherReach = 1.6;
-
-/// first[k] .. first[k + 1]: where the entries with key k (0 <= k < keys) start and end once
-/// sorted by key.
-void key_offsets(std::span<const int> key, std::size_t keys, std::vector<std::size_t>& first) {
-  first.assign(keys + 1, 0);
-  for (const int k : key) {
-    ++first[static_cast<std::size_t>(k) + 1];
-  }
-  for (std::size_t k = 0; k < keys; ++k) {
-    first[k + 1] += first[k];
-  }
-}
-
-/// The indices of `key` grouped by key (a counting sort): key k's at items[first[k] ..
-/// first[k + 1]), in increasing order.
-void group_by_key(std::span<const int> key, std::size_t keys, std::vector<std::size_t>& first,
-                  std::vector<int>& items) {
-  key_offsets(key, keys, first);
-  items.resize(key.size());
-  std::vector<std::size_t> next(first.begin(), first.end() - 1);
-  for (std::size_t i = 0; i < key.size(); ++i) {
-    items[next[static_cast<std::size_t>(key[i])]++] = static_cast<int>(i);
-  }
-}
 
 /// A displacement field's rigid coordinates: translation (m) and small rotation about a centre:
 /// u(x) = t + w x (x - centre) = [I, -[x - centre]x] (t, w).
@@ -174,59 +90,6 @@ void add_rigid_block(const Mat3& a, const Vec3& offset_i, const Vec3& offset_j,
   for (int r = 0; r < 3; ++r) {
     block.block<1, 3>(r, 3) += offset_j.cross(Vec3(a.row(r).transpose())).transpose();
     block.block<1, 3>(3 + r, 3) += offset_j.cross(Vec3(turned.row(r).transpose())).transpose();
-  }
-}
-
-/// Orthonormal modes of a span with Gram matrix `gram` (raw coordinates): W with
-/// W^T gram W = I on the kept modes and zero columns for the dropped ones, and its
-/// pseudo-inverse. Scaled to unit diagonal first, so metres and radians compare; modes below
-/// 1e-6 of the largest eigenvalue are dropped (a rotation the members cannot carry).
-struct OrthonormalModes {
-  ModeMatrix raw_from_modes = ModeMatrix::Zero();
-  ModeMatrix modes_from_raw = ModeMatrix::Zero();
-  unsigned dropped = 0;
-};
-OrthonormalModes orthonormal_modes(const ModeMatrix& gram) {
-  constexpr double kDropBelow = 1e-6;
-  Modes scale;
-  for (int k = 0; k < kModes; ++k) {
-    scale[k] = gram(k, k) > 0.0 ? 1.0 / std::sqrt(gram(k, k)) : 0.0;
-  }
-  const ModeMatrix scaled = scale.asDiagonal() * gram * scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<ModeMatrix> eigen(scaled);
-  const double largest = eigen.eigenvalues().maxCoeff();
-  OrthonormalModes result;
-  for (int k = 0; k < kModes; ++k) {
-    const double lambda = eigen.eigenvalues()[k];
-    if (!(largest > 0.0) || !(lambda > kDropBelow * largest)) {
-      result.dropped |= 1U << static_cast<unsigned>(k);
-      continue;
-    }
-    const Modes v = eigen.eigenvectors().col(k);
-    result.raw_from_modes.col(k) = scale.asDiagonal() * v / std::sqrt(lambda);
-    for (int c = 0; c < kModes; ++c) {
-      result.modes_from_raw(k, c) = scale[c] > 0.0 ? std::sqrt(lambda) * v[c] / scale[c] : 0.0;
-    }
-  }
-  return result;
-}
-
-/// A coarse diagonal block's dropped modes get a diagonal entry of the kept ones' mean
-/// (their rows are zero: the block stays positive definite and the mode's correction zero).
-void fill_dropped(ModeMatrix& block, unsigned dropped) {
-  double kept_sum = 0.0;
-  int kept = 0;
-  for (int k = 0; k < kModes; ++k) {
-    if ((dropped & (1U << static_cast<unsigned>(k))) == 0) {
-      kept_sum += block(k, k);
-      ++kept;
-    }
-  }
-  const double fill = kept > 0 && kept_sum > 0.0 ? kept_sum / kept : 1.0;
-  for (int k = 0; k < kModes; ++k) {
-    if ((dropped & (1U << static_cast<unsigned>(k))) != 0) {
-      block(k, k) = fill;
-    }
   }
 }
 
@@ -280,7 +143,6 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   std::vector<int> seen(aggregates, -1);
   std::vector<int> slot_of(aggregates, -1);
   std::vector<int> neighbours;
-  std::vector<std::vector<int>> coarse_columns(aggregates);
   int slots = 0;
   slot_row_.clear();
   slot_column_.clear();
@@ -311,7 +173,6 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
         }
       }
     }
-    coarse_columns[a] = neighbours;
   }
   slots_by_row_.clear();
   reserve_at_least(slots_by_row_, matrix.values().size());
@@ -322,113 +183,10 @@ void AggregationCoarseSpace::aggregate(const BlockSparseMatrix& matrix,
   }
   placed_pattern_ = matrix.pattern();
   placed_version_ = matrix.pattern_version();
-  refill(coarse_blocks_, static_cast<std::size_t>(slots), ModeMatrix(ModeMatrix::Zero()));
-  diagonal_slot_.assign(aggregates, -1);
-  for (std::size_t a = 0, row_slot = 0; a < aggregates; row_slot += coarse_columns[a].size(), ++a) {
-    const auto found =
-        std::lower_bound(coarse_columns[a].begin(), coarse_columns[a].end(), static_cast<int>(a));
-    diagonal_slot_[a] =
-        static_cast<int>(row_slot + static_cast<std::size_t>(found - coarse_columns[a].begin()));
-  }
-
-  collect_slot_rows();
-
   // A large coarse system costs more to solve than a product at every iteration (7,600
-  // unknowns on the 384k-tet box: 4 ms against 3.5). Above exact_limit_ unknowns the
-  // aggregates are aggregated once more: their level gets its block-Jacobi, and only the top
-  // level is factorised (a V-cycle over the two, see solve()).
-  three_level_ = kModes * aggregates > exact_limit_;
-  std::vector<std::vector<int>> top_columns;
-  if (three_level_) {
-    Graph aggregate_graph;
-    for (std::size_t a = 0; a < aggregates; ++a) {
-      for (const int b : coarse_columns[a]) {
-        if (b != static_cast<int>(a)) {
-          aggregate_graph.node.push_back(b);
-          aggregate_graph.weight.push_back(1.0);
-        }
-      }
-      aggregate_graph.first.push_back(aggregate_graph.node.size());
-    }
-    auto [top, top_count] = greedy_aggregates(aggregate_graph, std::vector<char>(aggregates, 1));
-    top_of_ = std::move(top);
-    collect_top_members(static_cast<std::size_t>(top_count));
-    top_columns.assign(static_cast<std::size_t>(top_count), {});
-    for (std::size_t a = 0; a < aggregates; ++a) {
-      auto& row = top_columns[static_cast<std::size_t>(top_of_[a])];
-      for (const int b : coarse_columns[a]) {
-        row.push_back(top_of_[static_cast<std::size_t>(b)]);
-      }
-    }
-    for (auto& row : top_columns) {
-      std::sort(row.begin(), row.end());
-      row.erase(std::unique(row.begin(), row.end()), row.end());
-    }
-    // Each level-1 slot (a, b) adds into top slot (top(a), top(b)).
-    std::vector<int> top_row_slot(top_columns.size() + 1, 0);
-    for (std::size_t t = 0; t < top_columns.size(); ++t) {
-      top_row_slot[t + 1] = top_row_slot[t] + static_cast<int>(top_columns[t].size());
-    }
-    top_slot_.assign(static_cast<std::size_t>(slots), -1);
-    for (std::size_t a = 0, s1 = 0; a < aggregates; ++a) {
-      const auto t = static_cast<std::size_t>(top_of_[a]);
-      for (const int b : coarse_columns[a]) {
-        const int u = top_of_[static_cast<std::size_t>(b)];
-        const auto found = std::lower_bound(top_columns[t].begin(), top_columns[t].end(), u);
-        top_slot_[s1++] = top_row_slot[t] + static_cast<int>(found - top_columns[t].begin());
-      }
-    }
-    top_diagonal_slot_.assign(top_columns.size(), -1);
-    for (std::size_t t = 0; t < top_columns.size(); ++t) {
-      const auto found =
-          std::lower_bound(top_columns[t].begin(), top_columns[t].end(), static_cast<int>(t));
-      top_diagonal_slot_[t] = top_row_slot[t] + static_cast<int>(found - top_columns[t].begin());
-    }
-    refill(top_blocks_, static_cast<std::size_t>(top_row_slot.back()),
-           ModeMatrix(ModeMatrix::Zero()));
-    refill(own_inverse_, aggregates, ModeMatrix(ModeMatrix::Zero()));
-    refill(top_map_, aggregates, ModeMatrix(ModeMatrix::Zero()));
-    top_dropped_.assign(top_columns.size(), 0);
-  } else {
-    top_of_.clear();
-    collect_top_members(0);
-    top_slot_.clear();
-    top_blocks_.clear();
-    own_inverse_.clear();
-    top_map_.clear();
-    top_dropped_.clear();
-  }
-  const std::vector<std::vector<int>>& factored_columns =
-      three_level_ ? top_columns : coarse_columns;
-
-  // Scalar column 6a + c holds, for each coupled b and each r, entry (6b + r, 6a + c) =
-  // block(b, a)(r, c) = block(a, b)(c, r) (the matrix is symmetric): offset 6 r + c of the
-  // column-major block (a, b).
-  const std::size_t rows = factored_columns.size();
-  const auto unknowns = static_cast<int>(kModes * rows);
-  std::vector<int> outer(static_cast<std::size_t>(unknowns) + 1, 0);
-  std::vector<int> inner;
-  scalar_source_.clear();
-  int slot = 0;
-  for (std::size_t a = 0; a < rows; ++a) {
-    const int row_slot = slot;
-    for (int c = 0; c < kModes; ++c) {
-      int s = row_slot;
-      for (const int b : factored_columns[a]) {
-        for (int r = 0; r < kModes; ++r) {
-          inner.push_back(kModes * b + r);
-          scalar_source_.emplace_back(s, kModes * r + c);
-        }
-        ++s;
-      }
-      outer[kModes * a + static_cast<std::size_t>(c) + 1] = static_cast<int>(inner.size());
-    }
-    slot += static_cast<int>(factored_columns[a].size());
-  }
-  scalar_.resize(unknowns, unknowns);
-  scalar_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
-  std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
-  std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
+  // unknowns on the 384k-tet box: 4 ms against 3.5): above exact_limit_ unknowns it is solved
+  // by a V-cycle over groups of aggregates (coarse_cycle.hpp).
+  cycle_->build(aggregates, slot_row_, slot_column_, exact_limit_);
   refill(coarse_motion_, aggregates, Modes(Modes::Zero()));
 }
 
@@ -473,40 +231,6 @@ void AggregationCoarseSpace::shape_modes(std::span<const Vec3> positions) {
     if (aggregate_of_[v] < 0) {
       offset_[v].setZero();
     }
-  }
-  if (!three_level_) {
-    return;
-  }
-  // A group's rigid motion (t, w) about its centre C moves aggregate a rigidly with
-  // (t + w x (c_a - C), w): its modes' coordinates are modes_from_raw_a of that.
-  const std::size_t groups = top_dropped_.size();
-  std::vector<Vec3> group_centre(groups, Vec3::Zero());
-  std::vector<double> group_weight(groups, 0.0);
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    const auto t = static_cast<std::size_t>(top_of_[a]);
-    const auto weight = static_cast<double>(members_[a].size());
-    group_centre[t] += weight * centre_[a];
-    group_weight[t] += weight;
-  }
-  for (std::size_t t = 0; t < groups; ++t) {
-    group_centre[t] /= std::max(group_weight[t], 1.0);
-  }
-  std::vector<ModeMatrix> gram(groups, ModeMatrix::Zero());
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    const auto t = static_cast<std::size_t>(top_of_[a]);
-    ModeMatrix raw_from_group = ModeMatrix::Identity();
-    raw_from_group.topRightCorner<3, 3>() = -cross_matrix(centre_[a] - group_centre[t]);
-    top_map_[a] = modes_from_raw_[a] * raw_from_group;
-    gram[t] += top_map_[a].transpose() * top_map_[a];
-  }
-  std::vector<ModeMatrix> group_modes(groups);
-  for (std::size_t t = 0; t < groups; ++t) {
-    const OrthonormalModes modes = orthonormal_modes(gram[t]);
-    group_modes[t] = modes.raw_from_modes;
-    top_dropped_[t] = modes.dropped;
-  }
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    top_map_[a] = top_map_[a] * group_modes[static_cast<std::size_t>(top_of_[a])];
   }
 }
 
@@ -592,10 +316,6 @@ void AggregationCoarseSpace::collect_partials() {
   partial_sums_.resize(partial_aggregate.size());
 }
 
-void AggregationCoarseSpace::collect_top_members(std::size_t groups) {
-  group_by_key(top_of_, groups, top_first_, top_members_);
-}
-
 std::uint64_t AggregationCoarseSpace::pattern_hash(const BlockSparseMatrix& matrix) {
   if (hashed_pattern_ == matrix.pattern() && hashed_version_ == matrix.pattern_version()) {
     return hashed_value_;
@@ -655,7 +375,6 @@ void AggregationCoarseSpace::save_state(StateWriter& out) const {
     return;
   }
   out.value(updates_since_factor_);
-  out.value(three_level_);
   for (const Look* look : {&aggregated_, &seen_}) {
     out.value(look->taken);
     out.value(look->hash);
@@ -669,28 +388,11 @@ void AggregationCoarseSpace::save_state(StateWriter& out) const {
   out.values(modes_from_raw_);
   out.values(raw_from_modes_);
   out.values(dropped_);
-  out.values(top_dropped_);
-  out.values(scalar_source_);
   out.values(slot_row_);
   out.values(slot_column_);
-  out.values(diagonal_slot_);
-  out.values(top_diagonal_slot_);
-  out.values(top_of_);
-  out.values(top_slot_);
-  out.values(top_map_);
-  out.values(own_inverse_);
-  if (three_level_) {
-    out.values(coarse_blocks_);  // the V-cycle's products: P^T A P as last factorised
-  }
-  out.value(static_cast<std::uint64_t>(coarse_blocks_.size()));
-  out.value(static_cast<std::uint64_t>(top_blocks_.size()));
-  // The coarse matrix as factorised (the factor is made again from it).
-  out.value(static_cast<std::int64_t>(scalar_.rows()));
-  out.values(
-      std::vector<int>(scalar_.outerIndexPtr(), scalar_.outerIndexPtr() + scalar_.outerSize() + 1));
-  out.values(
-      std::vector<int>(scalar_.innerIndexPtr(), scalar_.innerIndexPtr() + scalar_.nonZeros()));
-  out.values(std::vector<double>(scalar_.valuePtr(), scalar_.valuePtr() + scalar_.nonZeros()));
+  // P^T A P as last factorised: the levels above, their smoothers and the factor are made
+  // again from it, in the same order, so a resumed run solves exactly as it would have.
+  out.values(cycle_->aggregate_blocks());
 }
 
 void AggregationCoarseSpace::load_state(StateReader& in) {
@@ -703,7 +405,6 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
     return;
   }
   const int updates = in.value<int>("updates since the coarse factorisation");
-  const bool three_level = in.value<bool>("coarse levels");
   Look looks[2];
   for (Look& look : looks) {
     look.taken = in.value<bool>("coarse look taken");
@@ -718,27 +419,12 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
   auto modes_from_raw = in.values<ModeMatrix>("aggregate modes");
   auto raw_from_modes = in.values<ModeMatrix>("aggregate motions");
   auto dropped = in.values<unsigned>("aggregate dropped modes");
-  auto top_dropped = in.values<unsigned>("group dropped modes");
-  auto scalar_source = in.values<std::pair<int, int>>("coarse matrix sources");
   auto slot_row = in.values<int>("coarse slot rows");
   auto slot_column = in.values<int>("coarse slot columns");
-  auto diagonal_slot = in.values<int>("coarse diagonal slots");
-  auto top_diagonal_slot = in.values<int>("group diagonal slots");
-  auto top_of = in.values<int>("aggregate groups");
-  auto top_slot = in.values<int>("group slots");
-  auto top_map = in.values<ModeMatrix>("group modes");
-  auto own_inverse = in.values<ModeMatrix>("aggregate inverses");
-  auto coarse_blocks =
-      three_level ? in.values<ModeMatrix>("coarse blocks") : std::vector<ModeMatrix>{};
-  const auto slots = in.value<std::uint64_t>("coarse slot count");
-  const auto top_slots = in.value<std::uint64_t>("group slot count");
-  const auto unknowns = in.value<std::int64_t>("coarse unknowns");
-  const auto outer = in.values<int>("coarse matrix columns");
-  const auto inner = in.values<int>("coarse matrix rows");
-  const auto values = in.values<double>("coarse matrix values");
+  auto coarse_blocks = in.values<ModeMatrix>("coarse blocks");
 
-  // The V-cycle finds block (b, a) beside (a, b): slots row by row, each row's columns
-  // increasing, and the pattern symmetric.
+  // The levels above find block (b, a) beside (a, b): slots row by row, each row's columns
+  // increasing, each aggregate's own among them, and the pattern symmetric.
   const auto symmetric_rows = [](const std::vector<int>& rows, const std::vector<int>& columns) {
     std::vector<std::pair<int, int>> pairs(rows.size());
     for (std::size_t s = 0; s < rows.size(); ++s) {
@@ -750,7 +436,8 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
     }
     return std::all_of(pairs.begin(), pairs.end(), [&](const auto& pair) {
       return std::binary_search(pairs.begin(), pairs.end(),
-                                std::make_pair(pair.second, pair.first));
+                                std::make_pair(pair.second, pair.first)) &&
+             std::binary_search(pairs.begin(), pairs.end(), std::make_pair(pair.first, pair.first));
     });
   };
   // Every index in range, every size what the others say: a corrupt checkpoint is refused
@@ -761,41 +448,21 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
     });
   };
   const std::size_t n = aggregate_of.size();
-  const std::uint64_t groups = top_dropped.size();
-  const std::uint64_t factored_slots = three_level ? top_slots : slots;
-  bool valid =
+  const std::uint64_t slots = slot_row.size();
+  const bool valid =
       updates >= 0 && aggregates <= n && within(aggregate_of, aggregates, true) &&
       offset.size() == n && centre.size() == aggregates && modes_from_raw.size() == aggregates &&
       raw_from_modes.size() == aggregates && dropped.size() == aggregates &&
-      within(slots_by_row, slots, true) && slot_row.size() == slots &&
-      slot_column.size() == slots && within(slot_row, aggregates, false) &&
-      within(slot_column, aggregates, false) && diagonal_slot.size() == aggregates &&
-      within(diagonal_slot, slots, false) && unknowns >= 0 &&
-      static_cast<std::uint64_t>(unknowns) == kModes * (three_level ? groups : aggregates) &&
-      outer.size() == static_cast<std::uint64_t>(unknowns) + 1 && !outer.empty() &&
-      outer.front() == 0 && std::is_sorted(outer.begin(), outer.end()) &&
-      static_cast<std::uint64_t>(outer.back()) == inner.size() && values.size() == inner.size() &&
-      within(inner, static_cast<std::uint64_t>(unknowns), false) &&
-      scalar_source.size() == inner.size() &&
-      std::all_of(scalar_source.begin(), scalar_source.end(), [&](const auto& source) {
-        return source.first >= 0 && static_cast<std::uint64_t>(source.first) < factored_slots &&
-               source.second >= 0 && source.second < kModes * kModes;
-      });
-  if (valid && three_level) {
-    valid = top_of.size() == aggregates && within(top_of, groups, false) &&
-            top_slot.size() == slots && within(top_slot, top_slots, false) &&
-            top_diagonal_slot.size() == groups && within(top_diagonal_slot, top_slots, false) &&
-            top_map.size() == aggregates && own_inverse.size() == aggregates &&
-            coarse_blocks.size() == slots && symmetric_rows(slot_row, slot_column);
-  } else if (valid) {
-    valid = top_of.empty() && top_slot.empty() && top_slots == 0;
-  }
+      within(slots_by_row, slots, true) && slot_column.size() == slots &&
+      within(slot_row, aggregates, false) && within(slot_column, aggregates, false) &&
+      coarse_blocks.size() == slots && symmetric_rows(slot_row, slot_column) &&
+      (aggregates == 0 ||
+       (!slot_row.empty() && static_cast<std::uint64_t>(slot_row.back()) + 1 == aggregates));
   if (!valid) {
     throw InputError("checkpoint: the coarse level of the two-level preconditioner is corrupt");
   }
   factored_ = true;
   updates_since_factor_ = updates;
-  three_level_ = three_level;
   aggregated_ = std::move(looks[0]);
   seen_ = std::move(looks[1]);
   slots_by_row_ = std::move(slots_by_row);
@@ -809,35 +476,12 @@ void AggregationCoarseSpace::load_state(StateReader& in) {
   modes_from_raw_ = std::move(modes_from_raw);
   raw_from_modes_ = std::move(raw_from_modes);
   dropped_ = std::move(dropped);
-  top_dropped_ = std::move(top_dropped);
-  scalar_source_ = std::move(scalar_source);
   slot_row_ = std::move(slot_row);
   slot_column_ = std::move(slot_column);
-  diagonal_slot_ = std::move(diagonal_slot);
-  top_diagonal_slot_ = std::move(top_diagonal_slot);
-  top_of_ = std::move(top_of);
-  collect_top_members(three_level ? static_cast<std::size_t>(groups) : 0);
-  top_slot_ = std::move(top_slot);
-  top_map_ = std::move(top_map);
-  own_inverse_ = std::move(own_inverse);
-  if (three_level) {
-    coarse_blocks_ = std::move(coarse_blocks);
-  } else {
-    coarse_blocks_.assign(static_cast<std::size_t>(slots), ModeMatrix::Zero());
-  }
-  collect_slot_rows();
-  if (three_level) {
-    prepare_cycle();
-  }
-  top_blocks_.assign(static_cast<std::size_t>(top_slots), ModeMatrix::Zero());
+  cycle_->build(members_.size(), slot_row_, slot_column_, exact_limit_);
+  cycle_->aggregate_blocks() = std::move(coarse_blocks);
   coarse_motion_.assign(static_cast<std::size_t>(aggregates), Modes::Zero());
-  const auto size = static_cast<Eigen::Index>(unknowns);
-  scalar_.resize(size, size);
-  scalar_.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
-  std::copy(outer.begin(), outer.end(), scalar_.outerIndexPtr());
-  std::copy(inner.begin(), inner.end(), scalar_.innerIndexPtr());
-  std::copy(values.begin(), values.end(), scalar_.valuePtr());
-  if (!members_.empty() && !factor_->factorize_positive_definite(scalar_)) {
+  if (!members_.empty() && !cycle_->assemble(centre_, modes_from_raw_)) {
     throw InputError(
         "checkpoint: the coarse matrix of the two-level preconditioner is not positive "
         "definite");
@@ -881,7 +525,8 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
   const auto values = matrix.values();
   const auto row_begin = matrix.row_begin();
   const auto row_end = matrix.row_end();
-  std::fill(coarse_blocks_.begin(), coarse_blocks_.end(), ModeMatrix::Zero());
+  std::fill(cycle_->aggregate_blocks().begin(), cycle_->aggregate_blocks().end(),
+            ModeMatrix::Zero());
   parallel_for(0, members_.size(), 16, [&](std::size_t first, std::size_t last) {
     for (std::size_t a = first; a != last; ++a) {
       for (const VertexId v : members_[a]) {
@@ -893,62 +538,24 @@ bool AggregationCoarseSpace::update(const BlockSparseMatrix& matrix,
           if (slot >= 0) {
             add_rigid_block(values[k], offset_i,
                             offset_[static_cast<std::size_t>(columns[k - row_begin[i]])],
-                            coarse_blocks_[static_cast<std::size_t>(slot)]);
+                            cycle_->aggregate_blocks()[static_cast<std::size_t>(slot)]);
           }
         }
       }
     }
   });
-  parallel_for(0, coarse_blocks_.size(), 256, [&](std::size_t first, std::size_t last) {
+  parallel_for(0, cycle_->aggregate_blocks().size(), 256, [&](std::size_t first, std::size_t last) {
     for (std::size_t s = first; s != last; ++s) {
       const auto a = static_cast<std::size_t>(slot_row_[s]);
       const auto b = static_cast<std::size_t>(slot_column_[s]);
-      ModeMatrix& block = coarse_blocks_[s];
+      ModeMatrix& block = cycle_->aggregate_blocks()[s];
       block = raw_from_modes_[a].transpose() * block * raw_from_modes_[b];
       if (a == b) {
         fill_dropped(block, dropped_[a]);
       }
     }
   });
-  const std::vector<ModeMatrix>* factored = &coarse_blocks_;
-  if (three_level_) {
-    parallel_for(0, own_inverse_.size(), kAggregateGrain, [&](std::size_t first, std::size_t last) {
-      for (std::size_t a = first; a != last; ++a) {
-        const ModeMatrix inverse =
-            Eigen::LLT<ModeMatrix>(coarse_blocks_[static_cast<std::size_t>(diagonal_slot_[a])])
-                .solve(ModeMatrix::Identity());
-        own_inverse_[a] = 0.5 * (inverse + inverse.transpose());
-      }
-    });
-    // The V-cycle is positive definite (CG needs it) when the damped smoother's largest
-    // eigenvalue on P^T A P is below 2. Undamped it is 1.9 on the peers' box at 48k and 384k
-    // tets: too close, so it is damped to kSmootherReach, which cost 4-8 % more iterations
-    // than no damping there.
-    prepare_cycle();
-    const double reach = smoother_reach();
-    if (reach > kSmootherReach) {
-      const double damping = kSmootherReach / reach;
-      for (ModeMatrix& inverse : own_inverse_) {
-        inverse *= damping;
-      }
-    }
-    std::fill(top_blocks_.begin(), top_blocks_.end(), ModeMatrix::Zero());
-    for (std::size_t s = 0; s < coarse_blocks_.size(); ++s) {
-      top_blocks_[static_cast<std::size_t>(top_slot_[s])].noalias() +=
-          top_map_[static_cast<std::size_t>(slot_row_[s])].transpose() * coarse_blocks_[s] *
-          top_map_[static_cast<std::size_t>(slot_column_[s])];
-    }
-    for (std::size_t t = 0; t < top_dropped_.size(); ++t) {
-      fill_dropped(top_blocks_[static_cast<std::size_t>(top_diagonal_slot_[t])], top_dropped_[t]);
-    }
-    factored = &top_blocks_;
-  }
-  double* target = scalar_.valuePtr();
-  for (std::size_t s = 0; s < scalar_source_.size(); ++s) {
-    const auto [slot, entry] = scalar_source_[s];
-    target[s] = (*factored)[static_cast<std::size_t>(slot)].data()[entry];
-  }
-  return members_.empty() || factor_->factorize_positive_definite(scalar_);
+  return members_.empty() || cycle_->assemble(centre_, modes_from_raw_);
 }
 
 void AggregationCoarseSpace::add_correction(std::span<Vec3> z) const {
@@ -1002,63 +609,17 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
     }
     return raw;
   };
-  if (!three_level_) {
-    coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * aggregates));
-    parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
-      for (std::size_t a = first; a != last; ++a) {
-        coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * a)).noalias() =
-            raw_from_modes_[a].transpose() * restrict_to(a);
-      }
-    });
-    const Eigen::VectorXd solution = factor_->solve(coarse_rhs_);
-    for (std::size_t a = 0; a < aggregates; ++a) {
-      coarse_motion_[a].noalias() =
-          raw_from_modes_[a] * solution.segment<kModes>(static_cast<Eigen::Index>(kModes * a));
-    }
-    return coarse_rhs_.dot(solution);
-  }
-  // Three levels: one symmetric V-cycle on P^T A P y = c, in the aggregates' modes: y = w L c
-  // (each aggregate's own block), y += Q (c - P^T A P y) (the top level's exact solve), y += w L
-  // (c - P^T A P y). Each pass below is by aggregate or by group, every sum in a fixed order.
-  const std::size_t groups = top_first_.size() - 1;
   cycle_rhs_.resize(aggregates);
   cycle_solution_.resize(aggregates);
-  cycle_residual_.resize(aggregates);
   parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t a = first; a != last; ++a) {
       cycle_rhs_[a].noalias() = raw_from_modes_[a].transpose() * restrict_to(a);
-      cycle_solution_[a].noalias() = own_inverse_[a] * cycle_rhs_[a];
     }
   });
-  // By group: its aggregates' residuals after the smoothing, and their part of its right-hand
-  // side (in aggregate order).
-  coarse_rhs_.resize(static_cast<Eigen::Index>(kModes * groups));
-  parallel_for(0, groups, kGroupGrain, [&](std::size_t first, std::size_t last) {
-    for (std::size_t t = first; t != last; ++t) {
-      Modes group_rhs = Modes::Zero();
-      for (std::size_t k = top_first_[t]; k != top_first_[t + 1]; ++k) {
-        const auto a = static_cast<std::size_t>(top_members_[k]);
-        cycle_residual_[a] = coarse_residual(a, cycle_rhs_[a], cycle_solution_);
-        group_rhs.noalias() += top_map_[a].transpose() * cycle_residual_[a];
-      }
-      coarse_rhs_.segment<kModes>(static_cast<Eigen::Index>(kModes * t)) = group_rhs;
-    }
-  });
-  const Eigen::VectorXd top_solution = factor_->solve(coarse_rhs_);
-  // y += Q e; then c - P^T A (y + Q e) = (c - P^T A y) - P^T A Q e, with (P^T A Q e)_a = sum
-  // over its coupled groups t of K_at e_t; y += w L of that.
+  cycle_->solve(cycle_rhs_, cycle_solution_);
   own_part_.resize(aggregates);
   parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t a = first; a != last; ++a) {
-      cycle_solution_[a].noalias() +=
-          top_map_[a] *
-          top_solution.segment<kModes>(static_cast<Eigen::Index>(kModes * top_of_[a]));
-      Modes left = cycle_residual_[a];
-      for (std::size_t k = top_coupling_first_[a]; k != top_coupling_first_[a + 1]; ++k) {
-        left.noalias() -= top_coupling_[k] * top_solution.segment<kModes>(static_cast<Eigen::Index>(
-                                                 kModes * top_coupling_group_[k]));
-      }
-      cycle_solution_[a].noalias() += own_inverse_[a] * left;
       coarse_motion_[a].noalias() = raw_from_modes_[a] * cycle_solution_[a];
       own_part_[a] = cycle_rhs_[a].dot(cycle_solution_[a]);
     }
@@ -1069,128 +630,6 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
     sum += part;
   }
   return sum;
-}
-
-AggregationCoarseSpace::Modes AggregationCoarseSpace::coarse_residual(
-    std::size_t aggregate, const Modes& c, const std::vector<Modes>& y) const {
-  // Column by column, so each column's six floats widen together and the sum stays in
-  // registers (as a whole-block product this was scalar, a quarter of a fine product's time).
-  Modes residual = c;
-  for (std::size_t s = slot_first_[aggregate]; s != slot_first_[aggregate + 1]; ++s) {
-    const Eigen::Matrix<float, kModes, kModes>& block = single_blocks_[s];
-    const Modes& motion = y[static_cast<std::size_t>(slot_column_[s])];
-    for (int j = 0; j < kModes; ++j) {
-      residual.noalias() -= block.col(j).cast<double>() * motion(j);
-    }
-  }
-  return residual;
-}
-
-double AggregationCoarseSpace::smoother_reach() const {
-  // Power iteration on L (P^T A P) from a fixed rough start (a smooth one holds little of the
-  // top eigenvector; minstd_rand's sequence is the same everywhere, so is the damping): twelve
-  // steps put it within a few per cent of the largest eigenvalue on the peers' box, which the
-  // margin below 2 in kSmootherReach covers.
-  const std::size_t aggregates = members_.size();
-  std::vector<Modes> x(aggregates);
-  std::minstd_rand sequence(7);
-  for (Modes& entry : x) {
-    for (int m = 0; m < kModes; ++m) {
-      entry(m) = 2.0 * static_cast<double>(sequence() - std::minstd_rand::min()) /
-                     static_cast<double>(std::minstd_rand::max() - std::minstd_rand::min()) -
-                 1.0;
-    }
-  }
-  std::vector<Modes> product(aggregates);
-  double estimate = 0.0;
-  for (int step = 0; step < 12; ++step) {
-    parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
-      for (std::size_t a = first; a != last; ++a) {
-        product[a] = -(own_inverse_[a] * coarse_residual(a, Modes::Zero(), x));
-      }
-    });
-    double before = 0.0;
-    double after = 0.0;
-    for (std::size_t a = 0; a < aggregates; ++a) {
-      before += x[a].squaredNorm();
-      after += product[a].squaredNorm();
-    }
-    if (before <= 0.0 || after <= 0.0) {
-      return estimate;
-    }
-    estimate = std::sqrt(after / before);
-    const double scale = 1.0 / std::sqrt(after);
-    for (std::size_t a = 0; a < aggregates; ++a) {
-      x[a] = scale * product[a];
-    }
-  }
-  return estimate;
-}
-
-void AggregationCoarseSpace::prepare_cycle() {
-  // The V-cycle is symmetric only if both its products use one symmetric matrix: block (b, a)
-  // is taken as the transpose of block (a, b) for a < b (the sums behind the two differ in
-  // their last bits, and rounding to float can make that 1e-7), and the top correction's
-  // product below uses these rounded blocks too.
-  const std::size_t aggregates = members_.size();
-  single_blocks_.resize(coarse_blocks_.size());
-  parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
-    for (std::size_t a = first; a != last; ++a) {
-      for (std::size_t s = slot_first_[a]; s != slot_first_[a + 1]; ++s) {
-        const auto b = static_cast<std::size_t>(slot_column_[s]);
-        if (b == a) {
-          single_blocks_[s] =
-              (0.5 * (coarse_blocks_[s] + coarse_blocks_[s].transpose())).cast<float>();
-        } else if (a < b) {
-          single_blocks_[s] = coarse_blocks_[s].cast<float>();
-        } else {
-          const auto row_begin = slot_column_.begin() + static_cast<std::ptrdiff_t>(slot_first_[b]);
-          const auto row_end =
-              slot_column_.begin() + static_cast<std::ptrdiff_t>(slot_first_[b + 1]);
-          const auto mirror = std::lower_bound(row_begin, row_end, static_cast<int>(a));
-          INCISE_ASSERT(mirror != row_end && *mirror == static_cast<int>(a),
-                        "coarse pattern not symmetric");
-          single_blocks_[s] =
-              coarse_blocks_[static_cast<std::size_t>(mirror - slot_column_.begin())]
-                  .transpose()
-                  .cast<float>();
-        }
-      }
-    }
-  });
-  // Each aggregate's coupled groups in the order its slots first reach them.
-  top_coupling_first_.assign(1, 0);
-  top_coupling_group_.clear();
-  std::vector<int> place(top_first_.size(), -1);
-  std::vector<std::size_t> slot_place(coarse_blocks_.size());
-  for (std::size_t a = 0; a < aggregates; ++a) {
-    const std::size_t row_first = top_coupling_group_.size();
-    for (std::size_t s = slot_first_[a]; s != slot_first_[a + 1]; ++s) {
-      const int t = top_of_[static_cast<std::size_t>(slot_column_[s])];
-      if (place[static_cast<std::size_t>(t)] < static_cast<int>(row_first)) {
-        place[static_cast<std::size_t>(t)] = static_cast<int>(top_coupling_group_.size());
-        top_coupling_group_.push_back(t);
-      }
-      slot_place[s] = static_cast<std::size_t>(place[static_cast<std::size_t>(t)]);
-    }
-    top_coupling_first_.push_back(top_coupling_group_.size());
-  }
-  top_coupling_.resize(top_coupling_group_.size());
-  parallel_for(0, aggregates, kAggregateGrain, [&](std::size_t first, std::size_t last) {
-    for (std::size_t a = first; a != last; ++a) {
-      for (std::size_t k = top_coupling_first_[a]; k != top_coupling_first_[a + 1]; ++k) {
-        top_coupling_[k].setZero();
-      }
-      for (std::size_t s = slot_first_[a]; s != slot_first_[a + 1]; ++s) {
-        top_coupling_[slot_place[s]].noalias() +=
-            single_blocks_[s].cast<double>() * top_map_[static_cast<std::size_t>(slot_column_[s])];
-      }
-    }
-  });
-}
-
-void AggregationCoarseSpace::collect_slot_rows() {
-  key_offsets(slot_row_, members_.size(), slot_first_);
 }
 
 }  // namespace incise

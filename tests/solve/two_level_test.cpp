@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <numeric>
 #include <random>
 #include <span>
 #include <string>
@@ -343,9 +344,78 @@ TEST(AggregationCoarseSpace, SolvesTheGalerkinSystemOnAggregatesThatCoverTheFree
   }
 }
 
-TEST(AggregationCoarseSpace, ThreeLevelCorrectionIsSymmetricAndPositive) {
-  // Above its exact limit the coarse correction is additive over three levels; CG needs it to
-  // be a symmetric positive definite operator of r: s.B(r) == r.B(s) and r.B(r) > 0.
+/// A box of cells^3 cells with its vertices numbered in a random order, as a mesher's may be.
+TetMesh shuffled_box(int cells, std::mt19937& random) {
+  BoxGridOptions grid;
+  grid.cells = {cells, cells, cells};
+  const TetMesh box = make_box_grid(grid);
+  std::vector<VertexId> new_id(box.vertex_count());
+  std::iota(new_id.begin(), new_id.end(), VertexId{0});
+  std::shuffle(new_id.begin(), new_id.end(), random);
+  std::vector<Vec3> positions(box.vertex_count());
+  for (std::size_t v = 0; v < positions.size(); ++v) {
+    positions[static_cast<std::size_t>(new_id[v])] = box.rest_positions()[v];
+  }
+  std::vector<Tet> tets(box.tets().begin(), box.tets().end());
+  for (Tet& tet : tets) {
+    for (VertexId& v : tet) {
+      v = new_id[static_cast<std::size_t>(v)];
+    }
+  }
+  return {std::move(positions), std::move(tets)};
+}
+
+TEST(AggregationCoarseSpace, GroupsLevelAfterLevelByEightUntilOneIsSmallEnoughToFactorise) {
+  // Above the exact limit the aggregates are grouped by at most eight, and those groups again,
+  // until a level has at most exact_limit unknowns (six a node): that level is factorised.
+  // With one level of groups only, it is grouped without a limit (a ring each: coarser, its
+  // factor cheaper). On a box numbered in order the groups come out as cubes of eight
+  // whatever the limit; numbered at random, an aggregate has up to 26 ungrouped neighbours.
+  std::mt19937 random(41);
+  const TetMesh box = shuffled_box(16, random);
+  HeldLaplacian held{laplacian_matrix(box, random, {}), std::vector<char>(box.vertex_count(), 0)};
+  for (std::size_t v = 0; v < box.vertex_count(); ++v) {
+    held.constrained[v] = box.rest_positions()[v].z() < 1e-9 ? 1 : 0;
+  }
+  AggregationCoarseSpace coarse;
+  coarse.set_exact_limit(60);
+  ASSERT_TRUE(coarse.update(held.matrix, held.constrained, box.rest_positions()));
+  const std::vector<std::size_t> sizes = coarse.level_sizes();
+  ASSERT_EQ(sizes.size(), coarse.group_levels() + 1);
+  ASSERT_GE(coarse.group_levels(), 2U) << "aggregates: " << sizes[0];
+  EXPECT_EQ(sizes[0], coarse.aggregate_count());
+  // Members per group on each level.
+  const auto group_sizes = [](const AggregationCoarseSpace& space, std::size_t level) {
+    const std::span<const int> group = space.group_of(level);
+    std::vector<std::size_t> count(space.level_sizes()[level + 1], 0);
+    for (const int g : group) {
+      ++count[static_cast<std::size_t>(g)];
+    }
+    return count;
+  };
+  for (std::size_t k = 0; k + 1 < sizes.size(); ++k) {
+    ASSERT_EQ(coarse.group_of(k).size(), sizes[k]);
+    const std::vector<std::size_t> members = group_sizes(coarse, k);
+    EXPECT_LE(*std::max_element(members.begin(), members.end()), 8U) << "level " << k;
+    EXPECT_GE(*std::min_element(members.begin(), members.end()), 1U) << "level " << k;
+    EXPECT_GT(6 * sizes[k], 60U) << "level " << k << " small enough to factorise, yet grouped";
+  }
+  EXPECT_LE(6 * sizes.back(), 60U) << "the top is too large to factorise";
+
+  AggregationCoarseSpace one_level;
+  one_level.set_exact_limit(6 * sizes[0] - 1);
+  ASSERT_TRUE(one_level.update(held.matrix, held.constrained, box.rest_positions()));
+  const std::vector<std::size_t> two = one_level.level_sizes();
+  ASSERT_EQ(two.size(), 2U);
+  const std::vector<std::size_t> rings = group_sizes(one_level, 0);
+  EXPECT_GT(*std::max_element(rings.begin(), rings.end()), 8U)
+      << "one level of groups should group without a limit";
+}
+
+TEST(AggregationCoarseSpace, CorrectionThroughLevelsOfGroupsIsSymmetricAndPositive) {
+  // Above its exact limit the coarse system is solved by a cycle over levels of groups (here as
+  // many as the box allows, each above the first solved by two cycles); CG needs the correction
+  // to be a symmetric positive definite operator of r: s.B(r) == r.B(s) and r.B(r) > 0.
   std::mt19937 random(5);
   const auto [matrix, constrained] = held_box_laplacian(6, random);
   BoxGridOptions grid;
@@ -354,7 +424,7 @@ TEST(AggregationCoarseSpace, ThreeLevelCorrectionIsSymmetricAndPositive) {
   AggregationCoarseSpace coarse;
   coarse.set_exact_limit(0);
   ASSERT_TRUE(coarse.update(matrix, constrained, box.rest_positions()));
-  ASSERT_TRUE(coarse.three_level());
+  ASSERT_GE(coarse.group_levels(), 2U);
   for (int trial = 0; trial < 5; ++trial) {
     const std::vector<Vec3> r = random_field(matrix.rows(), random, constrained);
     const std::vector<Vec3> s = random_field(matrix.rows(), random, constrained);
@@ -373,7 +443,7 @@ TEST(AggregationCoarseSpace, ThreeLevelCorrectionIsSymmetricAndPositive) {
   }
 }
 
-TEST(AggregationCoarseSpace, ThreeLevelSolveGivesTheSameBitsWhateverTheThreadCount) {
+TEST(AggregationCoarseSpace, SolveThroughLevelsOfGroupsGivesTheSameBitsWhateverTheThreadCount) {
   // The coarse solve's passes run on the worker threads; each sum must keep one order, so that
   // a run (and its replay, or a checkpoint resumed elsewhere) is the same on any machine. The
   // box is large enough for several tasks in each pass.
@@ -389,7 +459,7 @@ TEST(AggregationCoarseSpace, ThreeLevelSolveGivesTheSameBitsWhateverTheThreadCou
     AggregationCoarseSpace coarse;
     coarse.set_exact_limit(0);
     EXPECT_TRUE(coarse.update(held.matrix, held.constrained, box.rest_positions()));
-    EXPECT_TRUE(coarse.three_level());
+    EXPECT_GE(coarse.group_levels(), 2U);
     EXPECT_GT(coarse.aggregate_count(), 128U) << "too few aggregates for several tasks";
     const double r_pe = coarse.solve(r);
     std::vector<Vec3> prolonged(r.size(), Vec3::Zero());
@@ -446,7 +516,7 @@ TEST(TwoLevelPreconditioner, ItsStateSavedAndReadBackContinuesBitForBit) {
       ASSERT_TRUE(clusters.update(original, constrained));
       ASSERT_TRUE(coarse.update(original, constrained, positions));
     }
-    ASSERT_EQ(coarse.three_level(), exact_limit == 0);
+    ASSERT_EQ((coarse.group_levels() > 0), exact_limit == 0);
     StateWriter out;
     clusters.save_state(out);
     coarse.save_state(out);
@@ -514,7 +584,6 @@ TEST(TwoLevelPreconditioner, ACorruptSavedStateIsRefusedWithAClearMessage) {
   bad.tag("coarse space");
   bad.value(true);
   bad.value(0);
-  bad.value(false);
   for (int look = 0; look < 2; ++look) {
     bad.value(false);
     bad.value(std::uint64_t{0});
@@ -588,7 +657,7 @@ TEST(AggregationCoarseSpace, ReproducesRigidMotionsOfTheFreeVerticesExactly) {
   for (const Case& c : cases) {
     AggregationCoarseSpace coarse;
     ASSERT_TRUE(coarse.update(matrix, constrained, c.positions));
-    ASSERT_FALSE(coarse.three_level());
+    ASSERT_FALSE((coarse.group_levels() > 0));
     const std::vector<Vec3> u =
         rigid_field(c.positions, constrained, Vec3(0.2, 0.5, -0.3), c.rotation);
     const std::vector<Vec3> corrected =
@@ -615,12 +684,13 @@ TEST(AggregationCoarseSpace, ReproducesRigidMotionsOfTheFreeVerticesExactly) {
   EXPECT_GT(error, 1e-3);
 }
 
-TEST(AggregationCoarseSpace, ThreeLevelSolveComesCloseToTheExactCoarseSolve) {
-  // Above its exact limit the coarse system is solved through a third level. What CG gains from
-  // the coarse level depends on how close that comes to the exact coarse solve: measured in the
-  // matrix's energy, the V-cycle leaves 0.30 of the exact correction here; the additive
-  // correction it replaced (each aggregate's block plus the top level) left 0.49, and CG needed
-  // 110 iterations on the 384k-tet box from a cold start where it needs 84 now.
+TEST(AggregationCoarseSpace, SolveThroughLevelsOfGroupsComesCloseToTheExactCoarseSolve) {
+  // Above its exact limit the coarse system is solved through levels of groups. What CG gains
+  // from the coarse level depends on how close that comes to the exact coarse solve: measured
+  // in the matrix's energy, the cycle over levels of groups of at most eight leaves 0.24 of the
+  // exact correction here; one level of larger groups, factorised, left 0.30 (and CG 84
+  // iterations on the 384k-tet box from a cold start where it needs 75 now); the additive
+  // correction before that (each aggregate's block plus the top level) left 0.49.
   std::mt19937 random(31);
   const HeldLaplacian held = held_box_laplacian(14, random);  // (clang 14: no captured bindings)
   BoxGridOptions grid;
@@ -629,11 +699,11 @@ TEST(AggregationCoarseSpace, ThreeLevelSolveComesCloseToTheExactCoarseSolve) {
   AggregationCoarseSpace exact;
   exact.set_exact_limit(1000000);
   ASSERT_TRUE(exact.update(held.matrix, held.constrained, box.rest_positions()));
-  ASSERT_FALSE(exact.three_level());
+  ASSERT_FALSE((exact.group_levels() > 0));
   AggregationCoarseSpace cycle;
   cycle.set_exact_limit(0);
   ASSERT_TRUE(cycle.update(held.matrix, held.constrained, box.rest_positions()));
-  ASSERT_TRUE(cycle.three_level());
+  ASSERT_GE(cycle.group_levels(), 2U);
   double worst = 0.0;
   for (int trial = 0; trial < 4; ++trial) {
     const std::vector<Vec3> r = random_field(held.matrix.rows(), random, held.constrained);
@@ -652,8 +722,9 @@ TEST(AggregationCoarseSpace, ThreeLevelSolveComesCloseToTheExactCoarseSolve) {
     };
     worst = std::max(worst, energy(error) / energy(wanted));
   }
-  std::printf("three-level coarse correction's relative error in energy: %.3f\n", worst);
-  EXPECT_LT(worst, 0.4);
+  std::printf("coarse correction's relative error in energy through %zu levels of groups: %.3f\n",
+              cycle.group_levels(), worst);
+  EXPECT_LT(worst, 0.27);
 }
 
 std::string cut_box_scene(const std::string& solver) {

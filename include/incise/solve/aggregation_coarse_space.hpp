@@ -9,13 +9,11 @@
 // coarse correction to the clusters' block-Jacobi one (additive Schwarz). On a small body the
 // coarse matrix P^T A P is factorised exactly: P (P^T A P)^-1 P^T r. Above 1,000 coarse unknowns
 // its exact solve would cost more than a product at every iteration (4 ms on the 384k-tet box), so
-// the aggregates are aggregated once more and the coarse system is solved by one symmetric
-// V-cycle over them: each aggregate's own block inverted (damped), the top level's exact solve
-// (its groups rigid too), each aggregate's block again. With aggregates that only translated it
-// needed more iterations than the exact coarse solve (125 against 92 there) and cost less in all
-// (656 against 892 ms a cutting frame). The V-cycle replaced an additive correction (own blocks
-// plus the top level) that left most of the coarse error: CG needed 110 iterations on the 384k
-// box from a cold start where an exact coarse solve needs 56 (BENCHMARKS.md).
+// the coarse system is solved by one symmetric V-cycle over groups of aggregates, groups of
+// those groups, and so on until a level is small enough to factorise (src/solve/coarse_cycle.hpp).
+// The V-cycle replaced an additive correction (own blocks plus one level of groups) that left
+// most of the coarse error: CG needed 110 iterations on the 384k box from a cold start where an
+// exact coarse solve needs 56 (BENCHMARKS.md).
 //
 // Why: block-Jacobi CG needs iterations in proportion to the mesh's resolution (47 / 99 / 209
 // on the peers' box at n = 10 / 20 / 40) and twice as many on a body that a cut has set free
@@ -29,7 +27,7 @@
 // pool, each coarse row, aggregate or group summed by one task: deterministic); correction()
 // may be read from any thread between calls.
 
-#include <Eigen/SparseCore>
+#include <Eigen/Core>
 #include <algorithm>
 #include <cstdint>
 #include <memory>
@@ -42,7 +40,9 @@
 
 namespace incise {
 
-class DirectFactorization;
+namespace coarse {
+class CoarseCycle;
+}
 
 /// The two-level preconditioner's coarse level: the free vertices grouped into aggregates
 /// that move rigidly (three translations, three rotations), the matrix restricted to those
@@ -50,11 +50,17 @@ class DirectFactorization;
 class AggregationCoarseSpace {
  public:
   AggregationCoarseSpace();
-  /// Coarse unknowns above which a third level is used (default 1,000: on the cut 6k-tet box
+  /// Coarse unknowns above which levels of groups are used (default 1,000: on the cut 6k-tet box
   /// frames cost 10-15 % less than with 300, the exact solve's iterations outweighing its cost).
   void set_exact_limit(std::size_t unknowns) { exact_limit_ = unknowns; }
-  /// Whether the coarse system is itself solved through a third level.
-  [[nodiscard]] bool three_level() const { return three_level_; }
+  /// Levels of groups above the aggregates through which the coarse system is solved (0: it
+  /// is factorised exactly), as of the last aggregation.
+  [[nodiscard]] std::size_t group_levels() const;
+  /// Nodes on each coarse level, the aggregates first, then each level of groups.
+  [[nodiscard]] std::vector<std::size_t> level_sizes() const;
+  /// Each node of coarse level k's group on level k + 1 (k below the top; level 0: the
+  /// aggregates).
+  [[nodiscard]] std::span<const int> group_of(std::size_t level) const;
   /// Calls of update() between factorisations (default 10; 1: every call).
   void set_refactor_every(int updates) { refactor_every_ = std::max(updates, 1); }
   ~AggregationCoarseSpace();
@@ -113,12 +119,7 @@ class AggregationCoarseSpace {
   void collect_members();
   /// partial_of_, chunk_partial_first_ and aggregate_partials_ from aggregate_of_.
   void collect_partials();
-  /// top_first_ and top_members_ from top_of_ (`groups` top-level groups; 0: two levels).
-  void collect_top_members(std::size_t groups);
-  /// slot_first_ from slot_row_.
-  void collect_slot_rows();
-  /// Each aggregate's centre and orthonormal modes at `positions`, every member's offset,
-  /// and with three levels the top groups' modes in their aggregates' coordinates.
+  /// Each aggregate's centre and orthonormal modes at `positions`, and every member's offset.
   void shape_modes(std::span<const Vec3> positions);
   /// A vertex's offset from the centre of `aggregate` (m; zero without positions).
   [[nodiscard]] Vec3 offset_in(std::size_t aggregate, std::span<const Vec3> positions,
@@ -167,7 +168,6 @@ class AggregationCoarseSpace {
   std::vector<std::vector<VertexId>> members_;
   /// For each live block of A (by storage index), its coarse block's slot, or -1.
   std::vector<int> coarse_slot_;
-  std::vector<ModeMatrix> coarse_blocks_;
   /// Per vertex: its offset d_v from its aggregate's centre (m), zero for held ones. Its rows
   /// of P are [I, -[d_v]x] W_a, derived where needed: CG's pass reads 24 bytes per vertex.
   std::vector<Vec3> offset_;
@@ -175,58 +175,19 @@ class AggregationCoarseSpace {
   /// Per aggregate: raw rigid coordinates (translation, rotation about the centre) from its
   /// orthonormal modes; and its modes' coordinates from a raw rigid motion (the pseudo-inverse).
   std::vector<ModeMatrix> modes_from_raw_, raw_from_modes_;
-  /// Modes dropped, bit k for mode k: per aggregate, and per top-level group.
-  std::vector<unsigned> dropped_, top_dropped_;
-  /// Scalar coarse matrix: nonzero -> (slot, entry in the 6x6 block).
-  std::vector<std::pair<int, int>> scalar_source_;
-  Eigen::SparseMatrix<double, Eigen::ColMajor, int> scalar_;
-  /// solve(): the factorised system's right-hand side (the aggregates' modes; with three levels
-  /// the top groups').
-  Eigen::VectorXd coarse_rhs_;
-  std::unique_ptr<DirectFactorization> factor_;
+  std::vector<unsigned> dropped_;  ///< per aggregate: modes dropped, bit k for mode k
+  /// The coarse system P^T A P (its blocks, by slot) and its solve: exact or a V-cycle.
+  std::unique_ptr<coarse::CoarseCycle> cycle_;
   /// Each aggregate's correction as a raw rigid motion W_a e_a (translation, rotation).
   std::vector<Modes> coarse_motion_;
   int refactor_every_ = 10;
-  /// Coarse unknowns up to which the aggregates' system is factorised exactly; above, a third
-  /// level (see aggregate()).
+  /// Coarse unknowns up to which the aggregates' system is factorised exactly; above, levels of
+  /// groups (coarse_cycle.hpp).
   std::size_t exact_limit_ = 1000;
-  bool three_level_ = false;
   std::vector<int> slot_row_, slot_column_;  ///< each coarse slot's aggregates (a, b)
-  std::vector<int> diagonal_slot_;           ///< each aggregate's own block among coarse_blocks_
-  std::vector<int> top_diagonal_slot_;       ///< each top-level group's own block
-  std::vector<int> top_of_;                  ///< three levels: each aggregate's top-level aggregate
-  /// Three levels: each group's aggregates, in order, at top_members_[top_first_[t] ..
-  /// top_first_[t + 1]).
-  std::vector<std::size_t> top_first_;
-  std::vector<int> top_members_;
-  std::vector<double> own_part_;        ///< solve(): each aggregate's part of r.z
-  std::vector<int> top_slot_;           ///< coarse slot -> top-level slot
-  std::vector<ModeMatrix> top_blocks_;  ///< the top level's matrix
-  std::vector<ModeMatrix> top_map_;     ///< per aggregate: its modes from its group's
-  /// Three levels, per aggregate: the V-cycle's smoother, w L_a (L_a the inverse of its own
-  /// block of P^T A P, w the damping that keeps the cycle positive definite), in its modes.
-  std::vector<ModeMatrix> own_inverse_;
-  std::vector<std::size_t> slot_first_;  ///< each aggregate's first coarse slot (rows in order)
-  /// solve() with three levels, per aggregate in its modes: the right-hand side P^T r, the
-  /// solution, the residual after the first smoothing.
-  std::vector<Modes> cycle_rhs_, cycle_solution_, cycle_residual_;
-  /// Three levels: P^T A P in single precision for the V-cycle's product (half the bytes of a
-  /// pass; the cycle is a preconditioner).
-  std::vector<Eigen::Matrix<float, kModes, kModes>> single_blocks_;
-  /// Three levels: P^T A P times the top level's modes, K_at = sum over b in group t of
-  /// A_ab Q_b, so the top correction's product reads a few blocks per aggregate, not one per
-  /// coupled aggregate: aggregate a's at top_coupling_first_[a] .. [a + 1], their groups in
-  /// top_coupling_group_.
-  std::vector<std::size_t> top_coupling_first_;
-  std::vector<int> top_coupling_group_;
-  std::vector<ModeMatrix> top_coupling_;
-  /// single_blocks_ and top_coupling_ from coarse_blocks_ and top_map_.
-  void prepare_cycle();
-  /// Three levels: aggregate a's entry of the coarse residual c - (P^T A P) y (c its own).
-  [[nodiscard]] Modes coarse_residual(std::size_t aggregate, const Modes& c,
-                                      const std::vector<Modes>& y) const;
-  /// The largest eigenvalue of (own blocks' inverses) (P^T A P), by power iteration.
-  [[nodiscard]] double smoother_reach() const;
+  std::vector<double> own_part_;             ///< solve(): each aggregate's part of r.z
+  /// solve(), per aggregate in its modes: the right-hand side P^T r and the coarse solution.
+  std::vector<Modes> cycle_rhs_, cycle_solution_;
   int updates_since_factor_ = 0;
   bool factored_ = false;
 };
