@@ -121,8 +121,7 @@ void CoarseCycle::build(std::size_t nodes, std::span<const int> slot_row,
           greedy_aggregates(level_graph(level.slot_first, level.slot_column, level.size()),
                             std::vector<char>(level.size(), 1));
     }
-    levels_[below].group_of = std::move(group);
-    add_group_level(below);
+    add_group_level(below, std::move(group), static_cast<std::size_t>(count));
   }
   Level& top = levels_.back();
   top.group_of.clear();
@@ -131,18 +130,17 @@ void CoarseCycle::build(std::size_t nodes, std::span<const int> slot_row,
   top.group_slot.clear();
   top.group_map.clear();
   top.own_inverse.clear();
+  top.mirror_slot.clear();
+  top.coupling_of_slot.clear();
   build_exact();
 }
 
-void CoarseCycle::add_group_level(std::size_t below) {
+void CoarseCycle::add_group_level(std::size_t below, std::vector<int> group_of,
+                                  std::size_t groups) {
   Level above;
   {
     Level& low = levels_[below];
-    const std::size_t groups = low.group_of.empty()
-                                   ? 0
-                                   : static_cast<std::size_t>(*std::max_element(
-                                         low.group_of.begin(), low.group_of.end())) +
-                                         1;
+    low.group_of = std::move(group_of);
     group_by_key(low.group_of, groups, low.group_first, low.group_member);
     // Group g couples h where a slot (a, b) has a in g and b in h; numbered row by row with
     // sorted columns, as the level below.
@@ -176,6 +174,38 @@ void CoarseCycle::add_group_level(std::size_t below) {
     }
     low.group_map.resize(low.size());
     low.own_inverse.resize(low.size());
+    // Each slot's mirror (b, a), and each node's coupled groups in the order its slots first
+    // reach them: set here, with the pattern, and read by every assemble().
+    low.mirror_slot.resize(low.slot_row.size());
+    for (std::size_t s = 0; s < low.slot_row.size(); ++s) {
+      const auto b = static_cast<std::size_t>(low.slot_column[s]);
+      const auto row_begin =
+          low.slot_column.begin() + static_cast<std::ptrdiff_t>(low.slot_first[b]);
+      const auto row_end =
+          low.slot_column.begin() + static_cast<std::ptrdiff_t>(low.slot_first[b + 1]);
+      const auto mirror = std::lower_bound(row_begin, row_end, low.slot_row[s]);
+      INCISE_ASSERT(mirror != row_end && *mirror == low.slot_row[s],
+                    "coarse pattern not symmetric");
+      low.mirror_slot[s] = static_cast<int>(mirror - low.slot_column.begin());
+    }
+    low.coupling_first.assign(1, 0);
+    low.coupling_group.clear();
+    low.coupling_of_slot.resize(low.slot_row.size());
+    std::vector<int> place(groups, -1);
+    for (std::size_t a = 0; a < low.size(); ++a) {
+      const std::size_t node_first = low.coupling_group.size();
+      for (std::size_t s = low.slot_first[a]; s != low.slot_first[a + 1]; ++s) {
+        const auto g =
+            static_cast<std::size_t>(low.group_of[static_cast<std::size_t>(low.slot_column[s])]);
+        if (place[g] < static_cast<int>(node_first)) {
+          place[g] = static_cast<int>(low.coupling_group.size());
+          low.coupling_group.push_back(static_cast<int>(g));
+        }
+        low.coupling_of_slot[s] = static_cast<std::size_t>(place[g]);
+      }
+      low.coupling_first.push_back(low.coupling_group.size());
+    }
+    low.coupling.resize(low.coupling_group.size());
     above.blocks.assign(flat.size(), ModeMatrix::Zero());
     above.centre.resize(groups);
     above.modes_from_raw.resize(groups);
@@ -293,47 +323,19 @@ void CoarseCycle::prepare_smoother(std::size_t k) {
         } else if (a < b) {
           low.single_blocks[s] = low.blocks[s].cast<float>();
         } else {
-          const auto row_begin =
-              low.slot_column.begin() + static_cast<std::ptrdiff_t>(low.slot_first[b]);
-          const auto row_end =
-              low.slot_column.begin() + static_cast<std::ptrdiff_t>(low.slot_first[b + 1]);
-          const auto mirror = std::lower_bound(row_begin, row_end, static_cast<int>(a));
-          INCISE_ASSERT(mirror != row_end && *mirror == static_cast<int>(a),
-                        "coarse pattern not symmetric");
           low.single_blocks[s] =
-              low.blocks[static_cast<std::size_t>(mirror - low.slot_column.begin())]
-                  .transpose()
-                  .cast<float>();
+              low.blocks[static_cast<std::size_t>(low.mirror_slot[s])].transpose().cast<float>();
         }
       }
     }
   });
-  // Each node's coupled groups in the order its slots first reach them.
-  low.coupling_first.assign(1, 0);
-  low.coupling_group.clear();
-  std::vector<int> place(high.size(), -1);
-  std::vector<std::size_t> slot_place(low.blocks.size());
-  for (std::size_t a = 0; a < nodes; ++a) {
-    const std::size_t row_first = low.coupling_group.size();
-    for (std::size_t s = low.slot_first[a]; s != low.slot_first[a + 1]; ++s) {
-      const auto g =
-          static_cast<std::size_t>(low.group_of[static_cast<std::size_t>(low.slot_column[s])]);
-      if (place[g] < static_cast<int>(row_first)) {
-        place[g] = static_cast<int>(low.coupling_group.size());
-        low.coupling_group.push_back(static_cast<int>(g));
-      }
-      slot_place[s] = static_cast<std::size_t>(place[g]);
-    }
-    low.coupling_first.push_back(low.coupling_group.size());
-  }
-  low.coupling.resize(low.coupling_group.size());
   parallel_for(0, nodes, kNodeGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t a = first; a != last; ++a) {
       for (std::size_t c = low.coupling_first[a]; c != low.coupling_first[a + 1]; ++c) {
         low.coupling[c].setZero();
       }
       for (std::size_t s = low.slot_first[a]; s != low.slot_first[a + 1]; ++s) {
-        low.coupling[slot_place[s]].noalias() +=
+        low.coupling[low.coupling_of_slot[s]].noalias() +=
             low.single_blocks[s].cast<double>() *
             low.group_map[static_cast<std::size_t>(low.slot_column[s])];
       }

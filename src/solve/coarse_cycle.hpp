@@ -100,11 +100,13 @@ class CoarseCycle {
     /// preconditioner), block (b, a) the transpose of (a, b) so both products use one
     /// symmetric matrix.
     std::vector<SingleModeMatrix> single_blocks;
+    std::vector<int> mirror_slot;  ///< below the top: each slot (a, b)'s mirror (b, a)
     /// The matrix times the groups' modes, K_ag = sum over b in group g of A_ab Q_b, so the
     /// group correction's product reads a few blocks per node: node a's at
     /// coupling_first[a] .. [a + 1], their groups in coupling_group.
     std::vector<std::size_t> coupling_first;
     std::vector<int> coupling_group;
+    std::vector<std::size_t> coupling_of_slot;  ///< each slot (a, b): K_ag's index, g b's group
     std::vector<ModeMatrix> coupling;
     /// solve(): per node in its modes, the right-hand side, the solution, and the residual
     /// after the first smoothing.
@@ -113,8 +115,9 @@ class CoarseCycle {
     std::vector<Modes> first_rhs, first_solution;
     [[nodiscard]] std::size_t size() const { return diagonal_slot.size(); }
   };
-  /// Groups level `below`'s nodes (kGroupLimit at most) and adds the level above.
-  void add_group_level(std::size_t below);
+  /// Adds the level above level `below`: its `groups` groups, each node's in `group_of`; and
+  /// level `below`'s patterns that depend on them (mirrors, couplings).
+  void add_group_level(std::size_t below, std::vector<int> group_of, std::size_t groups);
   /// Level k's groups' centres and modes, and its nodes' maps to them.
   void shape_groups(std::size_t k, std::span<const Vec3> centre,
                     std::span<const ModeMatrix> modes_from_raw);
