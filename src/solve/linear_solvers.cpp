@@ -508,28 +508,28 @@ void LinearizedSystemSolver::galerkin_start(std::span<const std::span<const Vec3
     return count;
   };
   const bool held_rows_zero = parallel_sum(n, held_and_nonzero) == 0.0;
-  if (!held_rows_zero) {
-    masked_basis_.resize(k);
-  }
-  basis_products_.resize(k);
   std::vector<std::span<const Vec3>> masked(k);
-  std::vector<std::span<Vec3>> products(k);
-  for (std::size_t j = 0; j < k; ++j) {
-    resize_for_edits(basis_products_[j], n);
-    products[j] = basis_products_[j];
-    if (held_rows_zero) {
+  if (held_rows_zero) {
+    for (std::size_t j = 0; j < k; ++j) {
       masked[j] = basis[j].first(n);
-    } else {
+    }
+  } else {
+    masked_basis_.resize(k);
+    for (std::size_t j = 0; j < k; ++j) {
       resize_for_edits(masked_basis_[j], n);
       masked[j] = masked_basis_[j];
     }
-  }
-  if (!held_rows_zero) {
     parallel_vertices(n, [&](std::size_t i) {
       for (std::size_t j = 0; j < k; ++j) {
         masked_basis_[j][i] = constrained_[i] != 0 ? Vec3::Zero() : basis[j][i];
       }
     });
+  }
+  basis_products_.resize(k);
+  std::vector<std::span<Vec3>> products(k);
+  for (std::size_t j = 0; j < k; ++j) {
+    resize_for_edits(basis_products_[j], n);
+    products[j] = basis_products_[j];
   }
   product(std::span<const std::span<const Vec3>>(masked),
           std::span<const std::span<Vec3>>(products));
