@@ -7,6 +7,7 @@
 #include <immintrin.h>
 #endif
 
+#include "incise/core/cpu_features.hpp"
 #include "incise/core/error.hpp"
 #include "incise/core/growth.hpp"
 #include "incise/core/parallel_for.hpp"
@@ -186,10 +187,6 @@ __attribute__((target("avx2,fma"))) void multiply_rows_avx2(
   }
 }
 
-bool cpu_has_avx2_fma() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-}
 #endif
 
 /// Rows begin..end of the product with the blocks in `values` (either precision): the AVX2
@@ -201,8 +198,7 @@ void multiply_rows_of(const Scalar* values, const BlockPattern& pattern, std::si
   const std::size_t* row_begin = pattern.columns.begin().data();
   const std::size_t* row_end = pattern.columns.end().data();
 #ifdef INCISE_HAVE_AVX2_ROWS
-  static const bool avx2 = cpu_has_avx2_fma();  // a property of the machine, asked once
-  if (avx2) {
+  if (cpu_has_avx2_fma()) {
     multiply_rows_avx2(values, columns, row_begin, row_end, begin, end, p, out);
     return;
   }

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "incise/core/cpu_features.hpp"
 #include "incise/core/error.hpp"
 
 // The helpers below pass 32-byte vectors by value; the compilers warn that their ABI differs
@@ -297,13 +298,6 @@ __attribute__((target("avx2,fma"))) void warped_row_avx2(const std::array<Mat3*,
   warped_row_kernel(blocks, lambda_a, mu_a, rotated, diagonal);
 }
 
-bool has_avx2() {
-  static const bool avx2 = [] {  // a property of the machine, asked once
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  }();
-  return avx2;
-}
 #endif
 
 }  // namespace
@@ -312,7 +306,7 @@ void corotated_batch(CorotatedBatch& batch, int count) {
   INCISE_ASSERT(count >= 1 && count <= kElementLanes, "a batch holds 1 to 4 elements");
   fill_unused_lanes(batch, count);
 #ifdef INCISE_HAVE_AVX2_BATCH
-  if (has_avx2()) {
+  if (cpu_has_avx2_fma()) {
     batch_avx2(batch, count);
     return;
   }
@@ -324,7 +318,7 @@ void add_warped_stiffness_row(const std::array<Mat3*, 4>& blocks, const Vec3& la
                               const Vec3& mu_a, const std::array<Vec3, 4>& rotated,
                               const std::array<double, 4>& diagonal) {
 #ifdef INCISE_HAVE_AVX2_BATCH
-  if (has_avx2()) {
+  if (cpu_has_avx2_fma()) {
     warped_row_avx2(blocks, lambda_a, mu_a, rotated, diagonal);
     return;
   }

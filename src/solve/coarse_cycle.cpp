@@ -311,20 +311,20 @@ void CoarseCycle::prepare_smoother(std::size_t k) {
   });
   // The cycle is symmetric only if both its products use one symmetric matrix: block (b, a)
   // is taken as the transpose of block (a, b) for a < b (the sums behind the two differ in
-  // their last bits, and rounding to float can make that 1e-7), and the group correction's
+  // their last bits, which rounding can make a level apart), and the group correction's
   // product below uses these rounded blocks too.
-  resize_for_edits(low.single_blocks, low.blocks.size());
+  resize_for_edits(low.quantized_blocks, low.blocks.size());
   parallel_for(0, nodes, kNodeGrain, [&](std::size_t first, std::size_t last) {
     for (std::size_t a = first; a != last; ++a) {
       for (std::size_t s = low.slot_first[a]; s != low.slot_first[a + 1]; ++s) {
         const auto b = static_cast<std::size_t>(low.slot_column[s]);
         if (b == a) {
-          low.single_blocks[s] = (0.5 * (low.blocks[s] + low.blocks[s].transpose())).cast<float>();
+          low.quantized_blocks[s] = quantize(0.5 * (low.blocks[s] + low.blocks[s].transpose()));
         } else if (a < b) {
-          low.single_blocks[s] = low.blocks[s].cast<float>();
+          low.quantized_blocks[s] = quantize(low.blocks[s]);
         } else {
-          low.single_blocks[s] =
-              low.blocks[static_cast<std::size_t>(low.mirror_slot[s])].transpose().cast<float>();
+          low.quantized_blocks[s] =
+              quantize(low.blocks[static_cast<std::size_t>(low.mirror_slot[s])].transpose());
         }
       }
     }
@@ -336,7 +336,7 @@ void CoarseCycle::prepare_smoother(std::size_t k) {
       }
       for (std::size_t s = low.slot_first[a]; s != low.slot_first[a + 1]; ++s) {
         low.coupling[low.coupling_of_slot[s]].noalias() +=
-            low.single_blocks[s].cast<double>() *
+            dequantize(low.quantized_blocks[s]) *
             low.group_map[static_cast<std::size_t>(low.slot_column[s])];
       }
     }
@@ -370,17 +370,8 @@ void CoarseCycle::prepare_smoother(std::size_t k) {
 
 Modes CoarseCycle::residual_of(const Level& level, std::size_t a, const Modes& c,
                                const std::vector<Modes>& y) {
-  // Column by column, so each column's six floats widen together and the sum stays in
-  // registers (as a whole-block product this was scalar, a quarter of a fine product's time).
-  Modes residual = c;
-  for (std::size_t s = level.slot_first[a]; s != level.slot_first[a + 1]; ++s) {
-    const SingleModeMatrix& block = level.single_blocks[s];
-    const Modes& motion = y[static_cast<std::size_t>(level.slot_column[s])];
-    for (int j = 0; j < kModes; ++j) {
-      residual.noalias() -= block.col(j).cast<double>() * motion(j);
-    }
-  }
-  return residual;
+  return subtract_quantized_products(level.quantized_blocks.data(), level.slot_column.data(),
+                                     level.slot_first[a], level.slot_first[a + 1], y.data(), c);
 }
 
 double CoarseCycle::smoother_reach(std::size_t k) const {

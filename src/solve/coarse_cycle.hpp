@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "incise/core/types.hpp"
+#include "quantized_mode_blocks.hpp"
 #include "rigid_block_maths.hpp"
 
 namespace incise {
@@ -96,10 +97,10 @@ class CoarseCycle {
     /// definite).
     std::vector<ModeMatrix> group_map;
     std::vector<ModeMatrix> own_inverse;
-    /// The blocks in single precision for the cycle's products (half the bytes; the cycle is a
-    /// preconditioner), block (b, a) the transpose of (a, b) so both products use one
-    /// symmetric matrix.
-    std::vector<SingleModeMatrix> single_blocks;
+    /// The blocks in 8 bits for the cycle's products (quantized_mode_blocks.hpp: the cycle is a
+    /// preconditioner, and the product is bound by memory), block (b, a) the transpose of
+    /// (a, b) so both products use one symmetric matrix.
+    std::vector<QuantizedModeMatrix> quantized_blocks;
     std::vector<int> mirror_slot;  ///< below the top: each slot (a, b)'s mirror (b, a)
     /// The matrix times the groups' modes, K_ag = sum over b in group g of A_ab Q_b, so the
     /// group correction's product reads a few blocks per node: node a's at
@@ -125,7 +126,7 @@ class CoarseCycle {
   void prepare_smoother(std::size_t k);
   /// The top level's scalar pattern (from its slots).
   void build_exact();
-  /// Level k's node a: c - (A y)_a in single precision.
+  /// Level k's node a: c - (A y)_a with the quantized blocks.
   [[nodiscard]] static Modes residual_of(const Level& level, std::size_t a, const Modes& c,
                                          const std::vector<Modes>& y);
   /// The largest eigenvalue of (own blocks' inverses) A on level k, by power iteration.

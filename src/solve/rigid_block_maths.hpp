@@ -17,7 +17,6 @@ namespace incise::coarse {
 constexpr int kModes = 6;
 using Modes = Eigen::Matrix<double, kModes, 1>;            ///< a node's motion in its modes
 using ModeMatrix = Eigen::Matrix<double, kModes, kModes>;  ///< one 6x6 block of a coarse matrix
-using SingleModeMatrix = Eigen::Matrix<float, kModes, kModes>;
 
 /// Orthonormal modes of a span with Gram matrix `gram` (raw coordinates): W with
 /// W^T gram W = I on the kept modes and zero columns for the dropped ones, and its
