@@ -65,7 +65,7 @@ using VertexModes = AggregationCoarseSpace::VertexModes;
 constexpr std::size_t kAggregateGrain = 64;
 /// Vertices per chunk of the restriction's first pass (fixed, so the sums are the same on any
 /// thread count).
-constexpr std::size_t kRestrictChunk = 2048;
+constexpr std::size_t kRestrictChunk = AggregationCoarseSpace::kRestrictionChunk;
 
 /// A displacement field's rigid coordinates: translation (m) and small rotation about a centre:
 /// u(x) = t + w x (x - centre) = [I, -[x - centre]x] (t, w).
@@ -573,9 +573,26 @@ void AggregationCoarseSpace::add_correction(std::span<Vec3> z) const {
   });
 }
 
+void AggregationCoarseSpace::restrict_chunk(std::size_t chunk, std::span<const Vec3> residual) {
+  if (chunk + 1 >= chunk_partial_first_.size()) {
+    return;  // past the vertices aggregated (none, or rows added since)
+  }
+  for (std::size_t p = chunk_partial_first_[chunk]; p != chunk_partial_first_[chunk + 1]; ++p) {
+    partial_sums_[p].setZero();
+  }
+  const std::size_t end = std::min(partial_of_.size(), (chunk + 1) * kRestrictChunk);
+  for (std::size_t v = chunk * kRestrictChunk; v < end; ++v) {
+    const int p = partial_of_[v];
+    if (p >= 0) {
+      Modes& sum = partial_sums_[static_cast<std::size_t>(p)];
+      sum.head<3>() += residual[v];
+      sum.tail<3>() += offset_[v].cross(residual[v]);
+    }
+  }
+}
+
 double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
-  const std::size_t aggregates = members_.size();
-  if (aggregates == 0) {
+  if (members_.empty()) {
     return 0.0;
   }
   // P^T r: P_v^T r_v = W_a^T (r_v, d_v x r_v), summed over each aggregate's members before
@@ -588,20 +605,17 @@ double AggregationCoarseSpace::solve(std::span<const Vec3> residual) {
   const std::size_t chunks = chunk_partial_first_.size() - 1;
   parallel_for(0, chunks, 1, [&](std::size_t first, std::size_t last) {
     for (std::size_t c = first; c != last; ++c) {
-      for (std::size_t p = chunk_partial_first_[c]; p != chunk_partial_first_[c + 1]; ++p) {
-        partial_sums_[p].setZero();
-      }
-      const std::size_t end = std::min(partial_of_.size(), (c + 1) * kRestrictChunk);
-      for (std::size_t v = c * kRestrictChunk; v < end; ++v) {
-        const int p = partial_of_[v];
-        if (p >= 0) {
-          Modes& sum = partial_sums_[static_cast<std::size_t>(p)];
-          sum.head<3>() += residual[v];
-          sum.tail<3>() += offset_[v].cross(residual[v]);
-        }
-      }
+      restrict_chunk(c, residual);
     }
   });
+  return solve_restricted();
+}
+
+double AggregationCoarseSpace::solve_restricted() {
+  const std::size_t aggregates = members_.size();
+  if (aggregates == 0) {
+    return 0.0;
+  }
   const auto restrict_to = [&](std::size_t a) {
     Modes raw = Modes::Zero();
     for (std::size_t k = aggregate_partial_first_[a]; k != aggregate_partial_first_[a + 1]; ++k) {

@@ -22,8 +22,10 @@ namespace {
 
 /// Reductions are summed over chunks of this many vertices, then the chunks in order.
 constexpr std::size_t kChunk = 2048;
-/// Rows per chunk of the fused CG passes (reductions in the same fixed order).
+/// Rows per chunk of the fused CG passes (reductions in the same fixed order); the coarse
+/// restriction's chunks, which the update pass sums.
 constexpr std::size_t kFusedChunk = 1024;
+static_assert(kFusedChunk == AggregationCoarseSpace::kRestrictionChunk);
 /// The tightest tolerance at which the Galerkin start multiplies in single precision: its
 /// start is then within float's rounding, 1e-7 of the solution, a hundredth of the tolerance.
 /// Tighter, a float start would cost CG iterations to undo (0.3 ms a step on the 50k-tet body).
@@ -310,15 +312,16 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
   // passes below; once the whole residual is known, the clusters' blocks and the
   // coarse correction add theirs, and their part of r.z (the coarse one is
   // (P^T r).(A_c^-1 P^T r), so it needs no pass of its own).
-  auto precondition_two_level = [&](bool set_direction) {
+  auto precondition_two_level = [&](bool set_direction, bool restricted) {
     // The clusters and the coarse solve read r and write apart (z on clustered rows; the
     // coarse solution), so they run at once: the coarse solve's factorised solve is
     // sequential and would otherwise leave the other cores idle (its passes run on the workers
     // that the clusters leave free).
     double cluster_sum = 0.0;
     double coarse_sum = 0.0;
-    parallel_invoke([&] { cluster_sum = clusters_->apply_clusters(residual_, preconditioned_); },
-                    [&] { coarse_sum = coarse_->solve(residual_); });
+    parallel_invoke(
+        [&] { cluster_sum = clusters_->apply_clusters(residual_, preconditioned_); },
+        [&] { coarse_sum = restricted ? coarse_->solve_restricted() : coarse_->solve(residual_); });
     const double sum = cluster_sum + coarse_sum;
     coarse_->add_correction(preconditioned_);
     if (set_direction) {
@@ -362,7 +365,7 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
                         : chunked_products(false, x, first_pass);
     from_start_product = false;
     if (two_level) {
-      rz += precondition_two_level(true);
+      rz += precondition_two_level(true, false);
     }
     // The true residual (double products), or on the first pass its estimate.
     stats.relative_residual = std::sqrt(rr) / rhs_norm;
@@ -417,15 +420,23 @@ void LinearizedSystemSolver::fused_conjugate_gradients(std::span<const Vec3> rhs
       }
       const double alpha = rz / curvature;
       const auto update_start = Clock::now();
-      auto [rr_next, rz_next] = chunked([&](std::size_t i, double& sum_rr, double& sum_rz) {
-        x[i] += alpha * direction_[i];
-        residual_[i] -= alpha * product_[i];
-        preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
-        sum_rr += residual_[i].squaredNorm();
-        sum_rz += residual_[i].dot(preconditioned_[i]);
-      });
+      // With two levels, each chunk's part of the coarse restriction P^T r is summed here,
+      // while the chunk's new residual is in cache (a pass of its own read it all again).
+      auto [rr_next, rz_next] = chunked_sums(
+          n, kFusedChunk, [&](std::size_t begin, std::size_t end, double& sum_rr, double& sum_rz) {
+            for (std::size_t i = begin; i < end; ++i) {
+              x[i] += alpha * direction_[i];
+              residual_[i] -= alpha * product_[i];
+              preconditioned_[i].noalias() = diagonal_[i] * residual_[i];
+              sum_rr += residual_[i].squaredNorm();
+              sum_rz += residual_[i].dot(preconditioned_[i]);
+            }
+            if (two_level) {
+              coarse_->restrict_chunk(begin / kFusedChunk, residual_);
+            }
+          });
       if (two_level && std::sqrt(rr_next) / rhs_norm > options_.tolerance) {
-        rz_next += precondition_two_level(false);
+        rz_next += precondition_two_level(false, true);
       }
       stats.seconds_vector_updates += seconds_since(update_start);
       ++iteration;

@@ -88,6 +88,15 @@ class AggregationCoarseSpace {
   /// vertex i is then correction(i). Returns r.(P e), the correction's part of r.z, as
   /// (P^T r).e. Its passes run on the worker threads, the factorised solve on the caller's.
   double solve(std::span<const Vec3> residual);
+  /// Vertices per chunk of the restriction P^T r, whose sums go chunk by chunk in a fixed
+  /// order (the same bits on any thread count).
+  static constexpr std::size_t kRestrictionChunk = 1024;
+  /// The restriction's part from vertices chunk * kRestrictionChunk onwards (one chunk), for
+  /// a caller that has just written that part of r (CG's pass that updates it): chunks may be
+  /// restricted on different threads at once. Then solve_restricted() as solve() would go on.
+  void restrict_chunk(std::size_t chunk, std::span<const Vec3> residual);
+  /// solve() for the residual whose every chunk was given to restrict_chunk().
+  double solve_restricted();
   /// The coarse correction at vertex i (zero for a held vertex).
   [[nodiscard]] Vec3 correction(std::size_t vertex) const {
     const int aggregate = aggregate_of_[vertex];
