@@ -63,9 +63,6 @@ using coarse::OrthonormalModes;
 using VertexModes = AggregationCoarseSpace::VertexModes;
 /// Per task in the coarse solve's passes: aggregates (some 1,500 vertices each).
 constexpr std::size_t kAggregateGrain = 64;
-/// Vertices per chunk of the restriction's first pass (fixed, so the sums are the same on any
-/// thread count).
-constexpr std::size_t kRestrictChunk = AggregationCoarseSpace::kRestrictionChunk;
 
 /// A displacement field's rigid coordinates: translation (m) and small rotation about a centre:
 /// u(x) = t + w x (x - centre) = [I, -[x - centre]x] (t, w).
@@ -289,14 +286,14 @@ void AggregationCoarseSpace::collect_partials() {
   // chunk; each aggregate's partials in chunk order.
   const std::size_t n = aggregate_of_.size();
   const std::size_t aggregates = members_.size();
-  const std::size_t chunks = (n + kRestrictChunk - 1) / kRestrictChunk;
+  const std::size_t chunks = (n + kRestrictionChunk - 1) / kRestrictionChunk;
   partial_of_.resize(n);
   chunk_partial_first_.assign(chunks + 1, 0);
   std::vector<int> partial_aggregate;
   std::vector<std::size_t> last_chunk(aggregates, chunks);
   std::vector<int> last_partial(aggregates, -1);
   for (std::size_t c = 0; c < chunks; ++c) {
-    for (std::size_t i = c * kRestrictChunk; i < std::min(n, (c + 1) * kRestrictChunk); ++i) {
+    for (std::size_t i = c * kRestrictionChunk; i < std::min(n, (c + 1) * kRestrictionChunk); ++i) {
       const int a = aggregate_of_[i];
       if (a < 0) {
         partial_of_[i] = -1;
@@ -580,8 +577,8 @@ void AggregationCoarseSpace::restrict_chunk(std::size_t chunk, std::span<const V
   for (std::size_t p = chunk_partial_first_[chunk]; p != chunk_partial_first_[chunk + 1]; ++p) {
     partial_sums_[p].setZero();
   }
-  const std::size_t end = std::min(partial_of_.size(), (chunk + 1) * kRestrictChunk);
-  for (std::size_t v = chunk * kRestrictChunk; v < end; ++v) {
+  const std::size_t end = std::min(partial_of_.size(), (chunk + 1) * kRestrictionChunk);
+  for (std::size_t v = chunk * kRestrictionChunk; v < end; ++v) {
     const int p = partial_of_[v];
     if (p >= 0) {
       Modes& sum = partial_sums_[static_cast<std::size_t>(p)];
