@@ -216,7 +216,10 @@ class CorotationalFemModel final : public ForceModel,
 
   // Written by the element loops (each element only by its own thread).
   mutable std::vector<CorotatedLinearization> linearization_;  ///< exact or projected tangent
-  mutable std::vector<Mat3> warped_rotations_;  ///< the warped tangent: R per element
+  /// The warped tangent: R per element, kept only by a linearisation without assembly (what
+  /// the matrix-free products read).
+  mutable std::vector<Mat3> warped_rotations_;
+  bool warped_rotations_kept_ = false;  ///< whether the last linearisation kept them
   /// R grad N_a per element (warped tangent: what its assembly reads).
   mutable std::vector<std::array<Vec3, 4>> rotated_gradients_;
   mutable std::vector<Mat3> scaled_stress_;  ///< -w V P per element (N m), gathered per vertex
