@@ -126,10 +126,10 @@ template <typename Prefetch, typename Body>
 void CorotationalFemModel::for_each_incidence_ahead(std::size_t row, std::size_t last,
                                                     const Prefetch& prefetch,
                                                     const Body& body) const {
-  // A row's elements lie scattered through the element arrays, a cache miss or two each where
-  // the loop would wait: their data is asked for kIncidencesAhead incidences before its turn,
-  // from the next row (up to `last`) once this one runs out (BENCHMARKS.md, session 58: the
-  // 384k-tet box's assembly about 6 % shorter and the forces' gather about 9 %).
+  // A row's elements lie scattered through the element arrays, so their loads can miss the
+  // nearest caches: their data is asked for kIncidencesAhead incidences before its turn, from
+  // the next row (up to `last`) once this one runs out (BENCHMARKS.md, session 58: on the
+  // 384k-tet box the assembly about 6 % shorter, the forces with this gather about 9 %).
   const auto incidences = incidences_.row(row);
   const auto next = row + 1 < last ? incidences_.row(row + 1) : std::span<const Incidence>{};
   for (std::size_t k = 0; k < incidences.size(); ++k) {
