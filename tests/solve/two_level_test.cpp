@@ -94,6 +94,7 @@ std::vector<Vec3> random_field(std::size_t n, std::mt19937& random,
 struct HeldLaplacian {
   BlockSparseMatrix matrix;
   std::vector<char> constrained;
+  std::vector<Vec3> positions;  ///< the box's rest positions (m), for the coarse modes
 };
 
 /// laplacian_matrix on a box of cells^3 cells, its z = 0 face (the first (cells + 1)^2
@@ -101,7 +102,10 @@ struct HeldLaplacian {
 HeldLaplacian held_box_laplacian(int cells, std::mt19937& random) {
   BoxGridOptions grid;
   grid.cells = {cells, cells, cells};
-  HeldLaplacian held{laplacian_matrix(make_box_grid(grid), random, {}), {}};
+  const TetMesh box = make_box_grid(grid);
+  HeldLaplacian held{laplacian_matrix(box, random, {}),
+                     {},
+                     {box.rest_positions().begin(), box.rest_positions().end()}};
   held.constrained.assign(held.matrix.rows(), 0);
   const auto face = static_cast<std::ptrdiff_t>((cells + 1) * (cells + 1));
   std::fill(held.constrained.begin(), held.constrained.begin() + face, 1);
@@ -300,7 +304,7 @@ TEST(ClusterJacobi, RegroupsTheClustersAnEditTouchesAsAFreshGroupingWould) {
 /// vertices, and a correction e with P^T A P e = P^T r.
 void check_galerkin_solve(int cells) {
   std::mt19937 random(11);
-  const auto [matrix, constrained] = held_box_laplacian(cells, random);
+  const auto [matrix, constrained, positions] = held_box_laplacian(cells, random);
   AggregationCoarseSpace coarse;
   ASSERT_TRUE(coarse.update(matrix, constrained));
   const auto aggregate_of = coarse.aggregate_of();
@@ -373,13 +377,15 @@ TEST(AggregationCoarseSpace, GroupsLevelAfterLevelByEightUntilOneIsSmallEnoughTo
   // whatever the limit; numbered at random, an aggregate has up to 26 ungrouped neighbours.
   std::mt19937 random(41);
   const TetMesh box = shuffled_box(16, random);
-  HeldLaplacian held{laplacian_matrix(box, random, {}), std::vector<char>(box.vertex_count(), 0)};
+  HeldLaplacian held{laplacian_matrix(box, random, {}),
+                     std::vector<char>(box.vertex_count(), 0),
+                     {box.rest_positions().begin(), box.rest_positions().end()}};
   for (std::size_t v = 0; v < box.vertex_count(); ++v) {
-    held.constrained[v] = box.rest_positions()[v].z() < 1e-9 ? 1 : 0;
+    held.constrained[v] = held.positions[v].z() < 1e-9 ? 1 : 0;
   }
   AggregationCoarseSpace coarse;
   coarse.set_exact_limit(60);
-  ASSERT_TRUE(coarse.update(held.matrix, held.constrained, box.rest_positions()));
+  ASSERT_TRUE(coarse.update(held.matrix, held.constrained, held.positions));
   const std::vector<std::size_t> sizes = coarse.level_sizes();
   ASSERT_EQ(sizes.size(), coarse.group_levels() + 1);
   ASSERT_GE(coarse.group_levels(), 2U) << "aggregates: " << sizes[0];
@@ -417,13 +423,10 @@ TEST(AggregationCoarseSpace, CorrectionThroughLevelsOfGroupsIsSymmetricAndPositi
   // many as the box allows, each above the first solved by two cycles); CG needs the correction
   // to be a symmetric positive definite operator of r: s.B(r) == r.B(s) and r.B(r) > 0.
   std::mt19937 random(5);
-  const auto [matrix, constrained] = held_box_laplacian(6, random);
-  BoxGridOptions grid;
-  grid.cells = {6, 6, 6};
-  const TetMesh box = make_box_grid(grid);
+  const auto [matrix, constrained, positions] = held_box_laplacian(6, random);
   AggregationCoarseSpace coarse;
   coarse.set_exact_limit(0);
-  ASSERT_TRUE(coarse.update(matrix, constrained, box.rest_positions()));
+  ASSERT_TRUE(coarse.update(matrix, constrained, positions));
   ASSERT_GE(coarse.group_levels(), 2U);
   for (int trial = 0; trial < 5; ++trial) {
     const std::vector<Vec3> r = random_field(matrix.rows(), random, constrained);
@@ -449,16 +452,13 @@ TEST(AggregationCoarseSpace, SolveThroughLevelsOfGroupsGivesTheSameBitsWhateverT
   // box is large enough for several tasks in each pass.
   std::mt19937 random(17);
   const HeldLaplacian held = held_box_laplacian(16, random);  // (clang 14: no captured bindings)
-  BoxGridOptions grid;
-  grid.cells = {16, 16, 16};
-  const TetMesh box = make_box_grid(grid);
   const std::vector<Vec3> r = random_field(held.matrix.rows(), random, held.constrained);
   auto solve_on = [&](int threads) {
     const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                     static_cast<std::size_t>(threads));
     AggregationCoarseSpace coarse;
     coarse.set_exact_limit(0);
-    EXPECT_TRUE(coarse.update(held.matrix, held.constrained, box.rest_positions()));
+    EXPECT_TRUE(coarse.update(held.matrix, held.constrained, held.positions));
     EXPECT_GE(coarse.group_levels(), 2U);
     EXPECT_GT(coarse.aggregate_count(), 128U) << "too few aggregates for several tasks";
     const double r_pe = coarse.solve(r);
@@ -478,13 +478,10 @@ TEST(AggregationCoarseSpace, RestrictingChunkByChunkInAnyOrderSolvesAsOneSolveDo
   // CG's update pass restricts each chunk of the residual as it writes it, on whichever thread
   // has the chunk; the solve that follows must be the one solve() gives, to the bit.
   std::mt19937 random(23);
-  const HeldLaplacian held = held_box_laplacian(16, random);  // (clang 14: no captured bindings)
-  BoxGridOptions grid;
-  grid.cells = {16, 16, 16};
-  const TetMesh box = make_box_grid(grid);
+  const HeldLaplacian held = held_box_laplacian(16, random);
   AggregationCoarseSpace coarse;
   coarse.set_exact_limit(0);
-  ASSERT_TRUE(coarse.update(held.matrix, held.constrained, box.rest_positions()));
+  ASSERT_TRUE(coarse.update(held.matrix, held.constrained, held.positions));
   const std::size_t chunks = (held.matrix.rows() + AggregationCoarseSpace::kRestrictionChunk - 1) /
                              AggregationCoarseSpace::kRestrictionChunk;
   ASSERT_GE(chunks, 4U);
@@ -673,11 +670,7 @@ TEST(AggregationCoarseSpace, ReproducesRigidMotionsOfTheFreeVerticesExactly) {
   // where every position lies on one line (each aggregate's rotation about it dropped): then
   // translations and the rotations about other axes still are.
   std::mt19937 random(23);
-  BoxGridOptions grid;
-  grid.cells = {4, 4, 4};
-  const TetMesh box = make_box_grid(grid);
-  const auto [matrix, constrained] = held_box_laplacian(4, random);
-  std::vector<Vec3> positions(box.rest_positions().begin(), box.rest_positions().end());
+  const auto [matrix, constrained, positions] = held_box_laplacian(4, random);
   std::vector<Vec3> on_a_line(positions.size());
   for (std::size_t v = 0; v < positions.size(); ++v) {
     on_a_line[v] = Vec3(positions[v].dot(Vec3(1.0, 0.37, 0.11)), 0.0, 0.0);
@@ -726,16 +719,13 @@ TEST(AggregationCoarseSpace, SolveThroughLevelsOfGroupsComesCloseToTheExactCoars
   // correction before that (each aggregate's block plus the top level) left 0.49.
   std::mt19937 random(31);
   const HeldLaplacian held = held_box_laplacian(14, random);  // (clang 14: no captured bindings)
-  BoxGridOptions grid;
-  grid.cells = {14, 14, 14};
-  const TetMesh box = make_box_grid(grid);
   AggregationCoarseSpace exact;
   exact.set_exact_limit(1000000);
-  ASSERT_TRUE(exact.update(held.matrix, held.constrained, box.rest_positions()));
+  ASSERT_TRUE(exact.update(held.matrix, held.constrained, held.positions));
   ASSERT_FALSE((exact.group_levels() > 0));
   AggregationCoarseSpace cycle;
   cycle.set_exact_limit(0);
-  ASSERT_TRUE(cycle.update(held.matrix, held.constrained, box.rest_positions()));
+  ASSERT_TRUE(cycle.update(held.matrix, held.constrained, held.positions));
   ASSERT_GE(cycle.group_levels(), 2U);
   double worst = 0.0;
   for (int trial = 0; trial < 4; ++trial) {
