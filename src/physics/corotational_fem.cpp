@@ -434,13 +434,17 @@ void CorotationalFemModel::resize_linearization() {
   }
 }
 
+void CorotationalFemModel::expect_warped_rotations_kept() const {
+  INCISE_ASSERT(warped_rotations_kept_,
+                "the warped tangent's rotations are kept only by a linearisation without assembly");
+}
+
 CorotatedLinearization CorotationalFemModel::linearization_of(TetId tet) const {
   const auto t = static_cast<std::size_t>(tet);
   if (parameters_.tangent != TangentKind::kWarped) {
     return linearization_[t];
   }
-  INCISE_ASSERT(warped_rotations_kept_,
-                "the warped tangent's rotations are kept only by a linearisation without assembly");
+  expect_warped_rotations_kept();
   CorotatedLinearization linearization;
   linearization.warped = true;
   linearization.rotation = warped_rotations_[t];
@@ -535,9 +539,9 @@ void CorotationalFemModel::add_linearized_product(double a, double b, std::span<
     // Per element dP (into scaled_stress_, free between force evaluations), then per vertex.
     const TetMesh& mesh = *mesh_;
     const bool warped = parameters_.tangent == TangentKind::kWarped;
-    INCISE_ASSERT(
-        !warped || warped_rotations_kept_,
-        "the warped tangent's rotations are kept only by a linearisation without assembly");
+    if (warped) {
+      expect_warped_rotations_kept();
+    }
     resize_for_edits(scaled_stress_, mesh.tet_count());
     parallel_for(0, mesh.tet_count(), 256, [&](std::size_t first, std::size_t last) {
       for (std::size_t t = first; t != last; ++t) {

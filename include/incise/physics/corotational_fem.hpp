@@ -173,6 +173,9 @@ class CorotationalFemModel final : public ForceModel,
                          bool stress, bool linearize) const;
   /// Sizes the tangent data for the mesh's elements.
   void resize_linearization();
+  /// Asserts that the last linearisation kept the warped tangent's rotations (matrix-free
+  /// products and diagonals read them; a linearisation with assembly does not keep them).
+  void expect_warped_rotations_kept() const;
   /// An element's tangent as the one-element functions take it.
   [[nodiscard]] CorotatedLinearization linearization_of(TetId tet) const;
   void assemble_linearization_matrix();
